@@ -1,0 +1,154 @@
+"""Noise model of the residual: per-axis AR(p) colour and cross-axis correlation.
+
+MEMS noise is coloured by the sensor's digital low-pass filter, which shrinks
+the effective number of independent samples; a covariance that assumed white
+noise would be too optimistic.  We model each axis as an autoregressive process
+
+    e_n = x_n + a₁ x_{n−1} + … + a_p x_{n−p}      (white innovations e)
+
+with p chosen by AIC, and the innovations of the three axes as jointly Gaussian
+with covariance Σ_e.  Whitening (FIR filter A(z) per axis, then L⁻¹ with
+Σ_e = L Lᵀ) turns the problem into ordinary least squares with unit-variance
+errors: the ML fit of the whitened problem is the generalised-least-squares
+estimate and (J̃ᵀJ̃)⁻¹ its covariance (the Cramér–Rao bound for Gaussian noise).
+The first p samples of each filtered series are dropped (conditional likelihood).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg, signal
+
+
+@dataclass(frozen=True, eq=False)
+class NoiseModel:
+    """Per-axis AR whitening filters and the innovation covariance."""
+
+    ar_polynomials: tuple[np.ndarray, np.ndarray, np.ndarray]  # [1, a₁, …] per axis
+    innovation_cov: np.ndarray  # (3, 3)
+
+    def __post_init__(self) -> None:
+        polys = tuple(np.asarray(a, dtype=float) for a in self.ar_polynomials)
+        if len(polys) != 3 or any(a[0] != 1.0 for a in polys):
+            raise ValueError("need three AR polynomials with leading coefficient 1")
+        cov = np.asarray(self.innovation_cov, dtype=float)
+        object.__setattr__(self, "ar_polynomials", polys)
+        object.__setattr__(self, "innovation_cov", cov)
+        object.__setattr__(self, "_chol", np.linalg.cholesky(cov))
+
+    @classmethod
+    def white(cls, std_mps2) -> NoiseModel:
+        """Independent white noise with the given std per axis."""
+        std = np.broadcast_to(np.asarray(std_mps2, dtype=float), (3,))
+        return cls((np.ones(1), np.ones(1), np.ones(1)), np.diag(std**2))
+
+    @classmethod
+    def from_ar(cls, ar_polynomial: np.ndarray, innovation_std_mps2) -> NoiseModel:
+        """The same AR polynomial on each axis, independent innovations."""
+        a = np.asarray(ar_polynomial, dtype=float)
+        std = np.broadcast_to(np.asarray(innovation_std_mps2, dtype=float), (3,))
+        return cls((a, a, a), np.diag(std**2))
+
+    @classmethod
+    def estimate(cls, residual_mps2: np.ndarray, max_order: int = 10) -> NoiseModel:
+        """Fit AR(p) per axis (Yule–Walker, p by AIC) and the innovation covariance."""
+        r = np.asarray(residual_mps2, dtype=float)
+        r = r - r.mean(axis=0)
+        polys = tuple(_yule_walker_aic(r[:, i], max_order) for i in range(3))
+        p = max(a.size - 1 for a in polys)
+        innov = np.column_stack([signal.lfilter(polys[i], [1.0], r[:, i]) for i in range(3)])[p:]
+        cov = innov.T @ innov / max(innov.shape[0], 1)
+        # Guard against a degenerate axis (e.g. a constant channel).
+        cov += np.eye(3) * 1e-18 * max(np.trace(cov), 1e-30)
+        return cls(polys, cov)
+
+    @property
+    def order(self) -> int:
+        """Largest AR order over the axes."""
+        return max(a.size - 1 for a in self.ar_polynomials)
+
+    @property
+    def marginal_std_mps2(self) -> np.ndarray:
+        """Std of the noise itself per axis (what a datasheet would quote)."""
+        return np.sqrt(np.diag(self.innovation_cov) * [_ar_gain(a) for a in self.ar_polynomials])
+
+    @property
+    def long_run_std_mps2(self) -> np.ndarray:
+        """σ_e/|A(1)| per axis: √(2π·PSD at 0), the std that matters for slow signals."""
+        return np.sqrt(np.diag(self.innovation_cov)) / np.abs([a.sum() for a in self.ar_polynomials])
+
+    @property
+    def effective_sample_fraction(self) -> np.ndarray:
+        """(marginal / long-run variance) per axis: < 1 when low-pass noise shrinks the sample."""
+        return (self.marginal_std_mps2 / self.long_run_std_mps2) ** 2
+
+    @property
+    def cross_correlation(self) -> np.ndarray:
+        """Correlation matrix of the innovations across axes."""
+        d = np.sqrt(np.diag(self.innovation_cov))
+        return self.innovation_cov / np.outer(d, d)
+
+    def whiten(self, residual: np.ndarray, jacobian: np.ndarray | None = None):
+        """Whitened residual (M, 3) and Jacobian (M, 3, P): unit-variance, uncorrelated errors."""
+        p = self.order
+        r = np.empty_like(residual)
+        for i, a in enumerate(self.ar_polynomials):
+            r[:, i] = residual[:, i] if a.size == 1 else signal.lfilter(a, [1.0], residual[:, i])
+        r = linalg.solve_triangular(self._chol, r[p:].T, lower=True).T
+        if jacobian is None:
+            return r, None
+        j = np.empty_like(jacobian)
+        for i, a in enumerate(self.ar_polynomials):
+            j[:, i, :] = jacobian[:, i, :] if a.size == 1 else signal.lfilter(a, [1.0], jacobian[:, i, :], axis=0)
+        j = j[p:]
+        # L⁻¹ across the axis dimension for every sample and column.
+        inv_chol = linalg.solve_triangular(self._chol, np.eye(3), lower=True)
+        j = np.einsum("ij,njp->nip", inv_chol, j)
+        return r, j
+
+    def to_dict(self) -> dict:
+        """Summary for reports."""
+        return {
+            "model": "AR per axis + correlated innovations",
+            "ar_order": [int(a.size - 1) for a in self.ar_polynomials],
+            "ar_polynomials": [a.tolist() for a in self.ar_polynomials],
+            "marginal_std_mps2": self.marginal_std_mps2.tolist(),
+            "long_run_std_mps2": self.long_run_std_mps2.tolist(),
+            "effective_sample_fraction": self.effective_sample_fraction.tolist(),
+            "innovation_correlation": self.cross_correlation.tolist(),
+        }
+
+
+def _ar_gain(a: np.ndarray) -> float:
+    if a.size == 1:
+        return 1.0
+    impulse = np.zeros(4096)
+    impulse[0] = 1.0
+    h = signal.lfilter([1.0], a, impulse)
+    return float(h @ h)
+
+
+def _yule_walker_aic(x: np.ndarray, max_order: int) -> np.ndarray:
+    """AR polynomial [1, a₁…a_p] with p ≤ max_order minimising AIC (Levinson–Durbin)."""
+    n = x.size
+    nfft = 1 << int(np.ceil(np.log2(2 * n)))
+    spec = np.fft.rfft(x, nfft)
+    acov = np.fft.irfft(spec * np.conj(spec), nfft)[: max_order + 1] / n
+    if acov[0] <= 0:
+        return np.ones(1)
+    best_a, best_aic = np.ones(1), n * np.log(acov[0])
+    a = np.ones(1)
+    err = acov[0]
+    for k in range(1, max_order + 1):
+        # Levinson–Durbin recursion for the order-k predictor.
+        refl = -(acov[k] + a[1:] @ acov[k - 1 : 0 : -1]) / err
+        a = np.concatenate([a, [0.0]]) + refl * np.concatenate([a, [0.0]])[::-1]
+        err *= 1.0 - refl**2
+        if err <= 0:
+            break
+        aic = n * np.log(err) + 2 * k
+        if aic < best_aic:
+            best_a, best_aic = a.copy(), aic
+    return best_a

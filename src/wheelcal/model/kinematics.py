@@ -1,0 +1,55 @@
+"""Wheel kinematics: phase ϑ(t), rate ω(t) = dϑ/dt and ω̇(t) of eq. (2).
+
+The spin is a polynomial about the window centre; its derivatives with respect
+to the coefficient vector p = (ϑ₀, ω₀, …, ω_K) are exact and cheap:
+
+    ∂ϑ/∂ϑ₀ = 1,  ∂ϑ/∂ω_k = t^(k+1)/(k+1),  ∂ω/∂ω_k = t^k,  ∂ω̇/∂ω_k = k t^(k−1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.model.parameters import SpinParams
+
+
+@dataclass(frozen=True, eq=False)
+class Kinematics:
+    """ϑ, ω, ω̇ at each sample time, optionally with derivatives w.r.t. p.
+
+    The ``d_*`` arrays have shape (N, K + 2) with columns (ϑ₀, ω₀, …, ω_K).
+    """
+
+    theta_rad: np.ndarray
+    omega_radps: np.ndarray
+    omega_dot_radps2: np.ndarray
+    d_theta: np.ndarray | None = None
+    d_omega: np.ndarray | None = None
+    d_omega_dot: np.ndarray | None = None
+
+
+def spin_kinematics(spin: SpinParams, t_s: np.ndarray, derivatives: bool = False) -> Kinematics:
+    """Evaluate eq. (2) at times ``t_s`` (seconds from the window centre)."""
+    t = np.asarray(t_s, dtype=float)
+    degree = spin.degree
+    powers = t[:, None] ** np.arange(degree + 2)  # t^0 … t^(K+1)
+    k = np.arange(degree + 1)
+    omega_coef = spin.omega_radps
+    # Eq. (2): ϑ = ϑ₀ + Σ ω_k t^(k+1)/(k+1), ω = Σ ω_k t^k, ω̇ = Σ k ω_k t^(k−1).
+    theta = spin.theta0_rad + powers[:, 1:] @ (omega_coef / (k + 1))
+    omega = powers[:, :-1] @ omega_coef
+    omega_dot = powers[:, :-2] @ (omega_coef[1:] * k[1:]) if degree >= 1 else np.zeros_like(t)
+    if not derivatives:
+        return Kinematics(theta, omega, omega_dot)
+    n = t.size
+    d_theta = np.empty((n, degree + 2))
+    d_theta[:, 0] = 1.0
+    d_theta[:, 1:] = powers[:, 1:] / (k + 1)
+    d_omega = np.zeros((n, degree + 2))
+    d_omega[:, 1:] = powers[:, :-1]
+    d_omega_dot = np.zeros((n, degree + 2))
+    if degree >= 1:
+        d_omega_dot[:, 2:] = powers[:, : degree] * k[1:]
+    return Kinematics(theta, omega, omega_dot, d_theta, d_omega, d_omega_dot)

@@ -1,0 +1,117 @@
+"""The typed recording that sits between I/O and estimation.
+
+A :class:`Recording` is validated once, at construction: strictly increasing,
+finite times (s, relative to ``epoch_unix_ns``), finite samples (N, 3) in m/s²,
+and the session facts the estimator needs (:class:`SessionInfo`).  Readers
+repair what can be repaired (duplicate stamps, NaNs, clipped samples) *before*
+building one and record what they did in ``notes``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+
+DEFAULT_RADIUS_STD_M = 1e-3
+
+
+class RecordingError(ValueError):
+    """A recording that cannot be calibrated, with the reason in words."""
+
+
+@dataclass(frozen=True)
+class SessionInfo:
+    """Facts about a session that the data cannot tell (CONTRACT: ``wheelcal.session``)."""
+
+    radius_m: float | None = None
+    radius_std_m: float = DEFAULT_RADIUS_STD_M
+    sensor_id: str = ""
+    mounting_id: str = ""
+    gravity_mps2: float | None = None
+    full_scale_g: float | None = None
+    extra: tuple[tuple[str, str], ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.radius_m is not None and not (np.isfinite(self.radius_m) and self.radius_m > 0):
+            raise RecordingError(f"radius_m must be a positive number of metres, got {self.radius_m}")
+        if not (np.isfinite(self.radius_std_m) and self.radius_std_m >= 0):
+            raise RecordingError(f"radius_std_m must be >= 0, got {self.radius_std_m}")
+        if self.gravity_mps2 is not None and not (9.7 < self.gravity_mps2 < 9.9):
+            raise RecordingError(
+                f"gravity_mps2 = {self.gravity_mps2} is not a value of g on Earth (9.7–9.9 m/s²)"
+            )
+
+    @property
+    def gravity_or_standard_mps2(self) -> float:
+        """Local gravity if the session gives it, else standard gravity."""
+        return STANDARD_GRAVITY_MPS2 if self.gravity_mps2 is None else float(self.gravity_mps2)
+
+    def merged(self, **overrides) -> SessionInfo:
+        """A copy where every override that is not None replaces the stored value."""
+        return replace(self, **{k: v for k, v in overrides.items() if v is not None})
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """Accelerometer samples of one session, in SI units."""
+
+    time_s: np.ndarray
+    accel_mps2: np.ndarray
+    info: SessionInfo = field(default_factory=SessionInfo)
+    epoch_unix_ns: int = 0
+    source: str = "<memory>"
+    topic: str = ""
+    notes: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        t = np.array(self.time_s, dtype=float).reshape(-1)
+        a = np.array(self.accel_mps2, dtype=float)
+        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] != t.size:
+            raise RecordingError(
+                f"{self.source}: need N times and (N, 3) samples, got {t.shape} and {a.shape}"
+            )
+        if t.size < 2:
+            raise RecordingError(f"{self.source}: fewer than two samples")
+        if not np.all(np.isfinite(t)):
+            raise RecordingError(f"{self.source}: non-finite timestamps")
+        if not np.all(np.diff(t) > 0):
+            raise RecordingError(f"{self.source}: timestamps are not strictly increasing")
+        if not np.all(np.isfinite(a)):
+            raise RecordingError(f"{self.source}: non-finite samples (NaN or inf)")
+        t.setflags(write=False)
+        a.setflags(write=False)
+        object.__setattr__(self, "time_s", t)
+        object.__setattr__(self, "accel_mps2", a)
+        object.__setattr__(self, "epoch_unix_ns", int(self.epoch_unix_ns))
+        object.__setattr__(self, "notes", tuple(self.notes))
+
+    @property
+    def samples(self) -> int:
+        """Number of samples."""
+        return self.time_s.size
+
+    @property
+    def duration_s(self) -> float:
+        """Time from first to last sample."""
+        return float(self.time_s[-1] - self.time_s[0])
+
+    @property
+    def rate_hz(self) -> float:
+        """Median sampling rate."""
+        return float(1.0 / np.median(np.diff(self.time_s)))
+
+    def window(self, start_s: float, end_s: float) -> Recording:
+        """The samples with start_s <= t <= end_s (times keep their epoch)."""
+        keep = (self.time_s >= start_s) & (self.time_s <= end_s)
+        if keep.sum() < 2:
+            raise RecordingError(
+                f"{self.source}: window [{start_s:.3f}, {end_s:.3f}] s holds fewer than two samples"
+            )
+        return replace(self, time_s=self.time_s[keep], accel_mps2=self.accel_mps2[keep])
+
+    def with_notes(self, *notes: str) -> Recording:
+        """A copy with more notes appended."""
+        return replace(self, notes=self.notes + tuple(notes))

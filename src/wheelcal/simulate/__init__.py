@@ -1,0 +1,19 @@
+"""Simulated recordings with known truth (speaks the model's parameter types)."""
+
+from wheelcal.simulate.noise import NoiseSpec, Quantiser
+from wheelcal.simulate.presets import PRESETS, hand_spin, preset, random_setup, table1, table2
+from wheelcal.simulate.simulator import Scenario, SimulatedSession, simulate
+
+__all__ = [
+    "PRESETS",
+    "NoiseSpec",
+    "Quantiser",
+    "Scenario",
+    "SimulatedSession",
+    "hand_spin",
+    "preset",
+    "random_setup",
+    "simulate",
+    "table1",
+    "table2",
+]
