@@ -36,7 +36,9 @@ class SessionInfo:
 
     def __post_init__(self) -> None:
         if self.radius_m is not None and not (np.isfinite(self.radius_m) and self.radius_m > 0):
-            raise RecordingError(f"radius_m must be a positive number of metres, got {self.radius_m}")
+            raise RecordingError(
+                f"radius_m must be a positive number of metres, got {self.radius_m}"
+            )
         if not (np.isfinite(self.radius_std_m) and self.radius_std_m >= 0):
             raise RecordingError(f"radius_std_m must be >= 0, got {self.radius_std_m}")
         if self.gravity_mps2 is not None and not (9.7 < self.gravity_mps2 < 9.9):

@@ -77,7 +77,9 @@ class NoiseModel:
     @property
     def long_run_std_mps2(self) -> np.ndarray:
         """σ_e/|A(1)| per axis: √(2π·PSD at 0), the std that matters for slow signals."""
-        return np.sqrt(np.diag(self.innovation_cov)) / np.abs([a.sum() for a in self.ar_polynomials])
+        return np.sqrt(np.diag(self.innovation_cov)) / np.abs(
+            [a.sum() for a in self.ar_polynomials]
+        )
 
     @property
     def effective_sample_fraction(self) -> np.ndarray:
@@ -101,7 +103,11 @@ class NoiseModel:
             return r, None
         j = np.empty_like(jacobian)
         for i, a in enumerate(self.ar_polynomials):
-            j[:, i, :] = jacobian[:, i, :] if a.size == 1 else signal.lfilter(a, [1.0], jacobian[:, i, :], axis=0)
+            j[:, i, :] = (
+                jacobian[:, i, :]
+                if a.size == 1
+                else signal.lfilter(a, [1.0], jacobian[:, i, :], axis=0)
+            )
         j = j[p:]
         # L⁻¹ across the axis dimension for every sample and column.
         inv_chol = linalg.solve_triangular(self._chol, np.eye(3), lower=True)

@@ -30,7 +30,9 @@ class BenchForce:
     g_cos_tilt: float
 
 
-def bench_force(kin: Kinematics, tilt_rad: float, radius_m: float, gravity_mps2: float) -> BenchForce:
+def bench_force(
+    kin: Kinematics, tilt_rad: float, radius_m: float, gravity_mps2: float
+) -> BenchForce:
     """Evaluate eq. (1)."""
     s, c = np.sin(kin.theta_rad), np.cos(kin.theta_rad)
     g_sin = gravity_mps2 * np.sin(tilt_rad)

@@ -74,9 +74,10 @@ def evaluate(
 
     # Spin coefficients through ϑ, ω, ω̇ (only a_X and a_Y depend on them).
     r = params.bench.radius_m
-    dax = -force.g_sin_tilt * force.sin_theta[:, None] * kin.d_theta + 2 * r * kin.omega_radps[
-        :, None
-    ] * kin.d_omega
+    dax = (
+        -force.g_sin_tilt * force.sin_theta[:, None] * kin.d_theta
+        + 2 * r * kin.omega_radps[:, None] * kin.d_omega
+    )
     day = force.g_sin_tilt * force.cos_theta[:, None] * kin.d_theta + r * kin.d_omega_dot
     da_spin = np.zeros((n, 3, dax.shape[1]))
     da_spin[:, 0, :] = dax
@@ -100,7 +101,9 @@ def evaluate(
     return ModelOutput(predicted, jac, kin, force, sensed)
 
 
-def predict(params: CalibrationParams, t_s: np.ndarray, layout: ParameterLayout | None = None) -> np.ndarray:
+def predict(
+    params: CalibrationParams, t_s: np.ndarray, layout: ParameterLayout | None = None
+) -> np.ndarray:
     """v(t) of eq. (6), shape (N, 3), in m/s²."""
     return evaluate(params, t_s, layout).predicted_mps2
 

@@ -51,5 +51,5 @@ def spin_kinematics(spin: SpinParams, t_s: np.ndarray, derivatives: bool = False
     d_omega[:, 1:] = powers[:, :-1]
     d_omega_dot = np.zeros((n, degree + 2))
     if degree >= 1:
-        d_omega_dot[:, 2:] = powers[:, : degree] * k[1:]
+        d_omega_dot[:, 2:] = powers[:, :degree] * k[1:]
     return Kinematics(theta, omega, omega_dot, d_theta, d_omega, d_omega_dot)

@@ -75,7 +75,9 @@ class SpinParams:
         If this object describes ϑ(t), the result describes ϑ'(t') = ϑ(t' + dt_s),
         e.g. ``shifted(45.0)`` turns a start-origin 90 s profile into centre time.
         """
-        coeffs = np.concatenate([[self.theta0_rad], self.omega_radps / np.arange(1, self.degree + 2)])
+        coeffs = np.concatenate(
+            [[self.theta0_rad], self.omega_radps / np.arange(1, self.degree + 2)]
+        )
         # Taylor-shift the phase polynomial: p(t' + dt) expanded in t'.
         shifted = np.polynomial.Polynomial(coeffs)(np.polynomial.Polynomial([dt_s, 1.0])).coef
         shifted = np.pad(shifted, (0, coeffs.size - shifted.size))
@@ -86,7 +88,9 @@ class SpinParams:
     def to_dict(self) -> dict[str, float]:
         """Contract keys: theta0_rad, omega0_radps, omega1_radps2, …."""
         out = {"theta0_rad": self.theta0_rad}
-        out.update(zip(spin_coefficient_names(self.degree), map(float, self.omega_radps), strict=True))
+        out.update(
+            zip(spin_coefficient_names(self.degree), map(float, self.omega_radps), strict=True)
+        )
         return out
 
 

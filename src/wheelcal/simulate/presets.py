@@ -54,7 +54,9 @@ def table1(noise: NoiseSpec | None = None, rng: np.random.Generator | None = Non
         ),
         sensor=SensorParams(offset_mps2=TABLE1_OFFSET_MPS2, gain=TABLE1_GAIN),
     )
-    return Scenario(truth=truth, duration_s=TABLE1_DURATION_S, rate_hz=200.0, noise=noise or NoiseSpec(0.08))
+    return Scenario(
+        truth=truth, duration_s=TABLE1_DURATION_S, rate_hz=200.0, noise=noise or NoiseSpec(0.08)
+    )
 
 
 def hand_spin(
@@ -129,11 +131,11 @@ def random_setup(
     truth = CalibrationParams(
         spin=hand_spin(rng, duration, start_radps=(6.0, 14.0)),
         bench=BenchParams(
-            tilt_rad=np.deg2rad(rng.uniform(10.0, 85.0)), radius_m=rng.uniform(0.15, 0.35), misalignment=rot
+            tilt_rad=np.deg2rad(rng.uniform(10.0, 85.0)),
+            radius_m=rng.uniform(0.15, 0.35),
+            misalignment=rot,
         ),
-        sensor=SensorParams(
-            offset_mps2=rng.uniform(-0.5, 0.5, 3), gain=rng.uniform(0.95, 1.05, 3)
-        ),
+        sensor=SensorParams(offset_mps2=rng.uniform(-0.5, 0.5, 3), gain=rng.uniform(0.95, 1.05, 3)),
     )
     return Scenario(
         truth=truth,
@@ -146,7 +148,9 @@ def random_setup(
 PRESETS: dict[str, Callable[..., Scenario]] = {"table1": table1, "table2": table2}
 
 
-def preset(name: str, noise: NoiseSpec | None = None, rng: np.random.Generator | None = None) -> Scenario:
+def preset(
+    name: str, noise: NoiseSpec | None = None, rng: np.random.Generator | None = None
+) -> Scenario:
     """A named scenario: ``table1`` or ``table2``."""
     try:
         factory = PRESETS[name]

@@ -38,13 +38,11 @@ class Scenario:
         if not (self.duration_s > 0 and self.rate_hz > 0):
             raise ValueError("duration_s and rate_hz must be positive")
         if self.info.radius_m is None:
-            object.__setattr__(
-                self, "info", self.info.merged(radius_m=self.truth.bench.radius_m)
-            )
+            object.__setattr__(self, "info", self.info.merged(radius_m=self.truth.bench.radius_m))
 
     def times_s(self) -> np.ndarray:
         """Sample times from 0 to ``duration_s`` inclusive."""
-        n = int(round(self.duration_s * self.rate_hz)) + 1
+        n = round(self.duration_s * self.rate_hz) + 1
         return np.arange(n) / self.rate_hz
 
     def centred_times_s(self) -> np.ndarray:
@@ -82,4 +80,6 @@ def simulate(
         epoch_unix_ns=epoch_unix_ns,
         source=source,
     )
-    return SimulatedSession(recording=recording, truth=scenario.truth, clean_mps2=clean, scenario=scenario)
+    return SimulatedSession(
+        recording=recording, truth=scenario.truth, clean_mps2=clean, scenario=scenario
+    )
