@@ -28,8 +28,8 @@ class LMOutcome:
     """Where the iterations ended and why."""
 
     params: CalibrationParams
-    residual: np.ndarray  # whitened, (M, 3)
-    jacobian: np.ndarray  # whitened, (M, 3, P)
+    residual: np.ndarray  # whitened, (3, M)
+    jacobian: np.ndarray  # whitened, (P, 3, M)
     cost: float
     iterations: int
     converged: bool
@@ -42,23 +42,26 @@ def levenberg_marquardt(
     layout: ParameterLayout,
     max_iterations: int = 50,
     tol: float = 1e-6,
+    initial_damping: float = 1e-3,
 ) -> LMOutcome:
     """Minimise ‖residual_fn(params)‖² from ``params0``.
 
-    ``residual_fn(params, want_jacobian)`` returns the whitened residual (M, 3)
-    and, when asked, its Jacobian (M, 3, P) in ``layout`` order.
+    ``residual_fn(params, want_jacobian)`` returns the whitened residual (3, M)
+    and, when asked, its transposed Jacobian (P, 3, M) in ``layout`` order.
+    ``initial_damping`` is λ relative to the scaled diagonal: small for a warm
+    start (Gauss–Newton steps), larger far from the optimum.
     """
     params = params0
     r, j = residual_fn(params, True)
     cost = float(np.sum(r * r))
-    lam = 1e-3
+    lam = initial_damping
     message = "maximum iterations reached"
     converged = False
     iteration = 0
     for iteration in range(1, max_iterations + 1):
-        jf = j.reshape(-1, j.shape[-1])
-        a = jf.T @ jf
-        g = jf.T @ r.reshape(-1)
+        jt = j.reshape(j.shape[0], -1)
+        a = jt @ jt.T
+        g = jt @ r.reshape(-1)
         scale = np.sqrt(np.maximum(np.diag(a), 1e-300))
         a_s = a / np.outer(scale, scale)
         g_s = g / scale

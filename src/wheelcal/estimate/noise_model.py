@@ -36,7 +36,9 @@ class NoiseModel:
         cov = np.asarray(self.innovation_cov, dtype=float)
         object.__setattr__(self, "ar_polynomials", polys)
         object.__setattr__(self, "innovation_cov", cov)
-        object.__setattr__(self, "_chol", np.linalg.cholesky(cov))
+        chol = np.linalg.cholesky(cov)
+        object.__setattr__(self, "_inv_chol", linalg.solve_triangular(chol, np.eye(3), lower=True))
+        object.__setattr__(self, "_diagonal", bool(np.all(cov == np.diag(np.diag(cov)))))
 
     @classmethod
     def white(cls, std_mps2) -> NoiseModel:
@@ -93,25 +95,32 @@ class NoiseModel:
         return self.innovation_cov / np.outer(d, d)
 
     def whiten(self, residual: np.ndarray, jacobian: np.ndarray | None = None):
-        """Whitened residual (M, 3) and Jacobian (M, 3, P): unit-variance, uncorrelated errors."""
+        """Whiten a residual (N, 3) and optionally a Jacobian (P, 3, N).
+
+        Returns ``(r, j)`` with r of shape (3, M) and j of shape (P, 3, M),
+        M = N − p: unit-variance, uncorrelated errors, so the Fisher matrix is
+        ``j.reshape(P, -1) @ j.reshape(P, -1).T``.
+        """
         p = self.order
-        r = np.empty_like(residual)
+        inv_chol = self._inv_chol
+        r = np.empty((3, residual.shape[0] - p))
         for i, a in enumerate(self.ar_polynomials):
-            r[:, i] = residual[:, i] if a.size == 1 else signal.lfilter(a, [1.0], residual[:, i])
-        r = linalg.solve_triangular(self._chol, r[p:].T, lower=True).T
+            col = residual[:, i]
+            r[i] = col[p:] if a.size == 1 else signal.lfilter(a, [1.0], col)[p:]
+        r = inv_chol @ r
         if jacobian is None:
             return r, None
-        j = np.empty_like(jacobian)
+        size, _, n = jacobian.shape
+        if p == 0:  # white: one pass, L⁻¹ across axes
+            return r, np.matmul(inv_chol, jacobian)
+        j = np.empty((size, 3, n - p))
         for i, a in enumerate(self.ar_polynomials):
-            j[:, i, :] = (
-                jacobian[:, i, :]
-                if a.size == 1
-                else signal.lfilter(a, [1.0], jacobian[:, i, :], axis=0)
-            )
-        j = j[p:]
-        # L⁻¹ across the axis dimension for every sample and column.
-        inv_chol = linalg.solve_triangular(self._chol, np.eye(3), lower=True)
-        j = np.einsum("ij,njp->nip", inv_chol, j)
+            rows = jacobian[:, i, :]
+            j[:, i, :] = rows[:, p:] if a.size == 1 else signal.lfilter(a, [1.0], rows)[:, p:]
+        if self._diagonal:
+            j *= np.diag(inv_chol)[None, :, None]
+        else:
+            j = np.matmul(inv_chol, j)  # L⁻¹ across axes, one (3,3)@(3,M) per parameter
         return r, j
 
     def to_dict(self) -> dict:
@@ -139,9 +148,8 @@ def _ar_gain(a: np.ndarray) -> float:
 def _yule_walker_aic(x: np.ndarray, max_order: int) -> np.ndarray:
     """AR polynomial [1, a₁…a_p] with p ≤ max_order minimising AIC (Levinson–Durbin)."""
     n = x.size
-    nfft = 1 << int(np.ceil(np.log2(2 * n)))
-    spec = np.fft.rfft(x, nfft)
-    acov = np.fft.irfft(spec * np.conj(spec), nfft)[: max_order + 1] / n
+    # Biased autocovariance for the few lags needed (direct sums beat an FFT here).
+    acov = np.array([x[: n - k] @ x[k:] for k in range(max_order + 1)]) / n
     if acov[0] <= 0:
         return np.ones(1)
     best_a, best_aic = np.ones(1), n * np.log(acov[0])

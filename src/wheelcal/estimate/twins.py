@@ -75,7 +75,12 @@ def _with(
 
 
 def to_contract_frame(params: CalibrationParams) -> CalibrationParams:
-    """The same model with α ∈ [0, π/2] and ϑ₀ ∈ (−π, π] (no change to v(t))."""
+    """The same model with α ∈ [0, π/2] and ϑ₀ ∈ (−π, π] (no change to v(t)).
+
+    Returns ``params`` itself when it is already in that form.
+    """
+    if 0.0 <= params.bench.tilt_rad <= np.pi / 2 and -np.pi < params.spin.theta0_rad <= np.pi:
+        return params
     alpha = wrap_angle(params.bench.tilt_rad)
     spin = params.spin
     if alpha < 0:  # sin(−α)cosϑ = sin(α)cos(ϑ+π): move the sign into the phase

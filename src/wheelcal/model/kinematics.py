@@ -19,7 +19,7 @@ from wheelcal.model.parameters import SpinParams
 class Kinematics:
     """ϑ, ω, ω̇ at each sample time, optionally with derivatives w.r.t. p.
 
-    The ``d_*`` arrays have shape (N, K + 2) with columns (ϑ₀, ω₀, …, ω_K).
+    The ``d_*`` arrays have shape (K + 2, N), rows (ϑ₀, ω₀, …, ω_K).
     """
 
     theta_rad: np.ndarray
@@ -34,22 +34,24 @@ def spin_kinematics(spin: SpinParams, t_s: np.ndarray, derivatives: bool = False
     """Evaluate eq. (2) at times ``t_s`` (seconds from the window centre)."""
     t = np.asarray(t_s, dtype=float)
     degree = spin.degree
-    powers = t[:, None] ** np.arange(degree + 2)  # t^0 … t^(K+1)
+    powers = np.empty((degree + 2, t.size))  # t^0 … t^(K+1), by products (pow is slow)
+    powers[0] = 1.0
+    for k in range(1, degree + 2):
+        powers[k] = powers[k - 1] * t
     k = np.arange(degree + 1)
     omega_coef = spin.omega_radps
     # Eq. (2): ϑ = ϑ₀ + Σ ω_k t^(k+1)/(k+1), ω = Σ ω_k t^k, ω̇ = Σ k ω_k t^(k−1).
-    theta = spin.theta0_rad + powers[:, 1:] @ (omega_coef / (k + 1))
-    omega = powers[:, :-1] @ omega_coef
-    omega_dot = powers[:, :-2] @ (omega_coef[1:] * k[1:]) if degree >= 1 else np.zeros_like(t)
+    theta = spin.theta0_rad + (omega_coef / (k + 1)) @ powers[1:]
+    omega = omega_coef @ powers[:-1]
+    omega_dot = (omega_coef[1:] * k[1:]) @ powers[:-2] if degree >= 1 else np.zeros_like(t)
     if not derivatives:
         return Kinematics(theta, omega, omega_dot)
-    n = t.size
-    d_theta = np.empty((n, degree + 2))
-    d_theta[:, 0] = 1.0
-    d_theta[:, 1:] = powers[:, 1:] / (k + 1)
-    d_omega = np.zeros((n, degree + 2))
-    d_omega[:, 1:] = powers[:, :-1]
-    d_omega_dot = np.zeros((n, degree + 2))
+    d_theta = np.empty((degree + 2, t.size))
+    d_theta[0] = 1.0
+    d_theta[1:] = powers[1:] / (k + 1)[:, None]
+    d_omega = np.zeros((degree + 2, t.size))
+    d_omega[1:] = powers[:-1]
+    d_omega_dot = np.zeros((degree + 2, t.size))
     if degree >= 1:
-        d_omega_dot[:, 2:] = powers[:, :degree] * k[1:]
+        d_omega_dot[2:] = powers[:degree] * k[1:, None]
     return Kinematics(theta, omega, omega_dot, d_theta, d_omega, d_omega_dot)

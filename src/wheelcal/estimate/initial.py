@@ -1,0 +1,178 @@
+"""A closed-form starting point for the joint fit, from the data and r (or α) only.
+
+1. **Wheel plane.**  Everything that varies in v(t) lies in span(W e_X, W e_Y)
+   (W = ΓR); the direction of least variance is normal to it (the paper's T').
+2. **Phase.**  In that plane the rotating gravity g sinα (cosϑ We_X + sinϑ We_Y)
+   traces an ellipse; after removing the slow centripetal trend and mapping the
+   ellipse to a circle, atan2 gives ϑ up to sign and a constant, and a
+   polynomial fit of the unwrapped angle gives the spin of eq. (2).
+3. **Linear regression.**  With ϑ(t) fixed, v = c₀ + c₁ ω² + c_c cosϑ' + c_s sinϑ'
+   (+ the tiny r ω̇ term) is linear: c₁ = r We_X, c₀ = o + g cosα We_Z.
+4. **Phase constant.**  ϑ = ϑ' − c with c chosen so the rotating part's We_X is
+   parallel to c₁ (centripetal acceleration points along X).
+5. **Gains.**  R's first two columns are orthonormal, so with Gw = g sinα W e_X,Y
+   the three equations Σᵢ(Gwₓᵢ)²qᵢ = Σᵢ(Gw_yᵢ)²qᵢ = 1, Σᵢ Gwₓᵢ Gw_yᵢ qᵢ = 0 give
+   qᵢ = 1/(g sinα γᵢ)².  The scale g sinα comes from |c₁| = r|We_X| (radius
+   mode), from the known tilt (tilt / vertical modes), or — when the wheel hardly
+   slowed — from the assumption that the gains average 1.
+6. **Rotation and offset.**  R = nearest rotation to [Γ⁻¹We_X, Γ⁻¹We_Y, ×];
+   o = c₀ − g cosα Γ R e_Z.
+
+The sign of ϑ' may come out reversed; that lands on the discrete twin, which is
+an exact symmetry of the model and is resolved after the fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
+
+_TREND_DEGREE = 6
+_MAX_SAMPLES = 4000
+_RELIABLE_T_STAT = 10.0
+
+
+@dataclass(frozen=True, eq=False)
+class InitialGuess:
+    """Starting parameters and notes on how they were found."""
+
+    params: CalibrationParams
+    spin_down_resolved: bool  # whether c₁ (centripetal) was measurable
+    notes: tuple[str, ...]
+
+
+def initial_guess(
+    t_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    gravity_mps2: float,
+    radius_m: float | None = None,
+    tilt_rad: float | None = None,
+    spin_degree: int = 3,
+) -> InitialGuess:
+    """Starting parameters from samples ``accel_mps2`` at centred times ``t_s``.
+
+    Give ``radius_m`` (radius mode) or ``tilt_rad`` (tilt / vertical modes).
+    """
+    if (radius_m is None) == (tilt_rad is None):
+        raise ValueError("give exactly one of radius_m and tilt_rad")
+    # A few thousand samples pin the starting point down; more only cost time.
+    stride = max(1, np.asarray(t_s).size // _MAX_SAMPLES)
+    t = np.asarray(t_s, dtype=float)[::stride]
+    v = np.asarray(accel_mps2, dtype=float)[::stride]
+    half = max(np.abs(t).max(), 1e-9)
+    tau = t / half
+    notes: list[str] = []
+
+    # 1. Wheel plane: principal directions of the centred signal.
+    vc = v - v.mean(axis=0)
+    _, vecs = np.linalg.eigh(vc.T @ vc)
+    plane = vecs[:, 1:]
+    u = vc @ plane
+    u = u - _poly_trend(tau, u, _TREND_DEGREE)
+
+    # 2. Phase: smooth over ~1/8 turn, make the ellipse a circle, unwrap.
+    rate_hz = 1.0 / np.median(np.diff(t))
+    turn_hz = _dominant_frequency(u, rate_hz)
+    width = max(1, int(rate_hz / max(turn_hz, 1e-3) / 8))
+    if width > 1:
+        kernel = np.ones(width) / width
+        u = np.column_stack([np.convolve(u[:, k], kernel, mode="same") for k in range(2)])
+    cov2 = u.T @ u / len(u)
+    evals, evecs = np.linalg.eigh(cov2)
+    circle = u @ evecs / np.sqrt(np.maximum(evals, 1e-30))
+    phase = np.unwrap(np.arctan2(circle[:, 1], circle[:, 0]))
+    phase_coef_tau = np.polynomial.polynomial.polyfit(tau, phase, spin_degree + 1)
+    phase_coef = phase_coef_tau / half ** np.arange(spin_degree + 2)
+    omega = np.arange(1, spin_degree + 2) * phase_coef[1:]  # ω_k = (k+1)·c_{k+1}
+    spin = SpinParams(theta0_rad=phase_coef[0], omega_radps=omega)
+    theta = spin.theta_at(t)
+    omega_t = spin.omega_at(t)
+
+    # 3. Linear regression on [1, ω², cosϑ', sinϑ'] (r ω̇ is left to the fit).
+    design = np.column_stack([np.ones_like(t), omega_t**2, np.cos(theta), np.sin(theta)])
+    coef, *_ = np.linalg.lstsq(design, v, rcond=None)
+    resid = v - design @ coef
+    dof = max(len(t) - design.shape[1], 1)
+    s2 = np.sum(resid**2, axis=0) / dof
+    try:
+        xtx_inv = np.linalg.inv(design.T @ design)
+        se_c1 = np.sqrt(xtx_inv[1, 1] * s2.mean())
+    except np.linalg.LinAlgError:
+        se_c1 = np.inf
+    c0, c1, c_cos, c_sin = coef
+    resolved = bool(np.linalg.norm(c1) > _RELIABLE_T_STAT * se_c1 * np.sqrt(3))
+
+    # 4. Phase constant from the direction of the centripetal term.
+    shift = np.arctan2(c_sin @ c1, c_cos @ c1) if resolved else 0.0
+    if not resolved:
+        notes.append("spin-down too small to locate the radial axis from the data")
+    gw_x = c_cos * np.cos(shift) + c_sin * np.sin(shift)
+    gw_y = -c_cos * np.sin(shift) + c_sin * np.cos(shift)
+    spin = SpinParams(theta0_rad=spin.theta0_rad - shift, omega_radps=spin.omega_radps)
+
+    # 5. Gains up to the common scale G = g sinα, then the scale.
+    scaled_gain = _scaled_gains(gw_x, gw_y)  # = G·γᵢ
+    if scaled_gain is None:
+        notes.append("gain ratios not resolvable from the rotating signal; started from unit gains")
+        amp = 0.5 * (np.linalg.norm(gw_x) + np.linalg.norm(gw_y))
+        scaled_gain = np.full(3, amp)
+    if tilt_rad is not None:
+        g_sin = gravity_mps2 * np.sin(tilt_rad)
+    elif resolved:
+        # c₁ = r Γ Rₓ and gw_x = G Γ Rₓ, so G = r (gw_x·c₁)/|c₁|².
+        g_sin = radius_m * (gw_x @ c1) / (c1 @ c1)
+        if not g_sin > 0:
+            g_sin = float(np.exp(np.mean(np.log(scaled_gain))))
+    else:
+        g_sin = float(np.exp(np.mean(np.log(scaled_gain))))  # gains average 1
+    sin_tilt = float(np.clip(g_sin / gravity_mps2, 1e-3, 1.0))
+    tilt = float(np.arcsin(sin_tilt)) if tilt_rad is None else float(tilt_rad)
+    gain = scaled_gain / g_sin
+    radius = radius_m
+    if radius is None:
+        w_x = gw_x / g_sin
+        radius = float(abs(c1 @ w_x) / (w_x @ w_x)) if resolved else 0.3
+        if not radius > 0:
+            radius = 0.3
+
+    # 6. Rotation and offset.
+    r_x = gw_x / scaled_gain
+    r_y = gw_y / scaled_gain
+    rot = Rotation.nearest(np.column_stack([r_x, r_y, np.cross(r_x, r_y)]))
+    offset = c0 - gravity_mps2 * np.cos(tilt) * gain * rot.matrix[:, 2]
+    params = CalibrationParams(
+        spin=spin,
+        bench=BenchParams(tilt_rad=tilt, radius_m=radius, misalignment=rot),
+        sensor=SensorParams(offset_mps2=offset, gain=np.clip(gain, 0.2, 5.0)),
+        gravity_mps2=gravity_mps2,
+    )
+    return InitialGuess(params=params, spin_down_resolved=resolved, notes=tuple(notes))
+
+
+def _poly_trend(tau: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
+    basis = np.polynomial.legendre.legvander(tau, degree)
+    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+    return basis @ coef
+
+
+def _dominant_frequency(u: np.ndarray, rate_hz: float) -> float:
+    z = u[:, 0] + 1j * u[:, 1]
+    nfft = 1 << int(np.ceil(np.log2(z.size)))  # power of two: fast and fine enough
+    spec = np.abs(np.fft.fft(z - z.mean(), nfft))
+    freqs = np.fft.fftfreq(nfft, d=1.0 / rate_hz)
+    spec[0] = 0.0
+    return float(abs(freqs[int(np.argmax(spec))]))
+
+
+def _scaled_gains(gw_x: np.ndarray, gw_y: np.ndarray) -> np.ndarray | None:
+    """G·γᵢ from orthonormality of R's first two columns (None if ill-posed)."""
+    system = np.vstack([gw_x**2, gw_y**2, gw_x * gw_y])
+    if np.linalg.cond(system) > 1e8:
+        return None
+    q = np.linalg.solve(system, np.array([1.0, 1.0, 0.0]))
+    if np.any(q <= 0):
+        return None
+    return 1.0 / np.sqrt(q)

@@ -1,0 +1,243 @@
+"""Joint maximum-likelihood fit of every parameter at once.
+
+The paper estimates the parameters in four separate searches (III-A…D), each
+blind to the others' errors.  Here all of them — spin (eq. 2), tilt, R, gains
+and offsets — are fitted together by Levenberg–Marquardt with the analytic
+Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound:
+
+1. start from the closed-form guess of :mod:`wheelcal.estimate.initial` (the
+   data and the radius only — never the truth);
+2. least squares with per-axis weights from a first-difference noise estimate;
+3. estimate the noise model (AR colour per axis, cross-axis correlation) from
+   full residual and refit the whitened (generalised least squares) problem on
+   every sample;
+4. choose the discrete twin with the smaller offset, and compute the covariance
+   from the Fisher information, the systematic budget and the identifiability
+   verdict there.  (Stage 2 moves the estimate by a small fraction of σ, so the
+   noise model estimated before it is the noise model at the optimum.)
+
+Geometry modes (paper II-C): ``radius`` — r known, α fitted (the paper's choice);
+``tilt`` — α known, r fitted; ``vertical`` — α = 90° (a spirit level), r fitted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.estimate.identifiability import check_identifiability
+from wheelcal.estimate.initial import initial_guess
+from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.reporting import fisher_covariance, report_transform, transform_covariance
+from wheelcal.estimate.result import CalibrationResult
+from wheelcal.estimate.systematic import (
+    DEFAULT_CLOCK_STD_PPM,
+    DEFAULT_GRAVITY_STD_MPS2,
+    GIVEN_GRAVITY_STD_MPS2,
+    systematic_budget,
+)
+from wheelcal.estimate.twins import choose_twin
+from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
+from wheelcal.recording import Recording, RecordingError
+
+GEOMETRY_MODES = ("radius", "tilt", "vertical")
+#: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
+_STAGE1_SAMPLES = 3000
+
+
+@dataclass(frozen=True)
+class JointFit:
+    """Configuration of the joint ML fit; :meth:`fit` returns a frozen result.
+
+    Parameters
+    ----------
+    spin_degree:
+        Degree of the ω(t) polynomial (3 = the paper's cubic).
+    geometry:
+        ``"radius"`` (default), ``"tilt"`` or ``"vertical"``; see the module doc.
+    known_tilt_deg:
+        The measured tilt in ``"tilt"`` mode.
+    tilt_std_deg:
+        Uncertainty of the known tilt (levelling), for the systematic budget.
+    coloured_noise:
+        Model the residual as AR noise (True) or as white noise per axis.
+    max_ar_order:
+        Largest AR order tried (chosen by AIC).
+    clock_std_ppm, gravity_std_mps2:
+        Systematic-budget inputs; ``gravity_std_mps2=None`` uses 0.02 m/s² when the
+        session does not give local gravity and 1e-4 m/s² when it does.
+    """
+
+    spin_degree: int = 3
+    geometry: str = "radius"
+    known_tilt_deg: float | None = None
+    tilt_std_deg: float = 0.5
+    coloured_noise: bool = True
+    max_ar_order: int = 10
+    max_iterations: int = 100
+    clock_std_ppm: float = DEFAULT_CLOCK_STD_PPM
+    gravity_std_mps2: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.geometry not in GEOMETRY_MODES:
+            raise ValueError(f"geometry must be one of {GEOMETRY_MODES}, got {self.geometry!r}")
+        if self.geometry == "tilt" and self.known_tilt_deg is None:
+            raise ValueError("geometry 'tilt' needs known_tilt_deg")
+        if self.known_tilt_deg is not None and not 0.0 <= self.known_tilt_deg <= 90.0:
+            raise ValueError("known_tilt_deg must lie in [0, 90]")
+
+    @property
+    def layout(self) -> ParameterLayout:
+        """Free parameters for this configuration."""
+        radius_known = self.geometry == "radius"
+        return ParameterLayout(
+            spin_degree=self.spin_degree, fit_tilt=radius_known, fit_radius=not radius_known
+        )
+
+    def _fixed_tilt_rad(self) -> float | None:
+        if self.geometry == "vertical":
+            return np.pi / 2
+        if self.geometry == "tilt":
+            return float(np.deg2rad(self.known_tilt_deg))
+        return None
+
+    def fit(
+        self, recording: Recording, initial: CalibrationParams | None = None
+    ) -> CalibrationResult:
+        """Calibrate one recording (already cut to its free-spin window)."""
+        info = recording.info
+        if self.geometry == "radius" and info.radius_m is None:
+            raise RecordingError(
+                f"{recording.source}: the radius (sensor distance from the axle) is needed: "
+                "give --radius or radius_m in the wheelcal.session metadata"
+            )
+        t = recording.time_s
+        centre = 0.5 * (t[0] + t[-1])
+        tc = t - centre
+        v = recording.accel_mps2
+        gravity = info.gravity_or_standard_mps2
+        layout = self.layout
+        notes: list[str] = []
+        if initial is None:
+            guess = initial_guess(
+                tc,
+                v,
+                gravity,
+                radius_m=info.radius_m if self.geometry == "radius" else None,
+                tilt_rad=self._fixed_tilt_rad(),
+                spin_degree=self.spin_degree,
+            )
+            initial = guess.params
+            notes += guess.notes
+
+        # Stage 1: least squares on a decimated copy (it only needs to get close),
+        # per-axis weights from first differences.
+        stride = max(1, t.size // _STAGE1_SAMPLES)
+        std0 = np.maximum(np.std(np.diff(v, axis=0), axis=0) / np.sqrt(2), 1e-6)
+        out = levenberg_marquardt(
+            _residual_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
+            initial,
+            layout,
+            self.max_iterations,
+        )
+        # Stage 2: noise model from the full residual, whitened refit on all samples.
+        noise = self._noise_model(v - _predict(out.params, tc, layout))
+        out = levenberg_marquardt(
+            _residual_fn(tc, v, layout, noise),
+            out.params,
+            layout,
+            self.max_iterations,
+            tol=1e-4,  # stop when the next step would be < 0.01 σ
+            initial_damping=1e-9,  # warm start: Gauss–Newton steps
+        )
+        iterations = out.iterations
+        converged = out.converged
+        # Stage 3: canonical twin, uncertainty at the optimum.
+        twin = choose_twin(out.params)
+        params = twin.chosen
+        if twin.chosen is out.params:
+            jw = out.jacobian
+            model = evaluate(params, tc, layout)
+            residual = v - model.predicted_mps2
+        else:  # the twin is a different point of the vector space: new Jacobian
+            model = evaluate(params, tc, layout, jacobian=True)
+            residual = v - model.predicted_mps2
+            _, jw = noise.whiten(residual, model.jacobian)
+        cov_x, _ = fisher_covariance(jw)
+        names, values, g = report_transform(params, layout)
+        cov = transform_covariance(g, cov_x)
+        std = np.sqrt(np.diag(cov))
+
+        gravity_std = self.gravity_std_mps2
+        if gravity_std is None:
+            gravity_std = (
+                DEFAULT_GRAVITY_STD_MPS2 if info.gravity_mps2 is None else GIVEN_GRAVITY_STD_MPS2
+            )
+        budget = systematic_budget(
+            params,
+            tc,
+            layout,
+            noise,
+            jw,
+            g,
+            names,
+            radius_std_m=info.radius_std_m,
+            gravity_std_mps2=gravity_std,
+            clock_std_ppm=self.clock_std_ppm,
+            tilt_std_deg=self.tilt_std_deg,
+            output=model,
+        )
+        ident = check_identifiability(params, tc, names, std)
+        warnings = list(ident.warnings)
+        if not converged:
+            warnings.append(f"the fit did not converge ({out.message})")
+        if twin.warning and self.geometry != "vertical":
+            warnings.append(twin.warning)
+        if self.geometry == "vertical":
+            warnings.append(
+                "vertical wheel: the wheel axis has no upward side, so R is reported for the "
+                "positive spin direction (gains and offsets are unaffected)"
+            )
+        return CalibrationResult(
+            params=params,
+            layout=layout,
+            names=names,
+            values=values,
+            covariance=cov,
+            time_s=t,
+            residual_mps2=residual,
+            centre_s=float(centre),
+            epoch_unix_ns=recording.epoch_unix_ns,
+            noise=noise,
+            converged=converged,
+            iterations=iterations,
+            warnings=tuple(warnings),
+            systematic=budget,
+            twin=twin,
+            identifiability=ident,
+            info=info,
+            source=recording.source,
+            topic=recording.topic,
+            notes=tuple(notes) + recording.notes,
+        )
+
+    def _noise_model(self, residual: np.ndarray) -> NoiseModel:
+        if self.coloured_noise:
+            return NoiseModel.estimate(residual, self.max_ar_order)
+        return NoiseModel.white(np.std(residual, axis=0))
+
+
+def _predict(params: CalibrationParams, tc: np.ndarray, layout: ParameterLayout) -> np.ndarray:
+    return evaluate(params, tc, layout).predicted_mps2
+
+
+def _residual_fn(tc: np.ndarray, v: np.ndarray, layout: ParameterLayout, noise: NoiseModel):
+    """Whitened (model − data) and its Jacobian, for the LM."""
+
+    def residual(params: CalibrationParams, want_jacobian: bool):
+        out = evaluate(params, tc, layout, jacobian=want_jacobian)
+        return noise.whiten(out.predicted_mps2 - v, out.jacobian)
+
+    return residual
