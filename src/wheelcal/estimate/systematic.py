@@ -2,10 +2,10 @@
 
 The fit holds some quantities fixed at values the user supplies — the radius r
 (radius mode), the tilt (tilt / vertical modes), local gravity g — and trusts
-the sample clock.  If the fixed value q is off by δq, the fit absorbs it: to
-first order the estimate moves by
+the sample clock.  If the assumed value exceeds the true one by δq, the fit
+absorbs it: to first order the estimate moves by
 
-    Δx = (J̃ᵀJ̃)⁻¹ J̃ᵀ (∂ṽ/∂q) δq
+    Δx = −(J̃ᵀJ̃)⁻¹ J̃ᵀ (∂ṽ/∂q) δq
 
 (whitened quantities, the same metric as the fit).  A sample-clock scale error
 ε reads ω and ω̇ in the wrong seconds but not r ω², which is exactly a relative
@@ -39,7 +39,9 @@ class SystematicSource:
     name: str
     unit: str
     std: float
-    shift_per_unit: np.ndarray  # reported parameters per unit of the quantity
+    shift_per_unit: (
+        np.ndarray
+    )  # change of the reported estimates per unit error of the assumed value
 
     @property
     def shift_std(self) -> np.ndarray:
@@ -88,13 +90,13 @@ def systematic_budget(
     def shift(nuisance: str) -> np.ndarray:
         dv = nuisance_sensitivity(params, t_s, nuisance, output)
         dvw, _ = noise.whiten(dv)
-        return report_jacobian @ solve(jt @ dvw.reshape(-1))
+        return -(report_jacobian @ solve(jt @ dvw.reshape(-1)))
 
     sources = [SystematicSource("gravity", "m/s^2", gravity_std_mps2, shift("gravity_mps2"))]
     if not layout.fit_radius:
         per_m = shift("radius_m")
         sources.insert(0, SystematicSource("radius", "m", radius_std_m, per_m))
-        # Clock scale ε ≡ relative radius error −2ε: shift per ppm.
+        # A clock whose seconds are (1 + ε) too long ≡ relative radius error −2ε.
         per_ppm = per_m * (-2.0 * params.bench.radius_m * 1e-6)
         sources.append(SystematicSource("sample_clock", "ppm", clock_std_ppm, per_ppm))
     if not layout.fit_tilt:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from types import MappingProxyType
 
 import numpy as np
 
@@ -24,6 +23,22 @@ from wheelcal.model.rotation import Rotation
 
 STANDARD_GRAVITY_MPS2 = 9.80665
 AXES = ("x", "y", "z")
+
+
+class FrozenMapping(dict):
+    """A read-only dict that pickles (MappingProxyType does not)."""
+
+    def _readonly(self, *args, **kwargs):
+        raise TypeError("this mapping is read-only")
+
+    __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = _readonly  # type: ignore[assignment]
+    __ior__ = _readonly  # type: ignore[assignment]
+
+    def __reduce__(self):
+        return (FrozenMapping, (dict(self),))
+
+    def __hash__(self) -> int:  # type: ignore[override]
+        return hash(tuple(sorted((k, np.asarray(v).tobytes()) for k, v in self.items())))
 
 
 def _frozen_vector(values, length: int | None, name: str) -> np.ndarray:
@@ -145,7 +160,7 @@ class CalibrationParams:
             name: _frozen_vector(values, None, f"effect {name}")
             for name, values in dict(self.effects).items()
         }
-        object.__setattr__(self, "effects", MappingProxyType(frozen))
+        object.__setattr__(self, "effects", FrozenMapping(frozen))
         object.__setattr__(self, "gravity_mps2", float(self.gravity_mps2))
 
     def with_changes(self, **changes) -> CalibrationParams:

@@ -1,0 +1,12 @@
+"""Shared fixtures: simulated sessions with known truth."""
+
+import numpy as np
+import pytest
+
+from wheelcal.simulate import simulate, table1
+
+
+@pytest.fixture(scope="session")
+def table1_session():
+    """One Table I recording at σ_n = 0.08 m/s² (seed 11)."""
+    return simulate(table1(), np.random.default_rng(11))

@@ -1,0 +1,45 @@
+import numpy as np
+
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.simulate import NoiseSpec
+
+
+def test_estimated_ar_model_recovers_the_low_pass_filter():
+    spec = NoiseSpec((0.05, 0.08, 0.1), bandwidth_hz=20.0)
+    x = spec.sample(100_000, 200.0, np.random.default_rng(0))
+    nm = NoiseModel.estimate(x)
+    truth = spec.ar_polynomial(200.0)
+    for a in nm.ar_polynomials:
+        assert np.allclose(a[:3], truth, atol=0.03)
+    assert np.allclose(nm.marginal_std_mps2, spec.std, rtol=0.03)
+    # Low-pass noise has more power at low frequency: fewer effective samples.
+    assert np.all(nm.effective_sample_fraction < 0.5)
+
+
+def test_white_noise_gets_order_zero_or_negligible_colour():
+    x = NoiseSpec(0.08).sample(50_000, 200.0, np.random.default_rng(1))
+    nm = NoiseModel.estimate(x)
+    assert np.allclose(nm.long_run_std_mps2, 0.08, rtol=0.05)
+    assert np.allclose(nm.effective_sample_fraction, 1.0, atol=0.06)
+
+
+def test_whitening_gives_unit_variance_uncorrelated_errors():
+    rng = np.random.default_rng(2)
+    spec = NoiseSpec(0.08, bandwidth_hz=30.0)
+    x = spec.sample(60_000, 200.0, rng)
+    mix = np.array([[1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.0, 0.3, 1.0]])
+    x = x @ mix.T  # correlated across axes
+    nm = NoiseModel.estimate(x)
+    r, _ = nm.whiten(x)
+    assert np.allclose(np.cov(r), np.eye(3), atol=0.03)
+    assert abs(np.corrcoef(r[0, 1:], r[0, :-1])[0, 1]) < 0.02
+
+
+def test_whitening_a_jacobian_matches_whitening_its_columns():
+    rng = np.random.default_rng(3)
+    nm = NoiseModel.estimate(NoiseSpec(0.08, bandwidth_hz=25.0).sample(20_000, 200.0, rng))
+    jac = rng.standard_normal((4, 3, 500))
+    _, jw = nm.whiten(np.zeros((500, 3)), jac)
+    for k in range(4):
+        col, _ = nm.whiten(jac[k].T)
+        assert np.allclose(jw[k], col)
