@@ -1,0 +1,51 @@
+"""File input and output: MCAP recordings (contract formats), CSV conversion, atomic writes.
+
+Read a device recording with :func:`read_recording`; write one with
+:func:`write_recording`; add a channel to a copy with :func:`copy_with_channels`.
+Errors are :class:`InputError` subclasses whose message names the file and
+the problem.
+"""
+
+from wheelcal.io.atomic import atomic_output, atomic_write_bytes, atomic_write_text
+from wheelcal.io.errors import (
+    CorruptFileError,
+    InputError,
+    NotMcapError,
+    SampleError,
+    SessionInfoError,
+    TopicError,
+)
+from wheelcal.io.mcap_reader import AccelTopic, list_accel_topics, read_recording
+from wheelcal.io.mcap_writer import (
+    ChannelData,
+    accel_channel,
+    copy_with_channels,
+    session_metadata,
+    write_accel_mcap,
+    write_recording,
+)
+from wheelcal.io.sample_checks import InputPolicy
+from wheelcal.io.session_meta import require_radius
+
+__all__ = [
+    "AccelTopic",
+    "ChannelData",
+    "CorruptFileError",
+    "InputError",
+    "InputPolicy",
+    "NotMcapError",
+    "SampleError",
+    "SessionInfoError",
+    "TopicError",
+    "accel_channel",
+    "atomic_output",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "copy_with_channels",
+    "list_accel_topics",
+    "read_recording",
+    "require_radius",
+    "session_metadata",
+    "write_accel_mcap",
+    "write_recording",
+]

@@ -1,0 +1,88 @@
+"""Atomic file output: a reader never sees a half-written file.
+
+Everything is written to a temporary file in the destination's directory (the
+same file system, so the final rename is atomic), flushed and ``fsync``-ed,
+then moved over the destination with :func:`os.replace`; the directory is
+synced too so the rename survives a power cut.  If anything fails on the way,
+the temporary file is removed and the destination is left as it was — never a
+partial file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+
+def _default_mode() -> int:
+    """The permissions a plain ``open(path, "w")`` would give (0o666 minus the umask)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def _fsync_directory(directory: Path) -> None:
+    """Make a rename in ``directory`` durable (best effort: not every OS allows it)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike, binary: bool = True) -> Iterator[IO]:
+    """Open a temporary file that replaces ``path`` when the ``with`` block succeeds.
+
+    Parameters
+    ----------
+    path:
+        Destination.  Its directory must exist.
+    binary:
+        ``True`` for a binary stream, ``False`` for UTF-8 text.
+
+    Yields
+    ------
+    IO
+        The open temporary file.  On an exception inside the block it is closed
+        and deleted, the exception propagates, and ``path`` is untouched.
+    """
+    target = Path(path)
+    directory = target.parent if str(target.parent) else Path(".")
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    tmp = Path(tmp_name)
+    try:
+        mode = "wb" if binary else "w"
+        kwargs = {} if binary else {"encoding": "utf-8", "newline": ""}
+        with os.fdopen(fd, mode, **kwargs) as stream:
+            yield stream
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.chmod(tmp, _default_mode())
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+    _fsync_directory(directory)
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_output`)."""
+    with atomic_output(path, binary=True) as stream:
+        stream.write(data)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`atomic_output`)."""
+    with atomic_output(path, binary=False) as stream:
+        stream.write(text)

@@ -1,0 +1,179 @@
+"""``<stem>.calibration.json`` — the contract's per-session calibration file.
+
+Written atomically.  Keys follow ../shared/CONTRACT.md; additions are additive
+(``parameters``, ``geometry``, ``fit.noise_model``, ``fit.twin``,
+``bench.radius_std_m``, ``wheelcal_version``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from wheelcal import __version__
+from wheelcal.estimate.result import CalibrationResult
+from wheelcal.io.atomic import atomic_write_text
+from wheelcal.model import EULER_CONVENTION
+from wheelcal.model.correction import SensorCorrection
+from wheelcal.model.parameters import AXES
+
+FORMAT = "wheelcal.calibration/1"
+_SYSTEMATIC_NOTE = (
+    "shared by every recording of the same bench and clock: repeating does not average it away"
+)
+
+
+class CalibrationFileError(ValueError):
+    """A calibration JSON that cannot be used, with the file named."""
+
+
+def _num(x):
+    """JSON-safe float: ∞/NaN become null (JSON has neither)."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _vec(values) -> list:
+    return [_num(v) for v in np.asarray(values, dtype=float).reshape(-1)]
+
+
+def calibration_dict(result: CalibrationResult, geometry: str = "radius") -> dict:
+    """The contract dictionary for one calibration result."""
+    params = result.params
+    std = dict(zip(result.names, result.std, strict=True))
+    budget = result.systematic
+    sys_std = dict(zip(budget.names, budget.total_std, strict=True))
+    spin = params.spin
+    correction = SensorCorrection.from_offset_gain(params.sensor.offset_mps2, params.sensor.gain)
+    motion = {"model": f"polynomial{spin.degree}", "t0_unix_ns": int(result.t0_unix_ns)}
+    for name, value in spin.to_dict().items():
+        motion[name] = _num(value)
+        motion[name.replace("_rad", "_std_rad", 1) if name == "theta0_rad" else _std_key(name)] = (
+            _num(std[name])
+        )
+    tilt_std = std.get("tilt_deg", 0.0)
+    bench = {
+        "radius_m": _num(params.bench.radius_m),
+        "radius_std_m": _num(std.get("radius_m", result.info.radius_std_m)),
+        "tilt_deg": _num(params.bench.tilt_deg),
+        "tilt_std_deg": _num(tilt_std),
+        "spin_sign": 1 if spin.omega_radps[0] >= 0 else -1,
+        "misalignment_matrix": params.bench.misalignment.matrix.tolist(),
+        "misalignment_euler_deg": _vec(params.bench.misalignment.euler_deg()),
+        "misalignment_euler_std_deg": [_num(std[f"euler_{k}_deg"]) for k in (1, 2, 3)],
+        "euler_convention": EULER_CONVENTION,
+    }
+    return {
+        "format": FORMAT,
+        "wheelcal_version": __version__,
+        "geometry": geometry,
+        "source": {
+            "file": result.source,
+            "topic": result.topic,
+            "samples": int(result.time_s.size),
+            "window_s": list(result.window_s),
+            "sensor_id": result.info.sensor_id,
+            "mounting_id": result.info.mounting_id,
+            "notes": list(result.notes),
+        },
+        "sensor": {
+            "offset_mps2": _vec(params.sensor.offset_mps2),
+            "gain": _vec(params.sensor.gain),
+            "offset_std_mps2": [_num(std[f"offset_{a}_mps2"]) for a in AXES],
+            "gain_std": [_num(std[f"gain_{a}"]) for a in AXES],
+        },
+        "bench": bench,
+        "motion": motion,
+        "effects": {name: _vec(v) for name, v in params.effects.items()},
+        "parameters": {
+            n: {"value": _num(v), "std": _num(s)}
+            for n, v, s in zip(result.names, result.values, result.std, strict=True)
+        },
+        "fit": {
+            "residual_rms_mps2": _vec(result.residual_rms_mps2),
+            "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
+            "converged": bool(result.converged),
+            "iterations": int(result.iterations),
+            "covariance": [[_num(c) for c in row] for row in result.covariance],
+            "covariance_names": list(result.names),
+            "warnings": list(result.warnings),
+            "noise_model": result.noise.to_dict(),
+            "twin": {
+                "rejected_offset_mps2": _vec(result.twin.rejected.sensor.offset_mps2),
+                "ambiguous": bool(result.twin.ambiguous),
+            },
+            "poorly_determined": list(result.identifiability.poorly_determined),
+        },
+        "systematic": {
+            "gain_std": [_num(sys_std[f"gain_{a}"]) for a in AXES],
+            "offset_std_mps2": [_num(sys_std[f"offset_{a}_mps2"]) for a in AXES],
+            "tilt_std_deg": _num(sys_std.get("tilt_deg", 0.0)),
+            "sources": {
+                s.name: {
+                    "std": _num(s.std),
+                    "unit": s.unit,
+                    "gain_std": [_num(v) for v in _pick(s.shift_std, budget.names, "gain")],
+                    "offset_std_mps2": [
+                        _num(v) for v in _pick(s.shift_std, budget.names, "offset")
+                    ],
+                    "tilt_std_deg": _num(
+                        dict(zip(budget.names, s.shift_std, strict=True)).get("tilt_deg", 0.0)
+                    ),
+                }
+                for s in budget.sources
+            },
+            "note": _SYSTEMATIC_NOTE,
+        },
+        "correction": {
+            "bias_mps2": _vec(correction.bias_mps2),
+            "matrix": correction.matrix.tolist(),
+            "equation": "a = matrix @ (v - bias)",
+        },
+    }
+
+
+def _std_key(name: str) -> str:
+    """omega1_radps2 → omega1_std_radps2, theta0_rad → theta0_std_rad."""
+    head, _, unit = name.partition("_")
+    return f"{head}_std_{unit}"
+
+
+def _pick(values: np.ndarray, names: tuple[str, ...], prefix: str) -> list[float]:
+    picked = [float(v) for n, v in zip(names, values, strict=True) if n.startswith(prefix + "_")]
+    return picked or [0.0]
+
+
+def write_calibration(
+    path: str | os.PathLike, result: CalibrationResult, geometry: str = "radius"
+) -> Path:
+    """Write the calibration JSON atomically; returns the path."""
+    text = json.dumps(calibration_dict(result, geometry), indent=2, allow_nan=False)
+    atomic_write_text(path, text + "\n")
+    return Path(path)
+
+
+def load_calibration(path: str | os.PathLike) -> dict:
+    """Read and check a calibration JSON (format tag, correction block)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CalibrationFileError(f"{path}: no such calibration file") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CalibrationFileError(f"{path}: not a calibration JSON ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise CalibrationFileError(f"{path}: not a {FORMAT} file (format tag missing or different)")
+    try:
+        load_correction_from(data)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CalibrationFileError(f"{path}: unusable correction block ({exc})") from None
+    return data
+
+
+def load_correction_from(data: dict) -> SensorCorrection:
+    """The correction of a loaded calibration dictionary."""
+    block = data["correction"]
+    return SensorCorrection(bias_mps2=block["bias_mps2"], matrix=block["matrix"])

@@ -1,0 +1,42 @@
+"""Errors raised by the file readers and writers.
+
+Every message starts with the file it is about and says what is wrong in
+words a user can act on (CONTRACT: "Errors name the file and what is wrong").
+All are :class:`~wheelcal.recording.RecordingError` (a ``ValueError``), so a
+caller that handles bad recordings handles bad files too.
+"""
+
+from __future__ import annotations
+
+import os
+
+from wheelcal.recording import RecordingError
+
+
+class InputError(RecordingError):
+    """An input file that cannot be used, with the file and the reason in the message."""
+
+    def __init__(self, path: str | os.PathLike, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class NotMcapError(InputError):
+    """The file is empty or does not start with the MCAP magic bytes."""
+
+
+class CorruptFileError(InputError):
+    """The file is truncated, or a CRC or record structure does not check out."""
+
+
+class TopicError(InputError):
+    """No accelerometer topic, several candidates and no choice, or an unknown topic."""
+
+
+class SessionInfoError(InputError):
+    """The ``wheelcal.session`` facts are missing, unparsable or out of range."""
+
+
+class SampleError(InputError):
+    """The samples themselves cannot be calibrated (too short, too many bad values, …)."""

@@ -1,0 +1,232 @@
+"""ROS 2 ``sensor_msgs/msg/Imu`` in CDR: vectorised encode and decode.
+
+A ROS 2 message in CDR is a 4-byte encapsulation header (``00 01 00 00`` for
+little-endian CDR, ``00 00 ..`` for big-endian) followed by the fields, each
+aligned to its own size *relative to the end of that header*.  For
+``sensor_msgs/msg/Imu`` every field has a fixed size except the header's
+``frame_id`` string, so with ``L`` = the string's length field (bytes
+including its NUL terminator) and ``q = align8(12 + L)`` the body is::
+
+    offset  field
+    0       header.stamp.sec            int32
+    4       header.stamp.nanosec        uint32
+    8       header.frame_id length L    uint32
+    12      frame_id bytes + NUL        L bytes, then padding to a multiple of 8
+    q       orientation x, y, z, w      4 × float64
+    q+32    orientation_covariance      9 × float64
+    q+104   angular_velocity x, y, z    3 × float64
+    q+128   angular_velocity_covariance 9 × float64
+    q+200   linear_acceleration x, y, z 3 × float64
+    q+224   linear_acceleration_covariance 9 × float64
+    q+296   end
+
+so a message is ``4 + q + 296`` bytes.  Decoding therefore needs one integer
+per message (``L``) and a gather of 24 bytes — no per-message Python.  The
+length is checked against this formula for every message, which also catches
+a channel whose schema is not really ``sensor_msgs/msg/Imu``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wheelcal.io.mcap_scan import MessageBlock
+
+IMU_SCHEMA_NAME = "sensor_msgs/msg/Imu"
+ROS2_SCHEMA_ENCODING = "ros2msg"
+CDR_MESSAGE_ENCODING = "cdr"
+_CDR_LE = b"\x00\x01\x00\x00"
+_TAIL_BYTES = 296  # orientation … linear_acceleration_covariance
+_ACCEL_AT = 200  # linear_acceleration, relative to q
+
+#: The message definition as ``ros2 bag record`` stores it (dependencies appended).
+IMU_MSGDEF = """\
+# This is a message to hold data from an IMU (Inertial Measurement Unit)
+#
+# Accelerations should be in m/s^2 (not in g's), and rotational velocity should be in rad/sec
+#
+# If the covariance of the measurement is known, it should be filled in (if all you know is the
+# variance of each measurement, e.g. from the datasheet, just put those along the diagonal)
+# A covariance matrix of all zeros will be interpreted as "covariance unknown", and to use the
+# data a covariance will have to be assumed or gotten from some other source
+#
+# If you have no estimate for one of the data elements (e.g. your IMU doesn't produce an
+# orientation estimate), please set element 0 of the associated covariance matrix to -1
+# If you are interpreting this message, please check for a value of -1 in the first element of each
+# covariance matrix, and disregard the associated estimate.
+
+std_msgs/Header header
+
+geometry_msgs/Quaternion orientation
+float64[9] orientation_covariance # Row major about x, y, z axes
+
+geometry_msgs/Vector3 angular_velocity
+float64[9] angular_velocity_covariance # Row major about x, y, z axes
+
+geometry_msgs/Vector3 linear_acceleration
+float64[9] linear_acceleration_covariance # Row major x, y, z
+
+================================================================================
+MSG: geometry_msgs/Quaternion
+# This represents an orientation in free space in quaternion form.
+
+float64 x 0
+float64 y 0
+float64 z 0
+float64 w 1
+
+================================================================================
+MSG: geometry_msgs/Vector3
+# This represents a vector in free space.
+
+float64 x
+float64 y
+float64 z
+
+================================================================================
+MSG: std_msgs/Header
+# Standard metadata for higher-level stamped data types.
+
+builtin_interfaces/Time stamp
+
+string frame_id
+
+================================================================================
+MSG: builtin_interfaces/Time
+# This message communicates ROS Time defined here:
+# https://design.ros2.org/articles/clock_and_time.html
+
+int32 sec
+uint32 nanosec
+"""
+
+
+class ImuLayoutError(ValueError):
+    """Message bytes that do not have the CDR layout of ``sensor_msgs/msg/Imu``."""
+
+
+def _gather(arr: np.ndarray, at: np.ndarray, dtype: str, count: int = 1) -> np.ndarray:
+    """Values of ``dtype`` (count per message) starting at byte positions ``at``."""
+    size = np.dtype(dtype).itemsize * count
+    raw = arr[at[:, None] + np.arange(size)]
+    out = raw.view(dtype)
+    return out.reshape(-1) if count == 1 else out.reshape(-1, count)
+
+
+def decode_imu_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, ...]:
+    """Stamps, log times and linear accelerations of CDR ``Imu`` messages.
+
+    Parameters
+    ----------
+    blocks:
+        Message blocks of one channel, from :func:`~wheelcal.io.mcap_scan.scan_mcap`.
+
+    Returns
+    -------
+    stamp_ns, log_time_ns : ndarray of int64, shape (N,)
+        ``header.stamp`` as nanoseconds, and the MCAP log time.
+    accel : ndarray, shape (N, 3)
+        ``linear_acceleration`` (m/s² per REP 103).
+
+    Raises
+    ------
+    ImuLayoutError
+        A message whose size or encapsulation does not fit the Imu layout.
+    """
+    stamps, logs, accels = [], [], []
+    for block in blocks:
+        if block.count == 0:
+            continue
+        arr = np.frombuffer(block.buffer, dtype=np.uint8)
+        off = block.payload_offsets
+        if np.any(block.payload_lengths < 4 + 12 + _TAIL_BYTES):
+            raise ImuLayoutError("a message is too short to be a sensor_msgs/msg/Imu")
+        kind = arr[off + 1]
+        if np.any(arr[off] != 0) or np.any(kind > 1):
+            raise ImuLayoutError("a message is not plain CDR (encapsulation kind is not CDR_LE/BE)")
+        sec = np.empty(off.size, np.int64)
+        nsec = np.empty(off.size, np.int64)
+        accel = np.empty((off.size, 3))
+        for endian, code in (("<", 1), (">", 0)):
+            sel = np.flatnonzero(kind == code)
+            if sel.size == 0:
+                continue
+            body = off[sel] + 4
+            sec[sel] = _gather(arr, body, endian + "i4")
+            nsec[sel] = _gather(arr, body + 4, endian + "u4")
+            str_len = _gather(arr, body + 8, endian + "u4").astype(np.int64)
+            q = (12 + str_len + 7) // 8 * 8
+            expected = 4 + q + _TAIL_BYTES
+            actual = block.payload_lengths[sel]
+            # CDR allows up to 3 bytes of final padding (XCDR options field).
+            if np.any(actual < expected) or np.any(actual > expected + 3):
+                raise ImuLayoutError(
+                    "a message's size does not match the sensor_msgs/msg/Imu layout "
+                    f"({int(actual[0])} bytes, expected {int(expected[0])})"
+                )
+            accel[sel] = _gather(arr, body + q + _ACCEL_AT, endian + "f8", 3)
+        if np.any(nsec >= 1_000_000_000):
+            raise ImuLayoutError("header.stamp.nanosec is 1e9 or more")
+        stamps.append(sec * 1_000_000_000 + nsec)
+        logs.append(block.log_time_ns)
+        accels.append(accel)
+    if not stamps:
+        return np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3))
+    return np.concatenate(stamps), np.concatenate(logs), np.concatenate(accels)
+
+
+def encode_imu_messages(time_ns: np.ndarray, accel_mps2: np.ndarray, frame_id: str) -> list[bytes]:
+    """CDR little-endian ``Imu`` payloads with only ``linear_acceleration`` filled.
+
+    Orientation and angular velocity are marked "not provided" by setting
+    element 0 of their covariance to −1 (the convention the message
+    definition documents); the acceleration covariance is all zero
+    ("unknown").
+
+    Parameters
+    ----------
+    time_ns:
+        Stamps, integer nanoseconds since the Unix epoch, shape (N,).
+    accel_mps2:
+        Linear acceleration, shape (N, 3).
+    frame_id:
+        ``header.frame_id`` for every message.
+
+    Returns
+    -------
+    list of bytes
+        One payload per sample.
+    """
+    time_ns = np.asarray(time_ns, dtype=np.int64)
+    accel = np.asarray(accel_mps2, dtype=float).reshape(-1, 3)
+    name = frame_id.encode("utf-8") + b"\x00"
+    q = (12 + len(name) + 7) // 8 * 8
+    tail = [4 + q + k for k in (0, 32, 104, 128, _ACCEL_AT, 224)]
+    names = ["encap", "sec", "nsec", "str_len", "frame", "orient", "orient_cov"]
+    names += ["gyro", "gyro_cov", "accel", "accel_cov"]
+    formats = ["V4", "<i4", "<u4", "<u4", f"V{len(name)}", ("<f8", 4), ("<f8", 9)]
+    formats += [("<f8", 3), ("<f8", 9), ("<f8", 3), ("<f8", 9)]
+    dtype = np.dtype(
+        {
+            "names": names,
+            "formats": formats,
+            "offsets": [0, 4, 8, 12, 16, *tail],
+            "itemsize": 4 + q + _TAIL_BYTES,
+        }
+    )
+    rec = np.zeros(time_ns.size, dtype=dtype)
+    rec["encap"] = np.void(_CDR_LE)
+    sec, nsec = np.divmod(time_ns, 1_000_000_000)
+    if np.any(sec > np.iinfo(np.int32).max) or np.any(sec < np.iinfo(np.int32).min):
+        raise ValueError("stamps outside the int32 seconds range of builtin_interfaces/Time")
+    rec["sec"] = sec
+    rec["nsec"] = nsec
+    rec["str_len"] = len(name)
+    rec["frame"] = np.void(name)
+    rec["orient"][:, 3] = 1.0  # identity quaternion (ignored: covariance[0] = -1)
+    rec["orient_cov"][:, 0] = -1.0
+    rec["gyro_cov"][:, 0] = -1.0
+    rec["accel"] = accel
+    raw = rec.tobytes()
+    size = dtype.itemsize
+    return [raw[i : i + size] for i in range(0, len(raw), size)]

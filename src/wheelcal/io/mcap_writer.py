@@ -1,0 +1,423 @@
+"""Write recordings to MCAP (contract formats), and copy an MCAP adding channels.
+
+Both writers go through :func:`~wheelcal.io.atomic.atomic_output`: the file
+appears complete or not at all.  Files carry chunk CRCs *and* the data-section
+CRC, so :func:`~wheelcal.io.mcap_reader.read_recording` can prove they are
+intact.
+
+* :func:`write_recording` — a :class:`~wheelcal.recording.Recording` as ROS 2
+  ``sensor_msgs/msg/Imu`` (one message per sample) or ``wheelcal.AccelBatch``
+  JSON (``batch_size`` samples per message), with the ``wheelcal.session``
+  metadata record.
+* :func:`write_accel_mcap` — the same from raw arrays, without the checks a
+  ``Recording`` makes (for converters, and for test files with defects).
+* :func:`copy_with_channels` — every record of an existing MCAP (schemas,
+  channels, messages with their sequence and publish time, metadata,
+  attachments) plus new channels and metadata, e.g. a calibrated
+  accelerometer topic for ``wheelcal apply``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from wheelcal.io.accel_json import (
+    ACCEL_BATCH_SCHEMA_NAME,
+    JSON_MESSAGE_ENCODING,
+    JSON_SCHEMA_ENCODING,
+    UNIT_KEY,
+    UNITS,
+    encode_accel_batches,
+    schema_bytes,
+)
+from wheelcal.io.atomic import atomic_output
+from wheelcal.io.errors import CorruptFileError
+from wheelcal.io.imu_cdr import (
+    CDR_MESSAGE_ENCODING,
+    IMU_MSGDEF,
+    IMU_SCHEMA_NAME,
+    ROS2_SCHEMA_ENCODING,
+    encode_imu_messages,
+)
+from wheelcal.io.mcap_scan import scan_mcap
+from wheelcal.io.session_meta import SESSION_METADATA_NAME
+from wheelcal.recording import Recording, SessionInfo
+
+DEFAULT_TOPICS = {"ros2": "/imu/data_raw", "json": "/wheelcal/accel"}
+DEFAULT_CHUNK_BYTES = 1024 * 1024
+
+Encoding = Literal["ros2", "json"]
+Compression = Literal["zstd", "lz4", "none"]
+
+
+@dataclass(frozen=True, eq=False)
+class ChannelData:
+    """A channel to write: its schema, encoding, metadata and messages.
+
+    ``messages`` holds ``(log_time_ns, payload)`` pairs; the publish time is
+    the log time.
+    """
+
+    topic: str
+    schema_name: str
+    schema_encoding: str
+    schema_data: bytes = field(repr=False)
+    message_encoding: str
+    messages: tuple[tuple[int, bytes], ...] = field(repr=False)
+    metadata: Mapping[str, str] = field(default_factory=dict)
+
+
+def session_metadata(info: SessionInfo) -> dict[str, str]:
+    """The ``wheelcal.session`` key-value strings for ``info`` (CONTRACT, input item 3).
+
+    Floats are written with ``repr`` so they read back exactly; unset optional
+    facts are left out.
+    """
+    out: dict[str, str] = {}
+    if info.radius_m is not None:
+        out["radius_m"] = repr(float(info.radius_m))
+    out["radius_std_m"] = repr(float(info.radius_std_m))
+    if info.sensor_id:
+        out["sensor_id"] = info.sensor_id
+    if info.mounting_id:
+        out["mounting_id"] = info.mounting_id
+    if info.gravity_mps2 is not None:
+        out["gravity_mps2"] = repr(float(info.gravity_mps2))
+    if info.full_scale_g is not None:
+        out["full_scale_g"] = repr(float(info.full_scale_g))
+    for key, value in info.extra:
+        out.setdefault(key, value)
+    return out
+
+
+def accel_channel(
+    time_ns: np.ndarray,
+    accel: np.ndarray,
+    *,
+    encoding: Encoding = "ros2",
+    topic: str | None = None,
+    batch_size: int = 1,
+    frame_id: str = "imu",
+    unit: str = "m/s^2",
+) -> ChannelData:
+    """An accelerometer channel in one of the contract's encodings.
+
+    Parameters
+    ----------
+    time_ns:
+        Sample stamps, integer nanoseconds since the Unix epoch.
+    accel:
+        Samples (N, 3) in ``unit``.
+    encoding:
+        ``"ros2"`` (``sensor_msgs/msg/Imu``, CDR, one message per sample; the
+        unit must be m/s², REP 103) or ``"json"`` (``wheelcal.AccelBatch``).
+    topic:
+        Defaults to ``/imu/data_raw`` (ros2) or ``/wheelcal/accel`` (json).
+    batch_size:
+        Samples per JSON message.
+    frame_id:
+        ``header.frame_id`` of the Imu messages.
+    unit:
+        ``"m/s^2"`` or ``"g"`` (JSON only), stored in the channel metadata.
+    """
+    if unit not in UNITS:
+        raise ValueError(f"unit must be one of {UNITS}, got {unit!r}")
+    time_ns = np.asarray(time_ns, dtype=np.int64).reshape(-1)
+    accel = np.asarray(accel, dtype=float).reshape(-1, 3)
+    if time_ns.size != accel.shape[0]:
+        raise ValueError(f"{time_ns.size} stamps but {accel.shape[0]} samples")
+    if encoding == "ros2":
+        if unit != "m/s^2":
+            raise ValueError("sensor_msgs/msg/Imu carries m/s² only (REP 103)")
+        payloads = encode_imu_messages(time_ns, accel, frame_id)
+        return ChannelData(
+            topic=topic or DEFAULT_TOPICS["ros2"],
+            schema_name=IMU_SCHEMA_NAME,
+            schema_encoding=ROS2_SCHEMA_ENCODING,
+            schema_data=IMU_MSGDEF.encode("utf-8"),
+            message_encoding=CDR_MESSAGE_ENCODING,
+            messages=tuple(zip(time_ns.tolist(), payloads, strict=True)),
+        )
+    if encoding == "json":
+        return ChannelData(
+            topic=topic or DEFAULT_TOPICS["json"],
+            schema_name=ACCEL_BATCH_SCHEMA_NAME,
+            schema_encoding=JSON_SCHEMA_ENCODING,
+            schema_data=schema_bytes(),
+            message_encoding=JSON_MESSAGE_ENCODING,
+            messages=tuple(encode_accel_batches(time_ns, accel, batch_size)),
+            metadata={UNIT_KEY: unit},
+        )
+    raise ValueError(f"encoding must be 'ros2' or 'json', got {encoding!r}")
+
+
+def _compression(name: str):
+    from mcap.writer import CompressionType
+
+    table = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+    try:
+        return table[name]
+    except KeyError:
+        raise ValueError(f"compression must be one of {sorted(table)}, got {name!r}") from None
+
+
+def _new_writer(stream, compression: str, chunk_bytes: int):
+    from mcap.writer import Writer
+
+    return Writer(
+        stream,
+        chunk_size=chunk_bytes,
+        compression=_compression(compression),
+        enable_crcs=True,
+        enable_data_crcs=True,
+    )
+
+
+def write_channels(
+    path: str | os.PathLike,
+    channels: Sequence[ChannelData],
+    metadata: Mapping[str, Mapping[str, str]] | None = None,
+    *,
+    profile: str = "",
+    compression: Compression = "zstd",
+    chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+) -> None:
+    """Write channels and metadata records to a new MCAP file, atomically.
+
+    Messages of all channels are written in log-time order.
+    """
+    _compression(compression)  # fail before creating anything
+    with atomic_output(path) as stream:
+        writer = _new_writer(stream, compression, chunk_bytes)
+        writer.start(profile=profile, library=_library())
+        ids = [_register(writer, channel) for channel in channels]
+        _write_messages(writer, [], channels, ids)
+        for name, values in (metadata or {}).items():
+            writer.add_metadata(name, dict(values))
+        writer.finish()
+
+
+def _library() -> str:
+    from wheelcal import __version__
+
+    return f"wheelcal/{__version__}"
+
+
+def _register(writer, channel: ChannelData) -> int:
+    schema_id = writer.register_schema(
+        channel.schema_name, channel.schema_encoding, channel.schema_data
+    )
+    return writer.register_channel(
+        channel.topic, channel.message_encoding, schema_id, dict(channel.metadata)
+    )
+
+
+def _write_messages(writer, originals: list, channels: Sequence[ChannelData], ids: list) -> None:
+    """Originals ``(log, channel, seq, publish, data)`` and new channels, merged by log time."""
+    queue = list(originals)
+    for channel_id, channel in zip(ids, channels, strict=True):
+        queue.extend((log, channel_id, 0, log, data) for log, data in channel.messages)
+    queue.sort(key=lambda item: item[0])  # stable: ties keep their order
+    for log, channel_id, sequence, publish, data in queue:
+        writer.add_message(
+            channel_id=channel_id,
+            log_time=log,
+            data=data,
+            publish_time=publish,
+            sequence=sequence,
+        )
+
+
+def write_accel_mcap(
+    path: str | os.PathLike,
+    time_ns: np.ndarray,
+    accel: np.ndarray,
+    *,
+    info: SessionInfo | None = None,
+    encoding: Encoding = "ros2",
+    topic: str | None = None,
+    batch_size: int = 1,
+    unit: str = "m/s^2",
+    frame_id: str = "imu",
+    compression: Compression = "zstd",
+    session: Mapping[str, str] | None = None,
+) -> None:
+    """Write raw stamps and samples as a contract MCAP (no validation of the data).
+
+    Parameters
+    ----------
+    path:
+        Output file (written atomically).
+    time_ns, accel:
+        Stamps (int ns since the Unix epoch) and samples (N, 3) in ``unit``.
+    info:
+        Session facts for the ``wheelcal.session`` record.
+    session:
+        Raw ``wheelcal.session`` strings, written as given (overrides ``info``
+        key by key) — lets converters pass values through and tests write bad ones.
+    encoding, topic, batch_size, unit, frame_id:
+        See :func:`accel_channel`.
+    compression:
+        ``"zstd"``, ``"lz4"`` or ``"none"``.
+    """
+    channel = accel_channel(
+        time_ns,
+        accel,
+        encoding=encoding,
+        topic=topic,
+        batch_size=batch_size,
+        frame_id=frame_id,
+        unit=unit,
+    )
+    values = session_metadata(info) if info is not None else {}
+    values.update(session or {})
+    write_channels(
+        path,
+        [channel],
+        {SESSION_METADATA_NAME: values} if values else None,
+        profile="ros2" if encoding == "ros2" else "",
+        compression=compression,
+    )
+
+
+def recording_stamps_ns(recording: Recording) -> np.ndarray:
+    """Absolute sample stamps (int ns since the Unix epoch) of a recording."""
+    return recording.epoch_unix_ns + np.rint(recording.time_s * 1e9).astype(np.int64)
+
+
+def write_recording(
+    recording: Recording,
+    path: str | os.PathLike,
+    *,
+    encoding: Encoding = "ros2",
+    topic: str | None = None,
+    batch_size: int = 1,
+    frame_id: str = "imu",
+    compression: Compression = "zstd",
+) -> None:
+    """Write a recording as a contract MCAP with its ``wheelcal.session`` record.
+
+    Samples are written in m/s²; stamps are ``epoch_unix_ns + round(time_s · 1e9)``.
+
+    Parameters
+    ----------
+    recording:
+        What to write.
+    path:
+        Output file (written atomically: complete or absent).
+    encoding:
+        ``"ros2"`` — ``sensor_msgs/msg/Imu``, one CDR message per sample;
+        ``"json"`` — ``wheelcal.AccelBatch``, ``batch_size`` samples per message.
+    topic, batch_size, frame_id:
+        See :func:`accel_channel`.
+    compression:
+        Chunk compression: ``"zstd"``, ``"lz4"`` or ``"none"``.
+    """
+    write_accel_mcap(
+        path,
+        recording_stamps_ns(recording),
+        recording.accel_mps2,
+        info=recording.info,
+        encoding=encoding,
+        topic=topic or recording.topic or None,
+        batch_size=batch_size,
+        frame_id=frame_id,
+        compression=compression,
+    )
+
+
+def copy_with_channels(
+    source: str | os.PathLike,
+    destination: str | os.PathLike,
+    channels: Sequence[ChannelData],
+    metadata: Mapping[str, Mapping[str, str]] | None = None,
+    *,
+    compression: Compression = "zstd",
+    chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+) -> None:
+    """Copy an MCAP file, keeping every record, and add channels and metadata.
+
+    Schemas, channels (with their metadata), messages (with sequence numbers
+    and publish times), metadata records and attachments of ``source`` are
+    all kept; ``channels`` are added and all messages are written in log-time
+    order.  The source is verified first (CRCs, truncation), so a damaged
+    source is an error, not a damaged copy.
+
+    Parameters
+    ----------
+    source:
+        Existing MCAP file.
+    destination:
+        New file (written atomically; may not be ``source`` itself).
+    channels:
+        Channels to add, e.g. from :func:`accel_channel`.  A topic that
+        already exists in ``source`` is refused.
+    metadata:
+        Metadata records to add, ``{name: {key: value}}``.
+    compression, chunk_bytes:
+        Chunk compression and size of the copy.
+    """
+    from mcap.exceptions import McapError
+    from mcap.records import Attachment, Channel, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader
+
+    if os.path.abspath(source) == os.path.abspath(destination):
+        raise ValueError(f"{destination}: the copy must not overwrite its source")
+    scan = scan_mcap(source)  # clear errors for damaged or non-MCAP sources
+    existing = {channel.topic for channel in scan.channels.values()}
+    for channel in channels:
+        if channel.topic in existing:
+            raise ValueError(f"{source}: topic {channel.topic!r} already exists; choose another")
+    _compression(compression)
+    with atomic_output(destination) as stream:
+        writer = _new_writer(stream, compression, chunk_bytes)
+        writer.start(profile=scan.profile, library=scan.library)
+        schema_ids: dict[int, int] = {0: 0}
+        channel_ids: dict[int, int] = {}
+        originals = []
+        attachments = []
+        metadata_records = []
+        try:
+            with open(source, "rb") as src:
+                for record in StreamReader(src, validate_crcs=True).records:
+                    if isinstance(record, Schema) and record.id not in schema_ids:
+                        schema_ids[record.id] = writer.register_schema(
+                            record.name, record.encoding, record.data
+                        )
+                    elif isinstance(record, Channel) and record.id not in channel_ids:
+                        channel_ids[record.id] = writer.register_channel(
+                            record.topic,
+                            record.message_encoding,
+                            schema_ids[record.schema_id],
+                            dict(record.metadata),
+                        )
+                    elif isinstance(record, Message):
+                        originals.append(
+                            (
+                                record.log_time,
+                                channel_ids[record.channel_id],
+                                record.sequence,
+                                record.publish_time,
+                                record.data,
+                            )
+                        )
+                    elif isinstance(record, Attachment):
+                        attachments.append(record)
+                    elif isinstance(record, Metadata):
+                        metadata_records.append(record)
+        except (McapError, KeyError, EOFError) as exc:
+            raise CorruptFileError(source, f"cannot be copied: {exc}") from None
+        ids = [_register(writer, channel) for channel in channels]
+        _write_messages(writer, originals, channels, ids)
+        for att in attachments:
+            writer.add_attachment(att.create_time, att.log_time, att.name, att.media_type, att.data)
+        for record in metadata_records:
+            writer.add_metadata(record.name, dict(record.metadata))
+        for name, values in (metadata or {}).items():
+            writer.add_metadata(name, dict(values))
+        writer.finish()

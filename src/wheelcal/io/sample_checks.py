@@ -1,0 +1,307 @@
+"""Checks and repairs of raw samples before they become a :class:`Recording`.
+
+Real recordings have defects.  Each is either repaired — and the repair is
+written into :attr:`Recording.notes`, so it reaches the report — or refused
+with an error naming the file, when a repair would invent data:
+
+==========================  ==================================  ===========================
+defect                      repaired when                       refused when
+==========================  ==================================  ===========================
+NaN / inf samples           ≤ 1 % of samples: dropped           more
+samples out of order        ≤ 1 % backward steps, and sorting   more, or sorting interleaves
+                            restores a regular grid: sorted     two time ranges (clock reset)
+duplicate timestamps        ≤ 5 %: identical rows dropped,      more (stamps per packet,
+                            differing rows averaged             not per sample)
+gaps                        always kept (real timestamps),      never
+                            reported
+clipped samples             ≤ 20 %: dropped                     more
+unit mislabel (g as m/s²)   never (ambiguous fixes are          at rest |a| ≈ 1 (or ≈ 96),
+                            guesses)                            or median |a| ≪ g
+too short                   —                                   < 10 s or < 100 samples
+==========================  ==================================  ===========================
+
+Clipping is found from ``full_scale_g`` when the session gives it (any axis
+at ≥ 99.5 % of ±full scale), else as *runs at the extreme value*: a saturated
+axis repeats its rail value exactly, which noisy unsaturated data never does
+for ``clip_run_samples`` samples in a row at the maximum (only extremes
+beyond 1.5 g are considered, so a quantised signal at rest is not flagged).
+
+The unit check is scale-invariant: "quiet" stretches (per-axis spread below
+1 % of |a|) can only be the sensor at rest, where |a| must be ≈ g.  A rest
+level near 1 in data labelled m/s² means g; near 96 in data labelled g means
+m/s².  Converting automatically would be a guess about a file that misstates
+its own units, so the reader refuses and says how to state the unit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.io.errors import SampleError
+from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+
+
+@dataclass(frozen=True)
+class InputPolicy:
+    """Thresholds for repairing versus refusing a recording (see the module table)."""
+
+    max_nonfinite_fraction: float = 0.01
+    max_backward_fraction: float = 0.01
+    max_duplicate_fraction: float = 0.05
+    gap_factor: float = 3.0
+    max_clipped_fraction: float = 0.20
+    clip_run_samples: int = 3
+    clip_margin: float = 0.995
+    min_duration_s: float = 10.0
+    min_samples: int = 100
+    check_units: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class CleanSamples:
+    """Samples after the checks: sorted unique stamps (int ns) and m/s² rows."""
+
+    time_ns: np.ndarray
+    accel_mps2: np.ndarray
+    notes: tuple[str, ...]
+
+
+def _pct(part: int, whole: int) -> str:
+    return f"{100.0 * part / max(whole, 1):.2g} %"
+
+
+def clean_samples(
+    path: str,
+    time_ns: np.ndarray,
+    accel_mps2: np.ndarray,
+    *,
+    unit: str,
+    full_scale_g: float | None,
+    policy: InputPolicy,
+) -> CleanSamples:
+    """Repair what can be repaired, refuse the rest (see the module docstring).
+
+    Parameters
+    ----------
+    path:
+        The file (and topic), for messages.
+    time_ns:
+        Stamps, int64 ns, any order.
+    accel_mps2:
+        Samples (N, 3) already converted to m/s².
+    unit:
+        The unit the file claimed (``"m/s^2"`` or ``"g"``), for the unit check.
+    full_scale_g:
+        The sensor's range if known, for clipping.
+    policy:
+        Thresholds.
+
+    Raises
+    ------
+    SampleError
+        With the file and the reason.
+    """
+    t = np.asarray(time_ns, dtype=np.int64)
+    a = np.asarray(accel_mps2, dtype=float)
+    notes: list[str] = []
+    if t.size == 0:
+        raise SampleError(path, "the accelerometer topic holds no samples")
+
+    t, a = _drop_nonfinite(path, t, a, policy, notes)
+    t, a = _order(path, t, a, policy, notes)
+    t, a = _merge_duplicates(path, t, a, policy, notes)
+    _report_gaps(t, policy, notes)
+    t, a = _drop_clipped(path, t, a, full_scale_g, policy, notes)
+    if policy.check_units:
+        _check_units(path, a, unit)
+    duration_s = (t[-1] - t[0]) * 1e-9 if t.size else 0.0
+    if t.size < policy.min_samples or duration_s < policy.min_duration_s:
+        raise SampleError(
+            path,
+            f"the recording is too short: {t.size} usable samples over {duration_s:.2f} s; "
+            f"a calibration needs at least {policy.min_samples} samples and "
+            f"{policy.min_duration_s:g} s of free spin",
+        )
+    return CleanSamples(t, a, tuple(notes))
+
+
+def _drop_nonfinite(path, t, a, policy, notes):
+    bad = ~np.all(np.isfinite(a), axis=1)
+    count = int(bad.sum())
+    if count == 0:
+        return t, a
+    if count > policy.max_nonfinite_fraction * t.size:
+        raise SampleError(
+            path,
+            f"{count} of {t.size} samples ({_pct(count, t.size)}) are NaN or infinite; "
+            f"at most {policy.max_nonfinite_fraction:.0%} can be dropped",
+        )
+    notes.append(f"dropped {count} NaN/inf samples ({_pct(count, t.size)})")
+    return t[~bad], a[~bad]
+
+
+def _small_steps(t: np.ndarray, dt_ns: float) -> int:
+    """Positive steps shorter than half the typical interval."""
+    d = np.diff(t)
+    return int(np.count_nonzero((d > 0) & (d < 0.5 * dt_ns)))
+
+
+def _order(path, t, a, policy, notes):
+    d = np.diff(t)
+    backward = int(np.count_nonzero(d < 0))
+    if backward == 0:
+        return t, a
+    if backward > policy.max_backward_fraction * t.size:
+        raise SampleError(
+            path,
+            f"timestamps go backwards {backward} times in {t.size} samples: the order of "
+            "the samples is chaotic and cannot be repaired",
+        )
+    dt_ns = float(np.median(np.abs(d[d != 0]))) if np.any(d != 0) else 0.0
+    order = np.argsort(t, kind="stable")
+    sorted_t = t[order]
+    created = _small_steps(sorted_t, dt_ns) - _small_steps(t, dt_ns)
+    if created > 2:
+        worst = int(np.argmin(d))
+        raise SampleError(
+            path,
+            f"timestamps jump back by {-d[worst] * 1e-9:.3f} s at sample {worst + 1}, and "
+            "sorting would interleave two stretches of time (a clock reset?); "
+            "refusing to guess the order",
+        )
+    notes.append(f"sorted {backward} out-of-order timestamp steps into time order")
+    return sorted_t, a[order]
+
+
+def _merge_duplicates(path, t, a, policy, notes):
+    same = np.diff(t) == 0
+    count = int(same.sum())
+    if count == 0:
+        return t, a
+    if count > policy.max_duplicate_fraction * t.size:
+        raise SampleError(
+            path,
+            f"{count} of {t.size} samples ({_pct(count, t.size)}) repeat the previous "
+            "timestamp: the device seems to stamp whole packets, but every sample needs "
+            "its own time",
+        )
+    # t is sorted, so equal stamps are contiguous groups starting at ``first``.
+    unique_t, first, sizes = np.unique(t, return_index=True, return_counts=True)
+    spread = np.maximum.reduceat(a, first, axis=0) - np.minimum.reduceat(a, first, axis=0)
+    differing = np.any(spread > 0, axis=1)
+    out = a[first].copy()  # identical copies: keep the first, bit for bit
+    if np.any(differing):
+        sums = np.add.reduceat(a, first, axis=0)
+        out[differing] = sums[differing] / sizes[differing, None]
+    multi = sizes > 1
+    dropped = int(np.sum(sizes[multi & ~differing] - 1))
+    averaged = int(np.sum(multi & differing))
+    parts = []
+    if dropped:
+        parts.append(f"{dropped} identical copies dropped")
+    if averaged:
+        parts.append(f"{averaged} stamps with differing values averaged")
+    notes.append(f"{count} samples repeated a timestamp: " + ", ".join(parts))
+    return unique_t, out
+
+
+def _report_gaps(t, policy, notes):
+    d = np.diff(t)
+    if d.size == 0:
+        return
+    dt_ns = float(np.median(d))
+    gaps = np.flatnonzero(d > policy.gap_factor * dt_ns)
+    if gaps.size == 0:
+        return
+    longest = int(gaps[np.argmax(d[gaps])])
+    missing = float(np.sum(d[gaps] - dt_ns)) * 1e-9
+    notes.append(
+        f"{gaps.size} gap(s) in the samples (longest {d[longest] * 1e-9:.3f} s at "
+        f"t = {(t[longest] - t[0]) * 1e-9:.3f} s, {missing:.3f} s missing in total); "
+        "real timestamps kept"
+    )
+
+
+def _drop_clipped(path, t, a, full_scale_g, policy, notes):
+    if full_scale_g is not None:
+        limit = policy.clip_margin * full_scale_g * STANDARD_GRAVITY_MPS2
+        clipped = np.any(np.abs(a) >= limit, axis=1)
+        how = f"at the sensor range ±{full_scale_g:g} g"
+    else:
+        clipped = np.zeros(t.size, dtype=bool)
+        rails = []
+        extremes = np.stack([a.max(axis=0), a.min(axis=0)], axis=1)  # (3 axes, max/min)
+        for k, side in np.argwhere(np.abs(extremes) >= 1.5 * STANDARD_GRAVITY_MPS2):
+            value = float(extremes[k, side])
+            at = a[:, k] == value
+            if at.sum() >= policy.clip_run_samples and _longest_run(at) >= policy.clip_run_samples:
+                clipped |= at
+                rails.append(f"{'xyz'[k]} = {value:+.4g}")
+        how = "at the rails " + ", ".join(rails) + " m/s² (runs at the extreme value)"
+    count = int(clipped.sum())
+    if count == 0:
+        return t, a
+    if count > policy.max_clipped_fraction * t.size:
+        raise SampleError(
+            path,
+            f"{count} of {t.size} samples ({_pct(count, t.size)}) are clipped {how}: "
+            "the sensor range is too small for this spin (use a larger range or spin slower)",
+        )
+    notes.append(f"dropped {count} clipped samples ({_pct(count, t.size)}) {how}")
+    return t[~clipped], a[~clipped]
+
+
+def _longest_run(mask: np.ndarray) -> int:
+    if not np.any(mask):
+        return 0
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return int(np.max(stops - starts))
+
+
+def rest_level(accel: np.ndarray, block: int = 50) -> float | None:
+    """Median |a| over quiet blocks (per-axis spread < 1 % of |a|), or None if none.
+
+    Only a sensor at rest is that quiet; the test does not depend on the unit.
+    """
+    n = accel.shape[0] // block
+    if n == 0:
+        return None
+    blocks = accel[: n * block].reshape(n, block, 3)
+    mean = blocks.mean(axis=1)
+    spread = blocks.std(axis=1).max(axis=1)
+    level = np.linalg.norm(mean, axis=1)
+    quiet = (level > 0) & (spread < 0.01 * level)
+    if quiet.sum() < 2:
+        return None
+    return float(np.median(level[quiet]))
+
+
+def _check_units(path, a, unit):
+    g = STANDARD_GRAVITY_MPS2
+    rest = rest_level(a)
+    fix = "state the unit correctly (JSON: channel metadata unit 'g' or 'm/s^2')"
+    if rest is not None:
+        ratio = rest / g
+        if unit == "m/s^2" and 0.06 < ratio < 0.16:
+            raise SampleError(
+                path,
+                f"at rest the samples read |a| = {rest:.3g}, about 1: they look like g, "
+                f"but the file says m/s^2 (at rest |a| would be ≈ {g:.2f}); {fix}",
+            )
+        if unit == "g" and 6.0 < ratio < 16.0:
+            raise SampleError(
+                path,
+                f"at rest the samples read |a| = {rest / g:.3g} g: they look like m/s^2, "
+                f"but the file says g; {fix}",
+            )
+        return
+    median = float(np.sqrt(np.median(np.einsum("ij,ij->i", a, a))))
+    if unit == "m/s^2" and 0.06 < median / g < 0.35:
+        raise SampleError(
+            path,
+            f"the median |a| is {median:.3g} m/s^2, far below gravity ({g:.2f}); no sensor "
+            f"on a wheel reads that little: the samples look like g labelled m/s^2; {fix}",
+        )
