@@ -30,12 +30,19 @@ from wheelcal.estimate.identifiability import check_identifiability
 from wheelcal.estimate.initial import initial_guess
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.reporting import fisher_covariance, report_transform, transform_covariance
+from wheelcal.estimate.normal_equations import accumulate
+from wheelcal.estimate.reporting import (
+    covariance_from_fisher,
+    report_transform,
+    transform_covariance,
+)
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.systematic import (
     DEFAULT_CLOCK_STD_PPM,
     DEFAULT_GRAVITY_STD_MPS2,
     GIVEN_GRAVITY_STD_MPS2,
+    nuisance_columns,
+    nuisance_extra,
     systematic_budget,
 )
 from wheelcal.estimate.twins import choose_twin
@@ -143,9 +150,11 @@ class JointFit:
             self.max_iterations,
         )
         # Stage 2: noise model from the full residual, whitened refit on all samples.
+        # The accumulations carry the sensitivities to the fixed quantities as
+        # extra columns, so the last one also gives the systematic budget.
         noise = self._noise_model(v - _predict(out.params, tc, layout))
         out = levenberg_marquardt(
-            _residual_fn(tc, v, layout, noise),
+            _residual_fn(tc, v, layout, noise, nuisance_columns(layout)),
             out.params,
             layout,
             self.max_iterations,
@@ -154,21 +163,20 @@ class JointFit:
         )
         iterations = out.iterations
         converged = out.converged
-        # Stage 3: canonical twin, uncertainty at the optimum.
+        # Stage 3: canonical twin; the Fisher information and the cross terms
+        # with the quantities held fixed (systematic budget) at the optimum.
         twin = choose_twin(out.params)
         params = twin.chosen
-        if twin.chosen is out.params:
-            jw = out.jacobian
-            model = evaluate(params, tc, layout)
-            residual = v - model.predicted_mps2
-        else:  # the twin is a different point of the vector space: new Jacobian
-            model = evaluate(params, tc, layout, jacobian=True)
-            residual = v - model.predicted_mps2
-            _, jw = noise.whiten(residual, model.jacobian)
-        cov_x, _ = fisher_covariance(jw)
+        nuisances = nuisance_columns(layout)
+        normal = out.normal
+        if params is not out.params:  # the twin is another point of the vector space
+            normal = accumulate(params, tc, v, layout, noise, extra=nuisance_extra(nuisances))
+        size = layout.size
+        cov_x = covariance_from_fisher(normal.hessian[:size, :size])
         names, values, g = report_transform(params, layout)
         cov = transform_covariance(g, cov_x)
         std = np.sqrt(np.diag(cov))
+        residual = v - _predict(params, tc, layout)
 
         gravity_std = self.gravity_std_mps2
         if gravity_std is None:
@@ -177,17 +185,15 @@ class JointFit:
             )
         budget = systematic_budget(
             params,
-            tc,
             layout,
-            noise,
-            jw,
+            normal.hessian,
+            nuisances,
             g,
             names,
             radius_std_m=info.radius_std_m,
             gravity_std_mps2=gravity_std,
             clock_std_ppm=self.clock_std_ppm,
             tilt_std_deg=self.tilt_std_deg,
-            output=model,
         )
         ident = check_identifiability(params, tc, names, std)
         warnings = list(ident.warnings)
@@ -233,11 +239,17 @@ def _predict(params: CalibrationParams, tc: np.ndarray, layout: ParameterLayout)
     return evaluate(params, tc, layout).predicted_mps2
 
 
-def _residual_fn(tc: np.ndarray, v: np.ndarray, layout: ParameterLayout, noise: NoiseModel):
-    """Whitened (model − data) and its Jacobian, for the LM."""
+def _residual_fn(
+    tc: np.ndarray,
+    v: np.ndarray,
+    layout: ParameterLayout,
+    noise: NoiseModel,
+    nuisances: list[str] | None = None,
+):
+    """Whitened normal equations of (model − data), for the LM (nuisances as extra columns)."""
+    extra = nuisance_extra(nuisances) if nuisances else None
 
-    def residual(params: CalibrationParams, want_jacobian: bool):
-        out = evaluate(params, tc, layout, jacobian=want_jacobian)
-        return noise.whiten(out.predicted_mps2 - v, out.jacobian)
+    def normal(params: CalibrationParams, want_jacobian: bool):
+        return accumulate(params, tc, v, layout, noise, jacobian=want_jacobian, extra=extra)
 
-    return residual
+    return normal

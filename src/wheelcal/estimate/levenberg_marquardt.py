@@ -1,14 +1,16 @@
 """Levenberg–Marquardt on the parameter manifold, with a statistical stopping rule.
 
 The problem is min_x ‖r̃(x)‖² for a whitened residual r̃ (see
-:mod:`wheelcal.estimate.noise_model`).  Steps are taken in the layout's flat
-vector around the current point and mapped back with ``layout.unpack`` (which
-moves R by exp([δ]×)), so the rotation never leaves SO(3).
+:mod:`wheelcal.estimate.noise_model`).  The iteration needs only the normal
+equations H = J̃ᵀJ̃, g = J̃ᵀr̃ and the cost (accumulated in chunks by
+:mod:`wheelcal.estimate.normal_equations`).  Steps are taken in the layout's
+flat vector around the current point and mapped back with ``layout.unpack``
+(which moves R by exp([δ]×)), so the rotation never leaves SO(3).
 
-Stopping: after a Gauss–Newton step the predicted decrease of the cost is
-Δ = gᵀ(JᵀJ)⁻¹g.  With unit-variance whitened errors, Δ < ``tol`` means the step
-is below √tol standard deviations of the parameters — further iterations would
-only move the estimate by a negligible fraction of its own uncertainty.
+Stopping: the predicted decrease of a Gauss–Newton step is Δ = gᵀH⁻¹g.  With
+unit-variance whitened errors, Δ < ``tol`` means the step is below √tol
+standard deviations of the parameters — further iterations would only move the
+estimate by a negligible fraction of its own uncertainty.
 """
 
 from __future__ import annotations
@@ -18,70 +20,72 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.normal_equations import NormalEquations
 from wheelcal.model import CalibrationParams, ParameterLayout
 
-ResidualFn = Callable[[CalibrationParams, bool], tuple[np.ndarray, np.ndarray | None]]
+NormalFn = Callable[[CalibrationParams, bool], NormalEquations]
 
 
 @dataclass(frozen=True, eq=False)
 class LMOutcome:
-    """Where the iterations ended and why."""
+    """Where the iterations ended and why; ``normal`` is evaluated at ``params``."""
 
     params: CalibrationParams
-    residual: np.ndarray  # whitened, (3, M)
-    jacobian: np.ndarray  # whitened, (P, 3, M)
-    cost: float
+    normal: NormalEquations
     iterations: int
     converged: bool
     message: str
 
+    @property
+    def cost(self) -> float:
+        """‖r̃‖² at the end."""
+        return self.normal.cost
+
 
 def levenberg_marquardt(
-    residual_fn: ResidualFn,
+    normal_fn: NormalFn,
     params0: CalibrationParams,
     layout: ParameterLayout,
     max_iterations: int = 50,
     tol: float = 1e-6,
     initial_damping: float = 1e-3,
 ) -> LMOutcome:
-    """Minimise ‖residual_fn(params)‖² from ``params0``.
+    """Minimise the whitened cost from ``params0``.
 
-    ``residual_fn(params, want_jacobian)`` returns the whitened residual (3, M)
-    and, when asked, its transposed Jacobian (P, 3, M) in ``layout`` order.
-    ``initial_damping`` is λ relative to the scaled diagonal: small for a warm
-    start (Gauss–Newton steps), larger far from the optimum.
+    ``normal_fn(params, want_jacobian)`` returns the :class:`NormalEquations`
+    (cost only when ``want_jacobian`` is False).  ``initial_damping`` is λ
+    relative to the scaled diagonal: small for a warm start (Gauss–Newton
+    steps), larger far from the optimum.
     """
     params = params0
-    r, j = residual_fn(params, True)
-    cost = float(np.sum(r * r))
+    normal = normal_fn(params, True)
     lam = initial_damping
     message = "maximum iterations reached"
     converged = False
     iteration = 0
+    size = layout.size  # the normal equations may carry extra columns after these
     for iteration in range(1, max_iterations + 1):
-        jt = j.reshape(j.shape[0], -1)
-        a = jt @ jt.T
-        g = jt @ r.reshape(-1)
+        a, g, cost = normal.hessian[:size, :size], normal.gradient[:size], normal.cost
         scale = np.sqrt(np.maximum(np.diag(a), 1e-300))
         a_s = a / np.outer(scale, scale)
         g_s = g / scale
-        gn_decrease = _gauss_newton_decrease(a_s, g_s)
-        if gn_decrease < tol:
+        decrease = _gauss_newton_decrease(a_s, g_s)
+        if decrease < tol:
             converged, message = True, "step below tolerance (in units of the parameter σ)"
             iteration -= 1
             break
         accepted = False
-        for _ in range(30):
+        identity = np.eye(a_s.shape[0])
+        while lam <= 1e12:
             try:
-                step_s = -np.linalg.solve(a_s + lam * np.eye(a_s.shape[0]), g_s)
+                step_s = -np.linalg.solve(a_s + lam * identity, g_s)
             except np.linalg.LinAlgError:
                 lam *= 10.0
                 continue
             step = step_s / scale
             try:
                 trial = layout.unpack(layout.pack(params) + step, params)
-                r_trial, _ = residual_fn(trial, False)
-                cost_trial = float(np.sum(r_trial * r_trial))
+                cost_trial = normal_fn(trial, False).cost
             except (ValueError, FloatingPointError):
                 cost_trial = np.inf
             predicted = -(2 * step_s @ g_s + step_s @ a_s @ step_s)
@@ -90,19 +94,16 @@ def levenberg_marquardt(
                 rho = actual / predicted if predicted > 0 else 0.0
                 lam = lam * max(1 / 3, 1 - (2 * rho - 1) ** 3) if rho > 0 else lam * 2
                 lam = max(lam, 1e-12)
-                params, cost = trial, cost_trial
+                params = trial
                 accepted = True
                 break
             lam *= 10.0
-            if lam > 1e12:
-                break
         if not accepted:
-            converged = gn_decrease < 1e3 * tol
+            converged = decrease < 1e3 * tol
             message = "no further decrease possible" + ("" if converged else " (stalled)")
             break
-        r, j = residual_fn(params, True)
-        cost = float(np.sum(r * r))
-    return LMOutcome(params, r, j, cost, iteration, converged, message)
+        normal = normal_fn(params, True)
+    return LMOutcome(params, normal, iteration, converged, message)
 
 
 def _gauss_newton_decrease(a_s: np.ndarray, g_s: np.ndarray) -> float:

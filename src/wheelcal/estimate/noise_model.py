@@ -38,7 +38,6 @@ class NoiseModel:
         object.__setattr__(self, "innovation_cov", cov)
         chol = np.linalg.cholesky(cov)
         object.__setattr__(self, "_inv_chol", linalg.solve_triangular(chol, np.eye(3), lower=True))
-        object.__setattr__(self, "_diagonal", bool(np.all(cov == np.diag(np.diag(cov)))))
 
     @classmethod
     def white(cls, std_mps2) -> NoiseModel:
@@ -111,16 +110,21 @@ class NoiseModel:
         if jacobian is None:
             return r, None
         size, _, n = jacobian.shape
-        if p == 0:  # white: one pass, L⁻¹ across axes
+        if p == 0:  # white: L⁻¹ across axes in one batched product
             return r, np.matmul(inv_chol, jacobian)
+        filtered = [
+            jacobian[:, i, p:]
+            if a.size == 1
+            else signal.lfilter(a, [1.0], jacobian[:, i, :])[:, p:]
+            for i, a in enumerate(self.ar_polynomials)
+        ]
+        # L⁻¹ (lower triangular) across axes: six scaled adds over (P, M) blocks.
         j = np.empty((size, 3, n - p))
-        for i, a in enumerate(self.ar_polynomials):
-            rows = jacobian[:, i, :]
-            j[:, i, :] = rows[:, p:] if a.size == 1 else signal.lfilter(a, [1.0], rows)[:, p:]
-        if self._diagonal:
-            j *= np.diag(inv_chol)[None, :, None]
-        else:
-            j = np.matmul(inv_chol, j)  # L⁻¹ across axes, one (3,3)@(3,M) per parameter
+        for i in range(3):
+            np.multiply(filtered[i], inv_chol[i, i], out=j[:, i, :])
+            for k in range(i):
+                if inv_chol[i, k] != 0.0:
+                    j[:, i, :] += inv_chol[i, k] * filtered[k]
         return r, j
 
     def to_dict(self) -> dict:

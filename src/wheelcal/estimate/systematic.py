@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, nuisance_sensitivity
 
 #: Spread of local gravity when the session does not give it: 9.780 m/s² at the
@@ -68,38 +67,58 @@ class SystematicBudget:
         return float(self.total_std[self.names.index(name)])
 
 
+def nuisance_columns(layout: ParameterLayout) -> list[str]:
+    """The fixed quantities this layout leaves to the systematic budget."""
+    names = ["gravity_mps2"]
+    if not layout.fit_radius:
+        names.insert(0, "radius_m")
+    if not layout.fit_tilt:
+        names.insert(0, "tilt_rad")
+    return names
+
+
+def nuisance_extra(nuisances: list[str]):
+    """``extra`` callback for :func:`~wheelcal.estimate.normal_equations.accumulate`."""
+
+    def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
+        return np.stack([nuisance_sensitivity(params, t_s, q, output).T for q in nuisances])
+
+    return extra
+
+
 def systematic_budget(
     params: CalibrationParams,
-    t_s: np.ndarray,
     layout: ParameterLayout,
-    noise: NoiseModel,
-    whitened_jacobian: np.ndarray,
+    hessian: np.ndarray,
+    nuisances: list[str],
     report_jacobian: np.ndarray,
     names: tuple[str, ...],
     radius_std_m: float,
     gravity_std_mps2: float,
     clock_std_ppm: float,
     tilt_std_deg: float,
-    output: ModelOutput | None = None,
 ) -> SystematicBudget:
-    """Linearised effect of each unseen quantity on the reported parameters."""
-    jt = whitened_jacobian.reshape(whitened_jacobian.shape[0], -1)
-    fisher = jt @ jt.T
-    solve = _pseudo_solver(fisher)
+    """Linearised effect of each unseen quantity on the reported parameters.
+
+    ``hessian`` is J̃ᵀJ̃ over [free parameters | nuisance columns] (in the
+    order of ``nuisances``), from one accumulation with
+    :func:`nuisance_extra`.
+    """
+    size = layout.size
+    solve = _pseudo_solver(hessian[:size, :size])
 
     def shift(nuisance: str) -> np.ndarray:
-        dv = nuisance_sensitivity(params, t_s, nuisance, output)
-        dvw, _ = noise.whiten(dv)
-        return -(report_jacobian @ solve(jt @ dvw.reshape(-1)))
+        k = size + nuisances.index(nuisance)
+        return -(report_jacobian @ solve(hessian[:size, k]))
 
     sources = [SystematicSource("gravity", "m/s^2", gravity_std_mps2, shift("gravity_mps2"))]
-    if not layout.fit_radius:
+    if "radius_m" in nuisances:
         per_m = shift("radius_m")
         sources.insert(0, SystematicSource("radius", "m", radius_std_m, per_m))
         # A clock whose seconds are (1 + ε) too long ≡ relative radius error −2ε.
         per_ppm = per_m * (-2.0 * params.bench.radius_m * 1e-6)
         sources.append(SystematicSource("sample_clock", "ppm", clock_std_ppm, per_ppm))
-    if not layout.fit_tilt:
+    if "tilt_rad" in nuisances:
         per_deg = shift("tilt_rad") * np.deg2rad(1.0)
         sources.insert(0, SystematicSource("tilt", "deg", tilt_std_deg, per_deg))
     return SystematicBudget(names=names, sources=tuple(sources))
