@@ -1,0 +1,221 @@
+"""Find the free-spin window in a whole recording (rest, push, spin, brake, rest).
+
+The model of eq. (1) holds only while nothing but air and bearings act on the
+wheel.  The search uses what every mounting shares, without assuming which
+sensor axis is which:
+
+* In the sensor frame the gravity component g sin α (cos ϑ X + sin ϑ Y)
+  *rotates* in the plane spanned by Γ R e_X and Γ R e_Y, while everything else
+  (o, Γ R (r ω² e_X + r ω̇ e_Y + g cos α e_Z)) varies slowly.  A high-pass
+  (zero-phase, ``highpass_hz`` well below the slowest spin) keeps the rotating
+  part h(t); its plane comes from the two leading principal axes of h.
+* Projected on that plane, h is a near-circle: its angle is the wheel phase ϑ
+  up to a constant and a sign, its radius ≈ g sin α while the wheel turns and
+  ≈ the noise while it rests.
+* Phase differences over a baseline ``lag_s`` give |ω|, and differences of
+  those give |ω̇|.  A free spin decays slowly (|ω̇| ≲ 0.2 rad/s² for a
+  hand-spun wheel); a push or a brake changes ω by several rad/s within a
+  second.  The baseline averages the 2ω ripple of an elliptical projection
+  (unequal gains) away.
+
+The window is the longest stretch where the wheel turns (radius above
+``amplitude_fraction`` of its typical value, |ω| > ``min_rate_radps``) and
+|ω̇| < ``max_spin_accel_radps2``, shrunk by ``margin_s`` at both ends so it
+stays inside the true free spin.  The differences look ``lag_s`` ahead and
+behind, so a push or brake taints ω̇ up to ~``lag_s`` into the spin: the
+window loses ≈ ``lag_s`` + ``margin_s`` at each end (≈ 2 s of a 60–90 s spin).
+
+Works at any sample rate (the data are resampled to their median rate for
+filtering; gaps are bridged) and either spin direction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+from wheelcal.recording import Recording, RecordingError
+
+
+@dataclass(frozen=True)
+class WindowSearch:
+    """Settings of :func:`find_free_spin` (see the module docstring)."""
+
+    highpass_hz: float = 0.15
+    lowpass_hz: float = 8.0
+    lag_s: float = 1.0
+    max_spin_accel_radps2: float = 0.6
+    min_rate_radps: float = 1.5
+    amplitude_fraction: float = 0.5
+    margin_s: float = 0.5
+    min_duration_s: float = 5.0
+
+    def __post_init__(self) -> None:
+        if not (0 < self.highpass_hz < self.lowpass_hz):
+            raise ValueError("need 0 < highpass_hz < lowpass_hz")
+        for name in ("lag_s", "max_spin_accel_radps2", "min_duration_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive")
+
+
+@dataclass(frozen=True)
+class FreeSpinWindow:
+    """The free spin found in a recording (times in the recording's seconds)."""
+
+    start_s: float
+    end_s: float
+    reason: str
+    omega_start_radps: float
+    omega_end_radps: float
+    max_spin_accel_radps2: float
+
+    @property
+    def duration_s(self) -> float:
+        """Length of the window."""
+        return self.end_s - self.start_s
+
+    def as_tuple(self) -> tuple[float, float]:
+        """(start_s, end_s)."""
+        return (self.start_s, self.end_s)
+
+
+def _moving_average(x: np.ndarray, n: int) -> np.ndarray:
+    if n <= 1:
+        return x
+    kernel = np.ones(n) / n
+    return np.convolve(x, kernel, mode="same")
+
+
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start (inclusive) and stop (exclusive) indices of the True runs of ``mask``."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+
+
+def _phase(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unwrapped angle (sign chosen so it mostly increases) and radius of h in its main plane."""
+    radius = np.linalg.norm(h, axis=1)
+    strong = radius > np.median(radius)
+    _, vectors = np.linalg.eigh(h[strong].T @ h[strong])
+    z = h @ vectors[:, 2] + 1j * (h @ vectors[:, 1])
+    phase = np.unwrap(np.angle(z))
+    if phase[-1] < phase[0]:
+        phase = -phase
+    return phase, np.abs(z)
+
+
+def _revolution_mean(v: np.ndarray, ramp: np.ndarray, max_half: int) -> np.ndarray:
+    """Mean of v over one revolution centred on each sample (phase within ±π).
+
+    ``ramp`` is a monotone phase, so each window is one index range; windows
+    are capped at ``max_half`` samples each side (at rest the phase does not
+    advance and a revolution would never end).
+    """
+    index = np.arange(ramp.size)
+    lo = np.maximum(np.searchsorted(ramp, ramp - np.pi, side="left"), index - max_half)
+    hi = np.minimum(np.searchsorted(ramp, ramp + np.pi, side="right"), index + max_half + 1)
+    total = np.vstack([np.zeros((1, 3)), np.cumsum(v, axis=0)])
+    return (total[hi] - total[lo]) / (hi - lo)[:, None]
+
+
+def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> FreeSpinWindow:
+    """Find the free-spin window of a recording automatically.
+
+    Parameters
+    ----------
+    recording:
+        The whole session, samples in m/s².
+    search:
+        Thresholds and filter settings.
+
+    Returns
+    -------
+    FreeSpinWindow
+        ``start_s``/``end_s`` in the recording's time, with a reason text.
+
+    Raises
+    ------
+    RecordingError
+        If no free spin of at least ``min_duration_s`` is found.
+    """
+    search = search or WindowSearch()
+    rate = recording.rate_hz
+    t0 = float(recording.time_s[0])
+    n = int(np.floor(recording.duration_s * rate)) + 1
+    grid = t0 + np.arange(n) / rate
+    v = np.column_stack(
+        [np.interp(grid, recording.time_s, recording.accel_mps2[:, k]) for k in range(3)]
+    )
+    lag = max(round(search.lag_s * rate / 2), 1)  # half the baseline, in samples
+    if n < 8 * lag:
+        raise RecordingError(
+            f"{recording.source}: {recording.duration_s:.1f} s is too short to find a free spin"
+        )
+
+    # Noise: zero-phase low-pass (SOS: stable at any rate).
+    sos = signal.butter(2, min(search.lowpass_hz, 0.4 * rate), fs=rate, output="sos")
+    v = signal.sosfiltfilt(sos, v, axis=0)
+    # A rough phase from dv/dt: differentiation suppresses the slow part
+    # (o, r ω², g cos α …) without the seconds-long ringing a high-pass filter
+    # shows after the push's step in r ω².  It only sets the revolution windows.
+    rough, _ = _phase(np.gradient(v, axis=0) * rate)
+    ramp = np.maximum.accumulate(rough)
+    max_half = int(np.pi / search.min_rate_radps * rate)
+    # The rotating part: v minus its mean over one revolution (cancels the
+    # rotation exactly, keeps the slow part out), and its phase.
+    phase, radius = _phase(v - _revolution_mean(v, ramp, max_half))
+    amplitude = _moving_average(radius, 2 * lag)
+
+    # |ω| and |ω̇| from phase differences over the baseline 2·lag.
+    omega = np.full(n, np.nan)
+    omega[lag:-lag] = (phase[2 * lag :] - phase[: -2 * lag]) / (2 * lag / rate)
+    omega_dot = np.full(n, np.nan)
+    omega_dot[2 * lag : -2 * lag] = (omega[3 * lag : -lag] - omega[lag : -3 * lag]) / (
+        2 * lag / rate
+    )
+    with np.errstate(invalid="ignore"):
+        steady = (omega > search.min_rate_radps) & (
+            np.abs(omega_dot) < search.max_spin_accel_radps2
+        )
+    # The rotating gravity component keeps its size g sin α through a free spin.
+    typical = np.median(amplitude[steady]) if np.any(steady) else np.inf
+    free = steady & (np.abs(np.log(amplitude / typical)) < np.log(1 / search.amplitude_fraction))
+    starts, stops = _runs(free)
+    if starts.size == 0:
+        raise RecordingError(
+            f"{recording.source}: no free spin found (no stretch where the wheel turns "
+            f"faster than {search.min_rate_radps} rad/s with |dω/dt| < "
+            f"{search.max_spin_accel_radps2} rad/s²)"
+        )
+    best = int(np.argmax(stops - starts))
+    first, last = int(starts[best]), int(stops[best]) - 1
+    # A run that reaches the first/last valid estimate may go on beyond the data.
+    start_s = grid[first] + search.margin_s if first > 2 * lag else t0
+    end_s = grid[last] - search.margin_s if last < n - 1 - 2 * lag else grid[-1]
+    if end_s - start_s < search.min_duration_s:
+        raise RecordingError(
+            f"{recording.source}: the longest free spin found lasts only "
+            f"{max(end_s - start_s, 0):.1f} s (need {search.min_duration_s:g} s)"
+        )
+    inside = (grid >= start_s) & (grid <= end_s)
+    w = omega[inside]
+    w_start = float(np.nanmedian(w[: 4 * lag]))
+    w_end = float(np.nanmedian(w[-4 * lag :]))
+    max_acc = float(np.nanmax(np.abs(omega_dot[inside])))
+    before = start_s - t0
+    after = float(recording.time_s[-1]) - end_s
+    reason = (
+        f"free spin {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s): "
+        f"|ω| {w_start:.2f} → {w_end:.2f} rad/s, |dω/dt| ≤ {max_acc:.2f} rad/s² inside; "
+        f"left out {before:.1f} s before (rest, push) and {after:.1f} s after (brake, rest)"
+    )
+    return FreeSpinWindow(
+        start_s=float(start_s),
+        end_s=float(end_s),
+        reason=reason,
+        omega_start_radps=w_start,
+        omega_end_radps=w_end,
+        max_spin_accel_radps2=max_acc,
+    )

@@ -1,0 +1,203 @@
+"""A realistic full session: rest, hand push, free spin, brake, rest.
+
+Real recordings do not start and end with the free spin the model describes.
+This simulator wraps the model's free spin in what a person does at the bench:
+
+1. **rest** — the wheel stands still at some angle ϑ_r; the sensor reads
+   gravity only: a = (g sin α cos ϑ_r, g sin α sin ϑ_r, g cos α);
+2. **push** — a hand spins the wheel up from rest to ω_s = ω(−D/2), the rate
+   at the start of the free-spin window, over ``push_s`` seconds, with a
+   smooth-step profile ω = ω_s (3x² − 2x³), x = τ/P, so ω̇ = 6 ω_s x(1 − x)/P
+   (strong tangential acceleration r ω̇) and the phase
+   ϑ = ϑ_s − ω_s P (½ − x³ + x⁴/2) meets the free spin's ϑ(−D/2) exactly;
+3. **free spin** — exactly the model, ``wheelcal.model.predict`` with the
+   scenario's truth, whose time origin is the centre of this window;
+4. **stop** — a brake takes ω from ω_e = ω(D/2) to 0 over ``stop_s`` with the
+   mirrored smooth step; then **rest** at the final angle.
+
+During push and stop the hand also shakes the wheel: band-limited (≈ 3 Hz)
+random bench-frame accelerations of ``hand_jitter_mps2`` RMS, tapered to
+zero at the ends of each phase, so the free spin stays exactly the model.
+Sensor noise (the scenario's :class:`NoiseSpec`) covers the whole recording;
+the quantiser, if any, is applied last.  The bench-frame force of eq. (1)
+holds in every phase with the phase's own ϑ, ω, ω̇.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+
+from wheelcal.model import CalibrationParams, predict
+from wheelcal.model.bench import bench_force
+from wheelcal.model.kinematics import Kinematics
+from wheelcal.recording import Recording
+from wheelcal.simulate.simulator import Scenario
+
+
+@dataclass(frozen=True)
+class SessionPlan:
+    """Durations (s) of the phases around the free spin, and the hand's shake."""
+
+    rest_before_s: float = 4.0
+    push_s: float = 0.8
+    stop_s: float = 1.5
+    rest_after_s: float = 3.0
+    hand_jitter_mps2: float = 0.8
+    hand_band_hz: float = 3.0
+
+    def __post_init__(self) -> None:
+        for name in ("rest_before_s", "rest_after_s", "hand_jitter_mps2"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0")
+        for name in ("push_s", "stop_s", "hand_band_hz"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive")
+
+
+@dataclass(frozen=True, eq=False)
+class SimulatedFullSession:
+    """A whole simulated session and its truth.
+
+    ``window_s`` is the true free-spin window in recording time; the truth's
+    motion parameters use t = 0 at its centre (CONTRACT).
+    """
+
+    recording: Recording
+    truth: CalibrationParams
+    window_s: tuple[float, float]
+    clean_mps2: np.ndarray
+    scenario: Scenario
+    plan: SessionPlan = field(default_factory=SessionPlan)
+
+    @property
+    def centre_s(self) -> float:
+        """Centre of the free-spin window (the truth's t = 0), recording time."""
+        return 0.5 * (self.window_s[0] + self.window_s[1])
+
+
+def _smooth_step(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """s(x) = 3x² − 2x³, its derivative 6x(1 − x), and its integral x³ − x⁴/2."""
+    return 3 * x**2 - 2 * x**3, 6 * x * (1 - x), x**3 - x**4 / 2
+
+
+def _hand_shake(n: int, rate_hz: float, plan: SessionPlan, rng: np.random.Generator) -> np.ndarray:
+    """Band-limited random bench-frame acceleration, unit envelope, RMS ``hand_jitter_mps2``."""
+    if n == 0 or plan.hand_jitter_mps2 == 0:
+        return np.zeros((n, 3))
+    sos = signal.butter(2, min(plan.hand_band_hz, 0.4 * rate_hz), fs=rate_hz, output="sos")
+    burn = int(2 * rate_hz / plan.hand_band_hz) + 10
+    raw = signal.sosfilt(sos, rng.standard_normal((n + burn, 3)), axis=0)[burn:]
+    raw /= max(float(np.sqrt(np.mean(raw**2))), 1e-12)
+    taper = np.sin(np.pi * (np.arange(n) + 0.5) / n) ** 2  # zero at both ends
+    return plan.hand_jitter_mps2 * raw * taper[:, None]
+
+
+def simulate_session(
+    scenario: Scenario,
+    rng: np.random.Generator,
+    plan: SessionPlan | None = None,
+    epoch_unix_ns: int = 1_700_000_000_000_000_000,
+    source: str = "<simulated session>",
+) -> SimulatedFullSession:
+    """Simulate rest, push, the scenario's free spin, brake and rest as one recording.
+
+    Parameters
+    ----------
+    scenario:
+        Truth (free spin about its window centre), duration D of the free
+        spin, sample rate, noise, optional quantiser, session facts.
+    rng:
+        The only source of randomness (noise and the hand's shake).
+    plan:
+        Durations of the other phases.
+    epoch_unix_ns:
+        Unix time of the first sample.
+    source:
+        Name recorded in the Recording.
+
+    Returns
+    -------
+    SimulatedFullSession
+        The recording (t = 0 at the first sample), the truth, the true
+        free-spin window and the noise-free samples.
+    """
+    plan = plan or SessionPlan()
+    truth = scenario.truth
+    rate = scenario.rate_hz
+    duration = scenario.duration_s
+    # Free-spin start on the sample grid, so its samples are the model's exactly.
+    start = round((plan.rest_before_s + plan.push_s) * rate) / rate
+    end = start + duration
+    centre = start + duration / 2
+    total = end + plan.stop_s + plan.rest_after_s
+    t = np.arange(round(total * rate) + 1) / rate
+
+    spin = truth.spin
+    omega_s = float(spin.omega_at(-duration / 2))
+    theta_s = float(spin.theta_at(-duration / 2))
+    omega_e = float(spin.omega_at(duration / 2))
+    theta_e = float(spin.theta_at(duration / 2))
+
+    theta = np.empty_like(t)
+    omega = np.zeros_like(t)
+    omega_dot = np.zeros_like(t)
+    push_from = start - plan.push_s
+    # Phase 1: rest before.
+    rest1 = t < push_from
+    theta[rest1] = theta_s - omega_s * plan.push_s / 2
+    # Phase 2: push.
+    push = (t >= push_from) & (t < start)
+    x = (t[push] - push_from) / plan.push_s
+    s, ds, integral = _smooth_step(x)
+    omega[push] = omega_s * s
+    omega_dot[push] = omega_s * ds / plan.push_s
+    theta[push] = theta_s - omega_s * plan.push_s * (0.5 - integral)
+    # Phase 4: brake, then rest.
+    stop = (t > end) & (t <= end + plan.stop_s)
+    x = (t[stop] - end) / plan.stop_s
+    s, ds, integral = _smooth_step(x)
+    omega[stop] = omega_e * (1 - s)
+    omega_dot[stop] = -omega_e * ds / plan.stop_s
+    theta[stop] = theta_e + omega_e * plan.stop_s * (x - integral)
+    rest2 = t > end + plan.stop_s
+    theta[rest2] = theta_e + omega_e * plan.stop_s / 2
+
+    free = (t >= start) & (t <= end)
+    outside = ~free
+    bench = truth.bench
+    force = bench_force(
+        Kinematics(theta[outside], omega[outside], omega_dot[outside]),
+        bench.tilt_rad,
+        bench.radius_m,
+        truth.gravity_mps2,
+    ).accel_mps2
+    for phase in (push, stop):
+        rows = np.flatnonzero(phase[outside])
+        force[rows] += _hand_shake(rows.size, rate, plan, rng)
+    clean = np.empty((t.size, 3))
+    sensor = truth.sensor
+    # Eq. (4)–(5): s = R a, v = o + Γ s.
+    clean[outside] = sensor.offset_mps2 + sensor.gain * (force @ bench.misalignment.matrix.T)
+    clean[free] = predict(truth, t[free] - centre)  # Phase 3: exactly the model
+
+    noisy = clean + scenario.noise.sample(t.size, rate, rng)
+    if scenario.quantiser is not None:
+        noisy = scenario.quantiser.apply(noisy)
+    recording = Recording(
+        time_s=t,
+        accel_mps2=noisy,
+        info=scenario.info,
+        epoch_unix_ns=epoch_unix_ns,
+        source=source,
+    )
+    return SimulatedFullSession(
+        recording=recording,
+        truth=truth,
+        window_s=(float(start), float(end)),
+        clean_mps2=clean,
+        scenario=scenario,
+        plan=plan,
+    )
