@@ -1,0 +1,1 @@
+"""Command-line interface: thin parsers over the library (see ``wheelcal --help``)."""

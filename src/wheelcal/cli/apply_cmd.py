@@ -1,0 +1,35 @@
+"""``wheelcal apply CAL.json IN.mcap OUT.mcap`` — a calibrated copy of a recording."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub) -> None:
+    """Add the ``apply`` parser."""
+    p = sub.add_parser(
+        "apply",
+        help="write a copy of a recording with a calibrated accelerometer topic added",
+        description=(
+            "Copy IN.mcap to OUT.mcap keeping every channel, and add <topic>/calibrated with "
+            "a = matrix @ (v - bias) per sample; the calibration is stored as metadata."
+        ),
+    )
+    p.add_argument("calibration", metavar="CAL.json")
+    p.add_argument("source", metavar="IN.mcap")
+    p.add_argument("destination", metavar="OUT.mcap")
+    p.add_argument("--topic", help="accelerometer topic to correct (default: the calibration's)")
+    p.add_argument("--out-topic", help="name of the calibrated topic (default <topic>/calibrated)")
+    p.add_argument("--format", choices=("ros2", "json"), help="encoding of the calibrated topic")
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Apply and report."""
+    from wheelcal.io.apply_calibration import apply_calibration
+
+    topic, samples = apply_calibration(
+        args.calibration, args.source, args.destination, args.topic, args.out_topic, args.format
+    )
+    print(f"wrote {args.destination}: {samples} calibrated samples on {topic}")
+    return 0

@@ -1,0 +1,47 @@
+"""``wheelcal calibrate FILE.mcap... --out DIR`` — one calibration JSON per recording."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from wheelcal.cli.errors import SessionsFailed
+from wheelcal.cli.options import add_session_arguments, session_options
+
+
+def register(sub) -> None:
+    """Add the ``calibrate`` parser."""
+    p = sub.add_parser(
+        "calibrate",
+        help="calibrate recordings (MCAP) → <stem>.calibration.json",
+        description=(
+            "Calibrate each recording: find the free spin, fit offsets, gains, tilt, "
+            "misalignment and spin jointly, and write <out>/<stem>.calibration.json "
+            "(format wheelcal.calibration/1). A failing file is reported and the others go on."
+        ),
+    )
+    p.add_argument("files", nargs="+", metavar="FILE.mcap")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--rrd", action="store_true", help="also write a Rerun recording per session")
+    p.add_argument("--quiet", action="store_true", help="print only failures")
+    add_session_arguments(p)
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Calibrate every file; exit 1 if any failed."""
+    from wheelcal.batch.session import calibrate_session
+    from wheelcal.cli.summary import session_summary
+
+    options = session_options(args, rrd=args.rrd)
+    failed = []
+    for path in args.files:
+        outcome = calibrate_session(path, options, args.out)
+        if not outcome.ok:
+            failed.append(outcome)
+            print(session_summary(outcome), file=sys.stderr)
+        elif not args.quiet:
+            print(session_summary(outcome))
+    if failed:
+        raise SessionsFailed(f"{len(failed)} of {len(args.files)} recording(s) failed")
+    return 0

@@ -1,0 +1,41 @@
+"""``wheelcal export CAL.json --format yaml|c`` — the correction for ROS configs or firmware."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def register(sub) -> None:
+    """Add the ``export`` parser."""
+    p = sub.add_parser(
+        "export",
+        help="export a calibration as ROS/Kalibr-style YAML or a C header",
+        description="Print (or write with --out) the bias and 3x3 correction of a calibration.",
+    )
+    p.add_argument("calibration", metavar="CAL.json")
+    p.add_argument("--format", choices=("yaml", "c"), required=True)
+    p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
+    p.add_argument("--prefix", default="WHEELCAL", help="C identifier prefix")
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Export."""
+    from wheelcal.cli.errors import UsageError
+    from wheelcal.io.atomic import atomic_write_text
+    from wheelcal.io.calibration_json import load_calibration
+    from wheelcal.io.export_formats import to_c_header, to_yaml
+
+    calibration = load_calibration(args.calibration)
+    try:
+        text = (
+            to_yaml(calibration) if args.format == "yaml" else to_c_header(calibration, args.prefix)
+        )
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    if args.out:
+        atomic_write_text(args.out, text)
+    else:
+        sys.stdout.write(text)
+    return 0

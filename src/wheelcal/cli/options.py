@@ -1,0 +1,76 @@
+"""Argument groups shared by several commands."""
+
+from __future__ import annotations
+
+import argparse
+
+from wheelcal.cli.errors import UsageError
+
+
+def positive_float(text: str) -> float:
+    """Parse a number > 0 (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def add_session_arguments(parser: argparse.ArgumentParser) -> None:
+    """Session facts, topic, window and geometry (calibrate, diagnose, batch overrides)."""
+    g = parser.add_argument_group("session facts (override the file's wheelcal.session record)")
+    g.add_argument(
+        "--radius", type=positive_float, metavar="M", help="sensor distance from the axle (m)"
+    )
+    g.add_argument(
+        "--radius-std", type=float, metavar="M", help="uncertainty of the radius (m; default 0.001)"
+    )
+    g.add_argument("--gravity", type=positive_float, metavar="MPS2", help="local gravity (m/s²)")
+    g.add_argument(
+        "--full-scale-g", type=positive_float, metavar="G", help="sensor range, for clipping"
+    )
+    g.add_argument("--sensor-id", help="sensor identifier (for reports)")
+    g.add_argument("--mounting-id", help="mounting identifier (for reports)")
+    w = parser.add_argument_group("data")
+    w.add_argument("--topic", help="accelerometer topic (default: the only one)")
+    w.add_argument(
+        "--start-s", type=float, help="start of the free-spin window (s from the first sample)"
+    )
+    w.add_argument("--end-s", type=float, help="end of the free-spin window")
+    m = parser.add_argument_group("geometry")
+    m.add_argument(
+        "--geometry",
+        choices=("radius", "tilt", "vertical"),
+        default="radius",
+        help="what is known: the radius (default), the tilt (--tilt-deg), or a vertical wheel",
+    )
+    m.add_argument("--tilt-deg", type=float, help="measured tilt for --geometry tilt")
+    m.add_argument("--tilt-std-deg", type=float, default=0.5, help="uncertainty of the known tilt")
+
+
+def session_options(args: argparse.Namespace, rrd: bool = False):
+    """SessionOptions from parsed arguments (UsageError on inconsistent ones)."""
+    from wheelcal.batch.session import SessionOptions
+
+    if args.geometry == "tilt" and args.tilt_deg is None:
+        raise UsageError("--geometry tilt needs --tilt-deg")
+    try:
+        return SessionOptions(
+            topic=args.topic,
+            radius_m=args.radius,
+            radius_std_m=args.radius_std,
+            gravity_mps2=args.gravity,
+            full_scale_g=args.full_scale_g,
+            sensor_id=args.sensor_id,
+            mounting_id=args.mounting_id,
+            start_s=args.start_s,
+            end_s=args.end_s,
+            geometry=args.geometry,
+            known_tilt_deg=args.tilt_deg,
+            tilt_std_deg=args.tilt_std_deg,
+            rrd=rrd,
+        )
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None

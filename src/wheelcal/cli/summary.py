@@ -1,0 +1,66 @@
+"""Short human summaries of a calibration for the terminal."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wheelcal.batch.session import SessionOutcome
+from wheelcal.model.parameters import AXES
+
+
+def _pm(value: float, std: float, sys_std: float, digits: int) -> str:
+    std_txt = "∞" if not np.isfinite(std) else f"{std:.{digits}f}"
+    return f"{value:+.{digits}f} ± {std_txt} (sys {sys_std:.{digits}f})"
+
+
+def session_summary(outcome: SessionOutcome) -> str:
+    """A few lines: window, parameters ± σ (and systematic σ), residual vs noise, warnings."""
+    if not outcome.ok:
+        return f"FAILED  {outcome.error}"
+    r = outcome.result
+    sys = dict(zip(r.systematic.names, r.systematic.total_std, strict=True))
+    w0, w1 = r.window_s
+    omega = r.params.spin.omega_at(r.centred_time_s[[0, -1]])
+    lines = [
+        f"{outcome.source}  topic {r.topic or '-'}",
+        f"  window {w0:.2f}–{w1:.2f} s, {r.time_s.size} samples, "
+        f"ω {omega[0]:+.2f} → {omega[1]:+.2f} rad/s"
+        + (f"  [{outcome.window_reason}]" if outcome.window_reason else ""),
+    ]
+    for axis in AXES:
+        g, o = f"gain_{axis}", f"offset_{axis}_mps2"
+        lines.append(
+            f"  {axis}: gain {_pm(r.value_of(g), r.std_of(g), sys[g], 5)}"
+            f"   offset {_pm(r.value_of(o), r.std_of(o), sys[o], 4)} m/s²"
+        )
+    if "tilt_deg" in r.names:
+        lines.append(
+            f"  tilt {_pm(r.value_of('tilt_deg'), r.std_of('tilt_deg'), sys['tilt_deg'], 3)}°"
+        )
+    if "radius_m" in r.names:
+        lines.append(
+            f"  radius {r.value_of('radius_m'):.4f} ± {r.std_of('radius_m'):.4f} m (estimated)"
+        )
+    euler = [r.value_of(f"euler_{k}_deg") for k in (1, 2, 3)]
+    euler_std = [r.std_of(f"euler_{k}_deg") for k in (1, 2, 3)]
+    lines.append(
+        "  misalignment (ZYX) "
+        + ", ".join(f"{e:.3f} ± {s:.3f}°" for e, s in zip(euler, euler_std, strict=True))
+    )
+    noise = r.noise
+    colour = "white" if noise.order == 0 else f"coloured, AR({noise.order})"
+    lines.append(
+        "  residual rms "
+        + " ".join(f"{x:.4f}" for x in r.residual_rms_mps2)
+        + " m/s² vs noise "
+        + " ".join(f"{x:.4f}" for x in noise.marginal_std_mps2)
+        + f" ({colour}, effective samples {100 * np.mean(noise.effective_sample_fraction):.0f} %)"
+    )
+    for warning in r.warnings:
+        lines.append(f"  warning: {warning}")
+    for note in r.notes:
+        lines.append(f"  note: {note}")
+    lines.append(
+        f"  → {outcome.calibration_path}" + (f", {outcome.rrd_path}" if outcome.rrd_path else "")
+    )
+    return "\n".join(lines)
