@@ -7,6 +7,7 @@ the problem.
 """
 
 from wheelcal.io.atomic import atomic_output, atomic_write_bytes, atomic_write_text
+from wheelcal.io.csv_convert import CsvConversion, CsvLayout, convert_csv
 from wheelcal.io.errors import (
     CorruptFileError,
     InputError,
@@ -15,7 +16,7 @@ from wheelcal.io.errors import (
     SessionInfoError,
     TopicError,
 )
-from wheelcal.io.mcap_reader import AccelTopic, list_accel_topics, read_recording
+from wheelcal.io.mcap_reader import AccelTopic, choose_topic, list_accel_topics, read_recording
 from wheelcal.io.mcap_writer import (
     ChannelData,
     accel_channel,
@@ -31,6 +32,8 @@ __all__ = [
     "AccelTopic",
     "ChannelData",
     "CorruptFileError",
+    "CsvConversion",
+    "CsvLayout",
     "InputError",
     "InputPolicy",
     "NotMcapError",
@@ -41,6 +44,8 @@ __all__ = [
     "atomic_output",
     "atomic_write_bytes",
     "atomic_write_text",
+    "choose_topic",
+    "convert_csv",
     "copy_with_channels",
     "list_accel_topics",
     "read_recording",

@@ -8,14 +8,17 @@ encoding ``json``)::
 one or many samples per message (devices batch samples into radio packets);
 the channel's metadata ``unit`` is ``m/s^2`` (default) or ``g``.
 
-Decoding joins all payloads of a channel into one JSON array, parses it with
-a single :func:`json.loads` call and flattens with :func:`itertools.chain`
-and :func:`numpy.fromiter`: no Python-level parsing, exact values.  The cost
-floor is CPython's correctly rounded decimal-to-binary conversion (~0.35 µs
-per 17-digit float) plus ~2 µs of object building per message, so batched
-messages read at ~0.5 M samples/s and one-sample messages at ~0.3 M/s.
-(A vectorised numpy parser of the same subset was tried and measured slower:
-digit-by-digit array passes cost as much per byte as ``float()`` does.)
+Decoding, fast path: all payloads of a channel as newline-delimited JSON
+through Arrow's C++ reader (``pyarrow``, which rerun-sdk depends on), one
+thread, explicit schema — ~3× faster than :func:`json.loads`, same values
+(correctly rounded).  Exact path, for anything Arrow does not take (``NaN``,
+a missing key, pretty-printed messages, no pyarrow): the payloads joined into
+one JSON array, one :func:`json.loads`, flattened with
+:func:`itertools.chain` and :func:`numpy.fromiter`; it also words the errors.
+Its floor is CPython's decimal-to-binary conversion (~0.35 µs per 17-digit
+float) plus ~2 µs of object building per message.  (A vectorised numpy
+parser was tried and measured slower than ``float()``: digit-by-digit array
+passes cost as much per byte.)
 """
 
 from __future__ import annotations
@@ -93,6 +96,9 @@ def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, n
     ]
     if not payloads:
         return np.empty(0, np.int64), np.empty((0, 3))
+    fast = _decode_with_arrow(payloads)
+    if fast is not None:
+        return fast
     joined = b"[" + b",".join(payloads) + b"]"
     try:
         messages = json.loads(joined)
@@ -122,6 +128,57 @@ def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, n
     except (ValueError, TypeError):
         raise AccelBatchError('every "accel" row must be three numbers [ax, ay, az]') from None
     return time_ns.astype(np.int64), accel.reshape(-1, 3)
+
+
+def _decode_with_arrow(payloads: list) -> tuple[np.ndarray, np.ndarray] | None:
+    """Parse with Arrow's C++ JSON reader (single thread), or None to use json.loads.
+
+    Arrow parses numbers with correctly rounded conversions (same values as
+    :func:`json.loads`) at several times the speed.  Anything it cannot take
+    — a payload with a newline (not line-delimited), ``NaN``, missing keys,
+    non-integer stamps — returns None and the exact, judging path runs.
+    """
+    try:
+        import pyarrow as pa
+        import pyarrow.json as pa_json
+    except ImportError:  # rerun-sdk brings pyarrow; without it, json.loads still works
+        return None
+    joined = b"\n".join(payloads)
+    if joined.count(b"\n") != len(payloads) - 1:
+        return None
+    schema = pa.schema(
+        [("timestamps_ns", pa.list_(pa.int64())), ("accel", pa.list_(pa.list_(pa.float64())))]
+    )
+    try:
+        table = pa_json.read_json(
+            pa.BufferReader(joined),
+            read_options=pa_json.ReadOptions(use_threads=False, block_size=len(joined) + 1),
+            parse_options=pa_json.ParseOptions(
+                explicit_schema=schema, unexpected_field_behavior="ignore"
+            ),
+        )
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+        return None
+    if table.num_rows != len(payloads):
+        return None
+    stamps = table.column("timestamps_ns").combine_chunks()
+    batches = table.column("accel").combine_chunks()
+    rows = batches.flatten()
+    if stamps.null_count or batches.null_count or rows.null_count:
+        return None
+    values = rows.flatten()
+    if values.null_count or stamps.flatten().null_count:
+        return None
+    per_message_stamps = stamps.value_lengths().to_numpy(zero_copy_only=False)
+    per_message_rows = batches.value_lengths().to_numpy(zero_copy_only=False)
+    if not np.array_equal(per_message_stamps, per_message_rows):
+        raise AccelBatchError('a message has different numbers of "timestamps_ns" and "accel"')
+    widths = rows.value_lengths().to_numpy(zero_copy_only=False)
+    if widths.size and (widths.min() != 3 or widths.max() != 3):
+        raise AccelBatchError('every "accel" row must be three numbers [ax, ay, az]')
+    time_ns = stamps.flatten().to_numpy(zero_copy_only=False).astype(np.int64)
+    accel = values.to_numpy(zero_copy_only=False).astype(np.float64).reshape(-1, 3)
+    return time_ns, accel
 
 
 def _message_at(payloads: list[bytes], pos: int) -> int:

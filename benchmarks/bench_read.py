@@ -1,0 +1,110 @@
+"""Read throughput of wheelcal's MCAP reader versus the plain mcap / mcap_ros2 decoders.
+
+Generates 18,000-sample recordings (table II bench, 200 Hz) in a temporary
+directory — ROS 2 Imu (one sample per message), JSON AccelBatch with one
+sample per message and batched — and times, in this one process:
+
+* ``wheelcal.io.read_recording`` (every CRC verified, samples checked);
+* the plain path: ``mcap.reader.make_reader(..., validate_crcs=True)`` with
+  ``mcap_ros2.decoder.DecoderFactory`` (``iter_decoded_messages``) for ROS 2,
+  ``iter_messages`` + ``json.loads`` per message for JSON, collected into the
+  same numpy arrays.
+
+Best of ``--repeat`` runs; the machine's load shows in both columns alike, so
+the ratio is the figure to quote.  Run: ``python benchmarks/bench_read.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wheelcal.io import read_recording, write_recording
+from wheelcal.simulate import Scenario, simulate, table2
+
+SAMPLES = 18_000
+
+
+def plain_ros2(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    stamps, accel = [], []
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, validate_crcs=True, decoder_factories=[DecoderFactory()])
+        for _, _, _, msg in reader.iter_decoded_messages():
+            stamp = msg.header.stamp
+            stamps.append(stamp.sec * 1_000_000_000 + stamp.nanosec)
+            a = msg.linear_acceleration
+            accel.append((a.x, a.y, a.z))
+    return np.array(stamps, dtype=np.int64), np.array(accel)
+
+
+def plain_json(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    from mcap.reader import make_reader
+
+    stamps, accel = [], []
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, validate_crcs=True)
+        for _, _, message in reader.iter_messages():
+            batch = json.loads(message.data)
+            stamps.extend(batch["timestamps_ns"])
+            accel.extend(batch["accel"])
+    return np.array(stamps, dtype=np.int64), np.array(accel)
+
+
+def best_time(fn, repeat: int) -> float:
+    fn()  # warm-up (imports, caches)
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--compression", default="zstd", choices=["zstd", "lz4", "none"])
+    args = parser.parse_args()
+
+    base = table2(rng=np.random.default_rng(1))
+    scenario = Scenario(
+        truth=base.truth, duration_s=(SAMPLES - 1) / base.rate_hz, rate_hz=base.rate_hz
+    )
+    recording = simulate(scenario, np.random.default_rng(2)).recording
+    assert recording.samples == SAMPLES
+    variants = [
+        ("ROS 2 Imu, 1 sample/msg", "ros2", 1, plain_ros2),
+        ("JSON, 1 sample/msg", "json", 1, plain_json),
+        ("JSON, 10 samples/msg", "json", 10, plain_json),
+        ("JSON, 50 samples/msg", "json", 50, plain_json),
+    ]
+    print(f"{SAMPLES} samples per file, {args.compression} chunks, best of {args.repeat}")
+    print(f"{'file':26s} {'wheelcal':>14s} {'plain decoder':>14s} {'ratio':>7s}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, encoding, batch, plain in variants:
+            path = Path(tmp) / f"{encoding}_{batch}.mcap"
+            write_recording(
+                recording, path, encoding=encoding, batch_size=batch, compression=args.compression
+            )
+            ours = read_recording(path)
+            stamps, accel = plain(path)
+            assert np.array_equal(ours.accel_mps2, accel), "readers disagree"
+            assert np.array_equal(ours.epoch_unix_ns + np.rint(ours.time_s * 1e9), stamps)
+            t_ours = best_time(lambda p=path: read_recording(p), args.repeat)
+            t_plain = best_time(lambda p=path, f=plain: f(p), args.repeat)
+            print(
+                f"{label:26s} {SAMPLES / t_ours:10,.0f} /s {SAMPLES / t_plain:10,.0f} /s "
+                f"{t_plain / t_ours:6.1f}x"
+            )
+
+
+if __name__ == "__main__":
+    main()
