@@ -65,8 +65,6 @@ def run(args: argparse.Namespace) -> int:
     if args.quantise:
         scenario = dataclasses.replace(scenario, quantiser=Quantiser())
     info = scenario.info.merged(sensor_id=args.sensor_id, mounting_id=args.mounting_id)
-    if args.no_radius:
-        info = dataclasses.replace(info, radius_m=None)
     scenario = dataclasses.replace(scenario, info=info)
     if args.free_spin_only:
         sim = simulate(scenario, rng, source=args.out)
@@ -74,6 +72,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         full = simulate_session(scenario, rng, source=args.out)
         recording, window = full.recording, full.window_s
+    if args.no_radius:  # (a Scenario always knows its radius; the file need not)
+        recording = dataclasses.replace(recording, info=dataclasses.replace(info, radius_m=None))
     write_recording(recording, args.out, encoding=args.format, batch_size=args.batch)
     if args.truth:
         atomic_write_text(args.truth, json.dumps(truth_dict(scenario, window), indent=2) + "\n")
