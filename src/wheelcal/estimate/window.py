@@ -196,8 +196,8 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
     end_s = grid[last] - search.margin_s if last < n - 1 - 2 * lag else grid[-1]
     if end_s - start_s < search.min_duration_s:
         raise RecordingError(
-            f"{recording.source}: the longest free spin found lasts only "
-            f"{max(end_s - start_s, 0):.1f} s (need {search.min_duration_s:g} s)"
+            f"{recording.source}: no free spin found: the longest stretch that looks like "
+            f"one lasts {max(end_s - start_s, 0):.1f} s (need {search.min_duration_s:g} s)"
         )
     inside = (grid >= start_s) & (grid <= end_s)
     w = omega[inside]

@@ -41,8 +41,14 @@ def _vec(values) -> list:
     return [_num(v) for v in np.asarray(values, dtype=float).reshape(-1)]
 
 
-def calibration_dict(result: CalibrationResult, geometry: str = "radius") -> dict:
-    """The contract dictionary for one calibration result."""
+def calibration_dict(
+    result: CalibrationResult, geometry: str = "radius", provenance: dict | None = None
+) -> dict:
+    """The contract dictionary for one calibration result.
+
+    ``provenance`` (input hash, run key) lets a batch re-run skip sessions whose
+    output is up to date.
+    """
     params = result.params
     std = dict(zip(result.names, result.std, strict=True))
     budget = result.systematic
@@ -71,6 +77,7 @@ def calibration_dict(result: CalibrationResult, geometry: str = "radius") -> dic
         "format": FORMAT,
         "wheelcal_version": __version__,
         "geometry": geometry,
+        "provenance": provenance or {},
         "source": {
             "file": result.source,
             "topic": result.topic,
@@ -148,10 +155,13 @@ def _pick(values: np.ndarray, names: tuple[str, ...], prefix: str) -> list[float
 
 
 def write_calibration(
-    path: str | os.PathLike, result: CalibrationResult, geometry: str = "radius"
+    path: str | os.PathLike,
+    result: CalibrationResult,
+    geometry: str = "radius",
+    provenance: dict | None = None,
 ) -> Path:
     """Write the calibration JSON atomically; returns the path."""
-    text = json.dumps(calibration_dict(result, geometry), indent=2, allow_nan=False)
+    text = json.dumps(calibration_dict(result, geometry, provenance), indent=2, allow_nan=False)
     atomic_write_text(path, text + "\n")
     return Path(path)
 

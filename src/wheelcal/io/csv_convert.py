@@ -9,8 +9,9 @@ times); ``epoch_unix_ns`` is added, for logs whose time starts at zero.
 The data are carried over faithfully — defects such as NaNs, duplicate or
 unordered stamps are left for :func:`~wheelcal.io.mcap_reader.read_recording`
 to repair or refuse, so that happens in one place with one set of rules.
-Only rows that cannot be represented at all are skipped (a time that is not a
-number); empty or unparsable acceleration cells become NaN.  The output is
+Rows whose time is not a number are skipped (and counted); an empty
+acceleration cell becomes NaN; any other non-numeric acceleration cell is an
+error (it means the columns or the delimiter are wrong).  The output is
 written atomically.
 """
 
@@ -81,10 +82,10 @@ def _to_ns(text: str, scale: int) -> int:
 
 
 def _to_float(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
+    """A number; an empty cell is NaN (a gap the reader reports); other text is an error."""
+    if not text.strip():
         return float("nan")
+    return float(text)
 
 
 def _columns(path: str, header: list[str], layout: CsvLayout) -> list[int]:
@@ -169,13 +170,19 @@ def convert_csv(
     stamps: list[int] = []
     values: list[list[float]] = []
     skipped = 0
-    for row in body:
+    first_line = 1 if by_index else 2
+    for line, row in enumerate(body, start=first_line):
         try:
             stamp = _to_ns(row[cols[0]], scale)
-            sample = [_to_float(row[c]) for c in cols[1:]]
         except (IndexError, InvalidOperation, ValueError):
             skipped += 1
             continue
+        try:
+            sample = [_to_float(row[c]) for c in cols[1:]]
+        except (IndexError, ValueError):
+            raise InputError(
+                path, f"data row {line}: an acceleration cell is not a number: {row!r}"
+            ) from None
         stamps.append(stamp + layout.epoch_unix_ns)
         values.append(sample)
     if not stamps:

@@ -461,7 +461,6 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
 
     data_end_at = np.flatnonzero(ops == Opcode.DATA_END)
     data_stop = int(data_end_at[0]) if data_end_at.size else footer
-    _check_section_crcs(name, buf, ops, starts, lengths, data_end_at, footer)
 
     # Data section: loose definitions and messages, metadata, and chunks.
     d_ops, d_starts, d_lengths = ops[:data_stop], starts[:data_stop], lengths[:data_stop]
@@ -504,6 +503,8 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
         col.definitions(data, c_ops, c_starts, c_lengths, where)
         col.messages(data, c_ops, c_starts, c_lengths, where)
         chunks += 1
+    # After the chunks, so a damaged chunk is reported as precisely as possible.
+    _check_section_crcs(name, buf, starts, data_end_at, footer)
     # Summary section: repeated schemas and channels (harmless duplicates by id).
     s_ops, s_starts, s_lengths = (
         ops[data_stop:footer],
@@ -529,7 +530,7 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
     )
 
 
-def _check_section_crcs(name, buf, ops, starts, lengths, data_end_at, footer) -> None:
+def _check_section_crcs(name, buf, starts, data_end_at, footer) -> None:
     """The DataEnd data-section CRC and the Footer summary CRC, where present (non-zero)."""
     if data_end_at.size:
         at = int(starts[data_end_at[0]])

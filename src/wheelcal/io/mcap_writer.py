@@ -19,6 +19,7 @@ intact.
 
 from __future__ import annotations
 
+import heapq
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -189,7 +190,7 @@ def write_channels(
 ) -> None:
     """Write channels and metadata records to a new MCAP file, atomically.
 
-    Messages of all channels are written in log-time order.
+    Channels are merged by log time; each channel keeps its own message order.
     """
     _compression(compression)  # fail before creating anything
     with atomic_output(path) as stream:
@@ -218,12 +219,17 @@ def _register(writer, channel: ChannelData) -> int:
 
 
 def _write_messages(writer, originals: list, channels: Sequence[ChannelData], ids: list) -> None:
-    """Originals ``(log, channel, seq, publish, data)`` and new channels, merged by log time."""
-    queue = list(originals)
+    """Originals ``(log, channel, seq, publish, data)`` and new channels, merged by log time.
+
+    A merge, not a sort: each sequence keeps its own order, so a writer never
+    silently repairs data given out of order (the reader reports that).
+    """
+    sequences = [originals]
     for channel_id, channel in zip(ids, channels, strict=True):
-        queue.extend((log, channel_id, 0, log, data) for log, data in channel.messages)
-    queue.sort(key=lambda item: item[0])  # stable: ties keep their order
-    for log, channel_id, sequence, publish, data in queue:
+        sequences.append([(log, channel_id, 0, log, data) for log, data in channel.messages])
+    for log, channel_id, sequence, publish, data in heapq.merge(
+        *sequences, key=lambda item: item[0]
+    ):
         writer.add_message(
             channel_id=channel_id,
             log_time=log,
@@ -344,9 +350,9 @@ def copy_with_channels(
 
     Schemas, channels (with their metadata), messages (with sequence numbers
     and publish times), metadata records and attachments of ``source`` are
-    all kept; ``channels`` are added and all messages are written in log-time
-    order.  The source is verified first (CRCs, truncation), so a damaged
-    source is an error, not a damaged copy.
+    all kept; ``channels`` are added, merged in by log time.  The source is
+    verified first (CRCs, truncation), so a damaged source is an error, not a
+    damaged copy.
 
     Parameters
     ----------
@@ -373,6 +379,7 @@ def copy_with_channels(
     for channel in channels:
         if channel.topic in existing:
             raise ValueError(f"{source}: topic {channel.topic!r} already exists; choose another")
+        existing.add(channel.topic)
     _compression(compression)
     with atomic_output(destination) as stream:
         writer = _new_writer(stream, compression, chunk_bytes)

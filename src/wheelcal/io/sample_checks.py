@@ -142,10 +142,10 @@ def _drop_nonfinite(path, t, a, policy, notes):
     return t[~bad], a[~bad]
 
 
-def _small_steps(t: np.ndarray, dt_ns: float) -> int:
-    """Positive steps shorter than half the typical interval."""
+def _short_steps(t: np.ndarray, dt_ns: float) -> int:
+    """Forward steps (zero included) shorter than half the typical interval."""
     d = np.diff(t)
-    return int(np.count_nonzero((d > 0) & (d < 0.5 * dt_ns)))
+    return int(np.count_nonzero((d >= 0) & (d < 0.5 * dt_ns)))
 
 
 def _order(path, t, a, policy, notes):
@@ -162,7 +162,7 @@ def _order(path, t, a, policy, notes):
     dt_ns = float(np.median(np.abs(d[d != 0]))) if np.any(d != 0) else 0.0
     order = np.argsort(t, kind="stable")
     sorted_t = t[order]
-    created = _small_steps(sorted_t, dt_ns) - _small_steps(t, dt_ns)
+    created = _short_steps(sorted_t, dt_ns) - _short_steps(t, dt_ns)
     if created > 2:
         worst = int(np.argmin(d))
         raise SampleError(

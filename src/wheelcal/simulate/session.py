@@ -69,6 +69,8 @@ class SimulatedFullSession:
     truth: CalibrationParams
     window_s: tuple[float, float]
     clean_mps2: np.ndarray
+    omega_radps: np.ndarray  # true ω(t) at every sample (signed)
+    omega_dot_radps2: np.ndarray  # true ω̇(t) at every sample
     scenario: Scenario
     plan: SessionPlan = field(default_factory=SessionPlan)
 
@@ -141,7 +143,7 @@ def simulate_session(
     omega_e = float(spin.omega_at(duration / 2))
     theta_e = float(spin.theta_at(duration / 2))
 
-    theta = np.empty_like(t)
+    theta = np.zeros_like(t)
     omega = np.zeros_like(t)
     omega_dot = np.zeros_like(t)
     push_from = start - plan.push_s
@@ -167,6 +169,11 @@ def simulate_session(
 
     free = (t >= start) & (t <= end)
     outside = ~free
+    omega[free] = spin.omega_at(t[free] - centre)
+    if spin.degree >= 1:  # ω̇ = Σ k ω_k t^(k−1), eq. (2)
+        omega_dot[free] = np.polynomial.polynomial.polyval(
+            t[free] - centre, spin.omega_radps[1:] * np.arange(1, spin.degree + 1)
+        )
     bench = truth.bench
     force = bench_force(
         Kinematics(theta[outside], omega[outside], omega_dot[outside]),
@@ -198,6 +205,8 @@ def simulate_session(
         truth=truth,
         window_s=(float(start), float(end)),
         clean_mps2=clean,
+        omega_radps=omega,
+        omega_dot_radps2=omega_dot,
         scenario=scenario,
         plan=plan,
     )
