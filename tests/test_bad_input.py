@@ -353,3 +353,12 @@ def test_writer_refuses_before_creating_anything(tmp_path, base):
     with pytest.raises(ValueError, match="encoding"):
         write_recording(rec, tmp_path / "x.mcap", encoding="protobuf")
     assert os.listdir(tmp_path) == []
+
+
+def test_errors_survive_pickling():
+    """Parallel batches send errors between processes."""
+    import pickle
+
+    error = pickle.loads(pickle.dumps(SampleError("/data/s1.mcap", "too short")))
+    assert isinstance(error, SampleError)
+    assert (str(error), error.path) == ("/data/s1.mcap: too short", "/data/s1.mcap")

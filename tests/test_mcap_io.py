@@ -91,6 +91,10 @@ def test_session_metadata_and_overrides(session, tmp_path):
     assert over.radius_m == 0.3 and over.sensor_id == "imu-7"
     with pytest.raises(SessionInfoError, match=r"s\.mcap: unknown session override.*radus_m"):
         read_recording(path, info_overrides={"radus_m": 0.3})
+    # Pipeline defaults fill only what neither the file nor the command line gives.
+    defaults = {"mounting_id": "default", "full_scale_g": 16, "radius_m": 0.5}
+    info = read_recording(path, info_overrides={"radius_m": 0.3}, info_defaults=defaults).info
+    assert (info.mounting_id, info.full_scale_g, info.radius_m) == ("rim-A", 16.0, 0.3)
 
 
 def test_reads_files_of_the_reference_ros2_writer(session, tmp_path):

@@ -21,6 +21,10 @@ class InputError(RecordingError):
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
 
+    def __reduce__(self):
+        # Survive pickling (errors cross process boundaries in parallel batches).
+        return (type(self), (self.path, self.problem))
+
 
 class NotMcapError(InputError):
     """The file is empty or does not start with the MCAP magic bytes."""

@@ -182,6 +182,7 @@ def read_recording(
     topic: str | None = None,
     info_overrides: Mapping[str, object] | None = None,
     *,
+    info_defaults: Mapping[str, object] | None = None,
     accel_unit: str | None = None,
     policy: InputPolicy | None = None,
 ) -> Recording:
@@ -197,6 +198,9 @@ def read_recording(
         Session facts that replace the file's (``radius_m``, ``radius_std_m``,
         ``sensor_id``, ``mounting_id``, ``gravity_mps2``, ``full_scale_g``);
         ``None`` values are ignored, unknown keys are an error.
+    info_defaults:
+        Session facts used where neither the file nor ``info_overrides``
+        gives one (a pipeline file's defaults); same keys.
     accel_unit:
         Override of the unit the file states (``"m/s^2"`` or ``"g"``), for
         files that misstate it.
@@ -224,7 +228,7 @@ def read_recording(
     chosen = choose_topic(scan, topic)
     where = f"topic {chosen.topic}"
     records = [dict(values) for name, values in scan.metadata if name == SESSION_METADATA_NAME]
-    info = session_info(scan.path, records, info_overrides)
+    info = session_info(scan.path, records, info_overrides, info_defaults)
 
     unit = accel_unit or chosen.unit
     if unit not in UNITS:

@@ -165,6 +165,10 @@ class _Cursor:
     def raw(self, n: int) -> bytes:
         return bytes(self.buf[self._take(n) : self.pos])
 
+    def view(self, n: int) -> memoryview:
+        """``n`` bytes without a copy (chunk records can be megabytes)."""
+        return memoryview(self.buf)[self._take(n) : self.pos]
+
     def string(self) -> str:
         raw = self.raw(self.u32())
         try:
@@ -484,7 +488,7 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
         cur.u64()  # message_end_time
         size, crc = cur.u64(), cur.u32()
         compression = cur.string()
-        records = cur.raw(cur.u64())
+        records = cur.view(cur.u64())
         data = _decompress(name, compression, records, size, where)
         if crc == 0:
             chunks_without_crc += 1  # the writer chose not to compute it (spec: 0 = absent)
@@ -535,7 +539,7 @@ def _check_section_crcs(name, buf, starts, data_end_at, footer) -> None:
     if data_end_at.size:
         at = int(starts[data_end_at[0]])
         stored = int.from_bytes(buf[at + 9 : at + 13], "little")
-        if stored and zlib.crc32(buf[:at]) != stored:
+        if stored and zlib.crc32(memoryview(buf)[:at]) != stored:
             raise CorruptFileError(
                 name, "data-section CRC mismatch: the file's data section is damaged"
             )
@@ -544,7 +548,7 @@ def _check_section_crcs(name, buf, starts, data_end_at, footer) -> None:
     summary_crc = int.from_bytes(buf[f_at + 25 : f_at + 29], "little")
     if summary_crc and summary_start:
         # Spec: CRC of the summary section through the footer's summary_offset_start field.
-        if zlib.crc32(buf[summary_start : f_at + 25]) != summary_crc:
+        if zlib.crc32(memoryview(buf)[summary_start : f_at + 25]) != summary_crc:
             raise CorruptFileError(name, "summary CRC mismatch: the file's summary is damaged")
 
 

@@ -27,7 +27,8 @@ for ``clip_run_samples`` samples in a row at the maximum (only extremes
 beyond 1.5 g are considered, so a quantised signal at rest is not flagged).
 
 The unit check is scale-invariant: "quiet" stretches (per-axis spread below
-1 % of |a|) can only be the sensor at rest, where |a| must be ≈ g.  A rest
+2 % of |a|; a turning wheel spreads its axes by g sin α, far more) can only
+be the sensor at rest, where |a| must be ≈ g.  A rest
 level near 1 in data labelled m/s² means g; near 96 in data labelled g means
 m/s².  Converting automatically would be a guess about a file that misstates
 its own units, so the reader refuses and says how to state the unit.
@@ -262,7 +263,7 @@ def _longest_run(mask: np.ndarray) -> int:
 
 
 def rest_level(accel: np.ndarray, block: int = 50) -> float | None:
-    """Median |a| over quiet blocks (per-axis spread < 1 % of |a|), or None if none.
+    """Median |a| over quiet blocks (per-axis spread < 2 % of |a|), or None if none.
 
     Only a sensor at rest is that quiet; the test does not depend on the unit.
     """
@@ -273,7 +274,7 @@ def rest_level(accel: np.ndarray, block: int = 50) -> float | None:
     mean = blocks.mean(axis=1)
     spread = blocks.std(axis=1).max(axis=1)
     level = np.linalg.norm(mean, axis=1)
-    quiet = (level > 0) & (spread < 0.01 * level)
+    quiet = (level > 0) & (spread < 0.02 * level)
     if quiet.sum() < 2:
         return None
     return float(np.median(level[quiet]))

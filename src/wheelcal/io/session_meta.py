@@ -38,6 +38,7 @@ def session_info(
     path: str | os.PathLike,
     records: list[Mapping[str, str]],
     overrides: Mapping[str, object] | None = None,
+    defaults: Mapping[str, object] | None = None,
 ) -> SessionInfo:
     """Build :class:`SessionInfo` from ``wheelcal.session`` records and overrides.
 
@@ -51,6 +52,9 @@ def session_info(
         Values that replace the file's (e.g. from the command line), keyed by
         the names in :data:`KNOWN_KEYS`; ``None`` values are ignored.  An
         unknown key is an error (a typo must not be silently ignored).
+    defaults:
+        Values used where neither the file nor an override gives one (e.g. a
+        pipeline file's defaults, CONTRACT input item 3); same keys.
 
     Raises
     ------
@@ -59,12 +63,17 @@ def session_info(
         that is not Earth's, a non-positive full scale.
     """
     name = str(path)
-    unknown = sorted(set(overrides or {}) - set(KNOWN_KEYS))
-    if unknown:
-        raise SessionInfoError(
-            name, f"unknown session override(s) {unknown}; known: {list(KNOWN_KEYS)}"
-        )
-    merged: dict[str, tuple[object, str]] = {}
+    for given, what in ((overrides, "override"), (defaults, "default")):
+        unknown = sorted(set(given or {}) - set(KNOWN_KEYS))
+        if unknown:
+            raise SessionInfoError(
+                name, f"unknown session {what}(s) {unknown}; known: {list(KNOWN_KEYS)}"
+            )
+    merged: dict[str, tuple[object, str]] = {
+        key: (value, "given as a default")
+        for key, value in (defaults or {}).items()
+        if value is not None
+    }
     for record in records:
         merged.update(
             {key: (value, "in the file's wheelcal.session") for key, value in record.items()}
