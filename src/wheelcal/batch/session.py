@@ -8,6 +8,7 @@ writes nothing for that session.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,7 +18,7 @@ import numpy as np
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import FreeSpinWindow, find_free_spin
-from wheelcal.recording import Recording, RecordingError
+from wheelcal.recording import DEFAULT_RADIUS_STD_M, Recording, RecordingError
 
 #: The fit needs this many wheel turns in the window (paper: ~100 in 90 s).
 MIN_TURNS = 10.0
@@ -40,6 +41,9 @@ class SessionOptions:
     known_tilt_deg: float | None = None
     tilt_std_deg: float = 0.5
     rrd: bool = False
+    #: Pipeline defaults: (key, value) pairs used where neither the file nor the
+    #: command line gives a value (CONTRACT precedence: CLI > file > pipeline).
+    defaults: tuple[tuple[str, object], ...] = ()
 
     def __post_init__(self) -> None:
         if (self.start_s is None) != (self.end_s is None):
@@ -58,6 +62,26 @@ class SessionOptions:
             "mounting_id",
         )
         return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+
+    def with_defaults(self, recording: Recording) -> Recording:
+        """The recording with pipeline defaults filled in where its session facts are unset.
+
+        ``radius_std_m`` counts as unset while it has the built-in 1 mm default.
+        """
+        if not self.defaults:
+            return recording
+        info = recording.info
+        fill = {}
+        for key, value in self.defaults:
+            current = getattr(info, key)
+            unset = current in (None, "") or (
+                key == "radius_std_m" and current == DEFAULT_RADIUS_STD_M
+            )
+            if unset:
+                fill[key] = value
+        if not fill:
+            return recording
+        return dataclasses.replace(recording, info=dataclasses.replace(info, **fill))
 
     def fitter(self) -> JointFit:
         """The joint-fit configuration for these options."""
@@ -121,11 +145,15 @@ def check_turns(result: CalibrationResult) -> float:
 
 
 def calibrate_session(
-    path: str | Path, options: SessionOptions, out_dir: str | Path
+    path: str | Path,
+    options: SessionOptions,
+    out_dir: str | Path,
+    provenance: dict | None = None,
 ) -> SessionOutcome:
     """Calibrate one recording and write ``<out>/<stem>.calibration.json``.
 
     Never raises for bad input: the outcome carries the error instead.
+    ``provenance`` is stored in the JSON (the batch runner's up-to-date check).
     """
     from wheelcal.io import read_recording
     from wheelcal.io.calibration_json import write_calibration
@@ -149,7 +177,9 @@ def calibrate_session(
         t1 = time.perf_counter()
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        json_path = write_calibration(out / f"{stem}.calibration.json", result, options.geometry)
+        json_path = write_calibration(
+            out / f"{stem}.calibration.json", result, options.geometry, provenance
+        )
         rrd_path = None
         if options.rrd:
             from wheelcal.viz.session_rrd import write_session_rrd

@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg, signal
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,7 +36,7 @@ class NoiseModel:
         object.__setattr__(self, "ar_polynomials", polys)
         object.__setattr__(self, "innovation_cov", cov)
         chol = np.linalg.cholesky(cov)
-        object.__setattr__(self, "_inv_chol", linalg.solve_triangular(chol, np.eye(3), lower=True))
+        object.__setattr__(self, "_inv_chol", np.tril(np.linalg.inv(chol)))
 
     @classmethod
     def white(cls, std_mps2) -> NoiseModel:
@@ -59,7 +58,7 @@ class NoiseModel:
         r = r - r.mean(axis=0)
         polys = tuple(_yule_walker_aic(r[:, i], max_order) for i in range(3))
         p = max(a.size - 1 for a in polys)
-        innov = np.column_stack([signal.lfilter(polys[i], [1.0], r[:, i]) for i in range(3)])[p:]
+        innov = np.column_stack([fir_filter(polys[i], r[:, i]) for i in range(3)])[p:]
         cov = innov.T @ innov / max(innov.shape[0], 1)
         # Guard against a degenerate axis (e.g. a constant channel).
         cov += np.eye(3) * 1e-18 * max(np.trace(cov), 1e-30)
@@ -105,7 +104,7 @@ class NoiseModel:
         r = np.empty((3, residual.shape[0] - p))
         for i, a in enumerate(self.ar_polynomials):
             col = residual[:, i]
-            r[i] = col[p:] if a.size == 1 else signal.lfilter(a, [1.0], col)[p:]
+            r[i] = col[p:] if a.size == 1 else fir_filter(a, col)[p:]
         r = inv_chol @ r
         if jacobian is None:
             return r, None
@@ -115,7 +114,7 @@ class NoiseModel:
         filtered = [
             jacobian[:, i, p:]
             if a.size == 1
-            else signal.lfilter(a, [1.0], jacobian[:, i, :])[:, p:]
+            else fir_filter(a, jacobian[:, i, :])[:, p:]
             for i, a in enumerate(self.ar_polynomials)
         ]
         # L⁻¹ (lower triangular) across axes: six scaled adds over (P, M) blocks.
@@ -140,12 +139,23 @@ class NoiseModel:
         }
 
 
+def fir_filter(a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """y_n = Σ_k a_k x_{n−k} along the last axis, zero history (= lfilter(a, [1], x))."""
+    y = a[0] * x
+    for k in range(1, a.size):
+        y[..., k:] += a[k] * x[..., :-k]
+    return y
+
+
 def _ar_gain(a: np.ndarray) -> float:
+    """Σ h_k² of the all-pole filter 1/A(z): the variance of x for unit innovations."""
     if a.size == 1:
         return 1.0
-    impulse = np.zeros(4096)
-    impulse[0] = 1.0
-    h = signal.lfilter([1.0], a, impulse)
+    h = np.zeros(4096)
+    h[0] = 1.0
+    for n in range(1, h.size):  # recursion h_n = −Σ a_k h_{n−k}
+        k = min(n, a.size - 1)
+        h[n] = -a[1 : k + 1] @ h[n - k : n][::-1]
     return float(h @ h)
 
 

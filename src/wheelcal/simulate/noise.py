@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 
 @dataclass(frozen=True)
@@ -52,6 +51,8 @@ class NoiseSpec:
         """Whitening FIR A(z) = [1, a₁, …]; ``[1]`` for white noise."""
         if self.bandwidth_hz is None or self.bandwidth_hz >= 0.45 * rate_hz:
             return np.array([1.0])
+        from scipy import signal  # heavy import, only when simulating coloured noise
+
         _, a = signal.butter(2, self.bandwidth_hz, fs=rate_hz)
         return a / a[0]
 
@@ -66,6 +67,8 @@ class NoiseSpec:
         if a.size == 1:
             return e
         # Start in the stationary state: run a burn-in of 20 filter time constants.
+        from scipy import signal
+
         burn = int(20 * rate_hz / (2 * np.pi * self.bandwidth_hz)) + 10
         warm = rng.standard_normal((burn, 3)) * self.innovation_std(rate_hz)
         out = signal.lfilter([1.0], a, np.vstack([warm, e]), axis=0)
@@ -76,6 +79,8 @@ def _ar_gain(a: np.ndarray) -> float:
     """Variance of x for unit-variance innovations, Σ h_k² of 1/A(z)."""
     if a.size == 1:
         return 1.0
+    from scipy import signal
+
     impulse = np.zeros(20000)
     impulse[0] = 1.0
     h = signal.lfilter([1.0], a, impulse)

@@ -1,0 +1,46 @@
+"""Up-to-date checks: a session is skipped when its inputs and settings are unchanged.
+
+The *run key* hashes the recording's bytes, the session options, what the run
+produces (Rerun on/off) and the wheelcal version.  It is stored in the
+calibration JSON; a re-run with the same key and all outputs present does no
+work for that session.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from pathlib import Path
+
+from wheelcal import __version__
+from wheelcal.batch.session import SessionOptions
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's contents."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def run_key(input_sha256: str, options: SessionOptions, produces: dict) -> str:
+    """Hash of everything that determines a session's outputs."""
+    payload = {
+        "input": input_sha256,
+        "options": dataclasses.asdict(options),
+        "produces": produces,
+        "version": __version__,
+    }
+    return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def stored_run_key(calibration_path: Path) -> str | None:
+    """The run key recorded in an existing calibration JSON (None if absent/unreadable)."""
+    try:
+        data = json.loads(calibration_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data.get("provenance", {}).get("run_key")

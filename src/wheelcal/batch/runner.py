@@ -1,0 +1,266 @@
+"""``wheelcal batch``: many sessions in parallel, one report.
+
+1. Generate the pipeline's simulated recordings, if it has a [simulate] section.
+2. Plan: every input file gets a run key (:mod:`wheelcal.batch.provenance`);
+   sessions whose calibration JSON (and .rrd, when asked for) carry the same key
+   are up to date and skipped.
+3. Run the rest on local processes (one BLAS thread each) or on a Dask cluster.
+   A failing session is recorded with its error; the batch goes on.
+4. Write ``report.json``, ``report.md``, ``sessions.csv`` (and ``batch.rrd``)
+   atomically — unless nothing changed since the last run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections import Counter
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from threadpoolctl import threadpool_limits
+
+from wheelcal.batch.pipeline import Pipeline, PipelineError
+from wheelcal.batch.provenance import file_sha256, run_key, stored_run_key
+from wheelcal.batch.session import SessionOptions, calibrate_session, session_stem
+
+
+@dataclass(frozen=True)
+class SessionRecord:
+    """What the batch keeps of one session (small: it crosses process boundaries)."""
+
+    source: str
+    stem: str
+    error: str | None = None
+    calibration_path: str | None = None
+    rrd_path: str | None = None
+    skipped: bool = False
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """Calibrated now or up to date."""
+        return self.error is None
+
+
+@dataclass(frozen=True)
+class ProgressEvent:
+    """One step of progress: a session finished, or a message."""
+
+    done: int
+    total: int
+    record: SessionRecord | None = None
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class BatchOutcome:
+    """Everything the batch did."""
+
+    pipeline: Pipeline
+    records: tuple[SessionRecord, ...]
+    report_paths: tuple[str, ...]
+    report_written: bool
+    simulated: int
+    wall_s: float
+
+    @property
+    def failed(self) -> list[SessionRecord]:
+        """Sessions that failed."""
+        return [r for r in self.records if not r.ok]
+
+    @property
+    def skipped(self) -> list[SessionRecord]:
+        """Sessions whose outputs were up to date."""
+        return [r for r in self.records if r.skipped]
+
+
+@dataclass(frozen=True)
+class _Task:
+    path: str
+    options: SessionOptions
+    out_dir: str
+    key: str
+    input_sha256: str
+
+
+def _run_task(task: _Task) -> SessionRecord:
+    """Worker entry point (top level: it must pickle)."""
+    with threadpool_limits(1):
+        outcome = calibrate_session(
+            task.path,
+            task.options,
+            task.out_dir,
+            provenance={"run_key": task.key, "input_sha256": task.input_sha256},
+        )
+    return SessionRecord(
+        source=outcome.source,
+        stem=outcome.stem,
+        error=outcome.error,
+        calibration_path=outcome.calibration_path,
+        rrd_path=outcome.rrd_path,
+        timings_s=outcome.timings_s,
+    )
+
+
+def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
+    stems = Counter(session_stem(f) for f in files)
+    clashes = sorted(s for s, n in stems.items() if n > 1)
+    if clashes:
+        raise PipelineError(
+            f"{pipeline.path}: several inputs share the output stem(s) {clashes}; "
+            "rename them or split the pipeline"
+        )
+    out = pipeline.output
+    produces = {"rrd": pipeline.rerun}
+    tasks, up_to_date = [], []
+    for f in files:
+        stem = session_stem(f)
+        try:
+            sha = file_sha256(f)
+        except OSError as exc:
+            up_to_date.append(
+                SessionRecord(source=str(f), stem=stem, error=f"{f}: cannot read ({exc})")
+            )
+            continue
+        key = run_key(sha, pipeline.options, produces)
+        cal = out / f"{stem}.calibration.json"
+        rrd = out / f"{stem}.rrd"
+        if stored_run_key(cal) == key and (not pipeline.rerun or rrd.exists()):
+            up_to_date.append(
+                SessionRecord(
+                    source=str(f),
+                    stem=stem,
+                    calibration_path=str(cal),
+                    rrd_path=str(rrd) if pipeline.rerun else None,
+                    skipped=True,
+                )
+            )
+        else:
+            tasks.append(_Task(str(f), pipeline.options, str(out), key, sha))
+    return tasks, up_to_date
+
+
+def _execute(
+    pipeline: Pipeline, tasks: list[_Task], on_done: Callable[[SessionRecord], None]
+) -> None:
+    executor = pipeline.executor
+    if not tasks:
+        return
+    if executor.kind == "dask":
+        from dask.distributed import Client
+        from dask.distributed import as_completed as dask_completed
+
+        with Client(executor.address, timeout="20s") as client:
+            futures = {client.submit(_run_task, t, pure=False): t for t in tasks}
+            for future in dask_completed(futures):
+                on_done(_collect(future, futures[future]))
+        return
+    workers = executor.workers or os.cpu_count() or 1
+    workers = min(workers, len(tasks))
+    if workers == 1:
+        for task in tasks:
+            on_done(_run_task(task))
+        return
+    with ProcessPoolExecutor(workers) as pool:
+        futures = {pool.submit(_run_task, t): t for t in tasks}
+        for future in as_completed(futures):
+            on_done(_collect(future, futures[future]))
+
+
+def _collect(future, task: _Task) -> SessionRecord:
+    """The record of a finished future; a crashed worker becomes a failed session."""
+    try:
+        return future.result()
+    except Exception as exc:  # one session must never stop the batch
+        return SessionRecord(
+            source=task.path,
+            stem=session_stem(task.path),
+            error=f"{task.path}: worker failed: {exc!r}",
+        )
+
+
+def run_batch(
+    pipeline: Pipeline, progress: Callable[[ProgressEvent], None] | None = None
+) -> BatchOutcome:
+    """Run a pipeline end to end (see the module docstring)."""
+    from wheelcal.batch.simulate_inputs import simulate_inputs
+
+    t0 = time.perf_counter()
+    say = progress or (lambda event: None)
+    pipeline.output.mkdir(parents=True, exist_ok=True)
+    made = simulate_inputs(pipeline, lambda msg: say(ProgressEvent(0, 0, message=msg)))
+    files = pipeline.input_files()
+    if not files:
+        raise PipelineError(
+            f"{pipeline.path}: the input globs match no files: {list(pipeline.globs)}"
+        )
+    tasks, records = _plan(pipeline, files)
+    total = len(files)
+    if records:
+        fresh = sum(r.skipped for r in records)
+        say(
+            ProgressEvent(
+                len(records), total, message=f"{fresh} session(s) up to date, {len(tasks)} to run"
+            )
+        )
+
+    def done(record: SessionRecord) -> None:
+        records.append(record)
+        say(ProgressEvent(len(records), total, record=record))
+
+    _execute(pipeline, tasks, done)
+    records.sort(key=lambda r: r.source)
+    paths, written = _write_report(pipeline, records)
+    return BatchOutcome(
+        pipeline=pipeline,
+        records=tuple(records),
+        report_paths=paths,
+        report_written=written,
+        simulated=len(made),
+        wall_s=time.perf_counter() - t0,
+    )
+
+
+def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tuple[str, ...], bool]:
+    from wheelcal.batch.report import build_report, report_markdown, sessions_csv
+    from wheelcal.io.atomic import atomic_write_text
+
+    out = pipeline.output
+    paths = [out / "report.json", out / "report.md", out / "sessions.csv"]
+    if pipeline.rerun:
+        paths.append(out / "batch.rrd")
+    keys = sorted(
+        (r.source, stored_run_key(Path(r.calibration_path)) if r.ok else r.error) for r in records
+    )
+    report_key = hashlib.sha256(json.dumps(keys).encode()).hexdigest()
+    existing = _stored_report_key(out / "report.json")
+    if existing == report_key and all(p.exists() for p in paths):
+        return tuple(map(str, paths)), False
+    calibrations = [
+        json.loads(Path(r.calibration_path).read_text(encoding="utf-8")) for r in records if r.ok
+    ]
+    failed = [{"file": r.source, "error": r.error} for r in records if not r.ok]
+    report = build_report(calibrations, failed, skipped=sum(r.skipped for r in records))
+    report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
+    report["provenance"] = {"report_key": report_key}
+    atomic_write_text(paths[1], report_markdown(report, f"Repeatability report — {pipeline.name}"))
+    atomic_write_text(paths[2], sessions_csv(calibrations))
+    if pipeline.rerun:
+        from wheelcal.viz.batch_rrd import write_batch_rrd
+
+        write_batch_rrd(paths[3], calibrations)
+    # report.json last: its key marks the whole report as complete.
+    atomic_write_text(paths[0], json.dumps(report, indent=2, allow_nan=False) + "\n")
+    return tuple(map(str, paths)), True
+
+
+def _stored_report_key(path: Path) -> str | None:
+    try:
+        return json.loads(path.read_text(encoding="utf-8")).get("provenance", {}).get("report_key")
+    except (OSError, ValueError):
+        return None
