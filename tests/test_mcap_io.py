@@ -195,6 +195,17 @@ def test_unchunked_and_unindexed_files(session, tmp_path):
         back = read_recording(path, topic="/imu/data_raw")
         np.testing.assert_array_equal(back.accel_mps2, rec.accel_mps2)
         assert read_recording(path, topic="/other").samples == len(other.messages)
+    # One fixed-size channel without indexes: the record walk gallops over the chunks.
+    path = tmp_path / "gallop.mcap"
+    with open(path, "wb") as stream:
+        writer = Writer(stream, index_types=IndexType.NONE, chunk_size=200_000)
+        writer.start()
+        sid = writer.register_schema(channel.schema_name, "ros2msg", channel.schema_data)
+        cid = writer.register_channel(channel.topic, "cdr", sid)
+        for t, data in channel.messages:
+            writer.add_message(cid, t, data, t)
+        writer.finish()
+    np.testing.assert_array_equal(read_recording(path).accel_mps2, rec.accel_mps2)
 
 
 def test_json_in_g_is_converted(session, tmp_path):
