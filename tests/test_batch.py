@@ -1,0 +1,159 @@
+"""Batch runner end to end: report numbers, failures, re-runs, executors, pipeline errors."""
+
+import json
+import math
+import shutil
+import textwrap
+
+import numpy as np
+import pytest
+
+from wheelcal.batch.pipeline import PipelineError, load_pipeline
+from wheelcal.batch.runner import run_batch
+from wheelcal.cli.main import main
+
+PIPELINE = """
+[pipeline]
+name = "t"
+output = "{out}"
+
+[inputs]
+globs = ["{inputs}/*.mcap"]
+
+[defaults]
+radius_m = 0.28
+
+[run]
+rerun = false
+
+[executor]
+{executor}
+"""
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory):
+    """Five Table II recordings (two mountings) and one corrupted file."""
+    d = tmp_path_factory.mktemp("inputs")
+    for i in range(5):
+        mounting = "m1" if i < 3 else "m2"
+        args = ["simulate", str(d / f"r{i}.mcap"), "--seed", str(100 + i), "--free-spin-only"]
+        assert main([*args, "--mounting-id", mounting, "--sensor-id", "S1"]) == 0
+    data = bytearray((d / "r0.mcap").read_bytes())
+    data[len(data) // 2 : len(data) // 2 + 32] = b"\xff" * 32
+    (d / "zz_corrupt.mcap").write_bytes(bytes(data))
+    return d
+
+
+def _pipeline(tmp_path, inputs, executor='kind = "processes"\nworkers = 2'):
+    path = tmp_path / "p.toml"
+    path.write_text(PIPELINE.format(out=tmp_path / "out", inputs=inputs, executor=executor))
+    return load_pipeline(path)
+
+
+def test_report_equals_direct_computation_and_failure_is_listed(tmp_path, recordings):
+    outcome = run_batch(_pipeline(tmp_path, recordings))
+    out = tmp_path / "out"
+    assert len(outcome.records) == 6
+    assert [r.stem for r in outcome.failed] == ["zz_corrupt"]
+    report = json.loads((out / "report.json").read_text())
+    assert report["sessions"] == 6 and report["calibrated"] == 5
+    assert report["failed"][0]["file"].endswith("zz_corrupt.mcap")
+    assert (
+        "CRC" in report["failed"][0]["error"] or "corrupt" in report["failed"][0]["error"].lower()
+    )
+    groups = {(g["sensor_id"], g["mounting_id"]): g for g in report["groups"]}
+    assert set(groups) == {("S1", "m1"), ("S1", "m2")}
+    g = groups[("S1", "m1")]
+    cals = [json.loads((out / f"r{i}.calibration.json").read_text()) for i in range(3)]
+    for name in ("gain_x", "offset_z_mps2", "tilt_deg", "euler_2_deg"):
+        values = np.array([c["parameters"][name]["value"] for c in cals])
+        stds = np.array([c["parameters"][name]["std"] for c in cals])
+        stats = g["parameters"][name]
+        assert stats["mean"] == pytest.approx(values.mean(), rel=1e-12)
+        assert stats["std"] == pytest.approx(values.std(ddof=1), rel=1e-12)
+        assert stats["predicted_std"] == pytest.approx(math.sqrt(np.mean(stds**2)), rel=1e-12)
+        assert stats["ratio"] == pytest.approx(values.std(ddof=1) / math.sqrt(np.mean(stds**2)))
+    md = (out / "report.md").read_text()
+    assert "zz_corrupt.mcap" in md and "| `gain_x` |" in md
+    csv_rows = (out / "sessions.csv").read_text().strip().splitlines()
+    assert len(csv_rows) == 1 + 5 and csv_rows[0].startswith("file,sensor_id,mounting_id")
+    assert not list(out.glob("*.tmp*")) and not (out / "zz_corrupt.calibration.json").exists()
+
+
+def test_rerun_does_no_work_and_changed_input_reruns_one(tmp_path, recordings):
+    inputs = tmp_path / "in"
+    shutil.copytree(recordings, inputs)
+    (inputs / "zz_corrupt.mcap").unlink()
+    pipeline = _pipeline(tmp_path, inputs)
+    first = run_batch(pipeline)
+    assert not first.failed and first.report_written
+    out = tmp_path / "out"
+    mtimes = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    second = run_batch(pipeline)
+    assert len(second.skipped) == 5 and not second.report_written
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == mtimes  # nothing rewritten
+    # A changed recording is recalculated, and only that one.
+    shutil.copy(recordings / "r4.mcap", inputs / "r1.mcap")
+    third = run_batch(pipeline)
+    assert [r.stem for r in third.records if not r.skipped] == ["r1"]
+    assert third.report_written
+
+
+def test_batch_cli_exit_status_and_progress_lines(tmp_path, recordings, capsys):
+    pipeline = _pipeline(tmp_path, recordings)
+    status = main(["batch", pipeline.path])
+    captured = capsys.readouterr()
+    assert status == 1
+    assert "zz_corrupt.mcap" in captured.err and "FAILED" in captured.err
+    assert "[" in captured.err and "ok" in captured.err  # plain log lines when not a terminal
+    assert "5 calibrated now" in captured.out or "calibrated now" in captured.out
+
+
+def test_dask_executor_on_a_local_cluster(tmp_path, recordings):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        pipeline = _pipeline(
+            tmp_path, recordings, f'kind = "dask"\naddress = "{cluster.scheduler_address}"'
+        )
+        outcome = run_batch(pipeline)
+    assert len(outcome.records) == 6 and len(outcome.failed) == 1
+    (tmp_path / "local").mkdir()
+    local = run_batch(_pipeline(tmp_path / "local", recordings))
+    assert [r.stem for r in local.failed] == ["zz_corrupt"]
+    # Same numbers whichever executor ran the session.
+    a = json.loads((tmp_path / "out" / "r2.calibration.json").read_text())
+    b = json.loads((tmp_path / "local" / "out" / "r2.calibration.json").read_text())
+    assert a["parameters"]["gain_y"]["value"] == b["parameters"]["gain_y"]["value"]
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (
+            "[pipeline]\nname='x'\n[inputs]\nglobs=['a/*.mcap']\n[run]\nrerun=true\ncalbrate=true\n",
+            "calbrate",
+        ),
+        ("[pipeline]\nname='x'\n", "no inputs"),
+        ("[pipelin]\nname='x'\n", "unknown section"),
+        ("[inputs]\nglobs=['a']\n[executor]\nkind='dask'\n", "address"),
+        ("[inputs\n", "not valid TOML"),
+    ],
+)
+def test_pipeline_errors_name_the_file_and_the_key(tmp_path, body, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(textwrap.dedent(body))
+    with pytest.raises(PipelineError, match=message) as exc:
+        load_pipeline(path)
+    assert "bad.toml" in str(exc.value)
+
+
+def test_globs_that_match_nothing_are_a_usage_error(tmp_path, capsys):
+    path = tmp_path / "p.toml"
+    path.write_text(
+        f"[pipeline]\noutput='{tmp_path / 'o'}'\n[inputs]\nglobs=['{tmp_path}/none/*.mcap']\n"
+    )
+    assert main(["batch", str(path)]) == 2
+    assert "match no files" in capsys.readouterr().err
