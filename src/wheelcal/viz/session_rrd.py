@@ -1,0 +1,524 @@
+"""Rerun view of one calibrated session: ``<out>/<stem>.rrd``.
+
+What is in the file (entity paths; ``<set>`` names a residual set — ``fit``
+for this calibration, more can be added, see below; ``<a>`` is an axis):
+
+* ``/signal/raw`` — v(t) over the whole recording, m/s², three series x, y, z
+  (one row of three scalars per sample, timeline ``time``);
+* ``/signal/model`` — o + Γ R a(t) (eq. 6) over the fitted window, same layout;
+* ``/window`` — state lane *before* / *free spin* / *after* on ``time``: the
+  free-spin window (also pre-selected in the time panel, so it is shaded in
+  every time plot);
+* ``/residual/<set>`` — data − model, m/s², x, y, z per row, on **both**
+  timelines ``time`` and ``wheel_angle_mdeg`` (the same rows);
+* ``/residual_angle_mean/<a>/<set>`` — static bar chart: the residual averaged
+  in 72 bins of 5° of ϑ mod 360°, abscissa in degrees;
+* ``/spin/omega_radps`` — ω(t) of eq. (2) over the window, rad/s (a cubic:
+  at most :data:`OMEGA_POINTS` exact samples of it are logged);
+* ``/report`` — static markdown: source, window, fit summary, every parameter
+  with value, statistical σ and systematic σ, the warnings.
+
+Timelines:
+
+* ``time`` — a duration timeline, seconds since the recording's epoch
+  (``Recording.epoch_unix_ns``): the clock of ``source.window_s`` in the
+  calibration JSON.  Times are rounded to whole nanoseconds here (Rerun's own
+  float conversion truncates: 0.005 s would become 4 999 999 ns).
+* ``wheel_angle_mdeg`` — a sequence timeline whose "time" is the wheel angle
+  ϑ(t) mod 360° in millidegrees (integers 0 … 359 999: Rerun sequence
+  timelines are integers, and the unit travels in the name).
+
+Why the angle gets two views.  Effects the model leaves out — an unbalanced
+wheel (ω ripple once per turn), a sensor off the assumed radius, cross-axis
+sensitivity — are periodic in ϑ, not in t: against time they hide in the
+noise, folded on ϑ they line up.  Rerun 0.41 plots scalars only against the
+timeline selected in the time panel (one for all views; per-view timelines
+are an open feature request), so
+
+1. the bar chart ``/residual_angle_mean`` has ϑ (degrees) as its own
+   abscissa and shows with any timeline; averaging ≈ 240 samples per bin
+   (90 s at 200 Hz) lowers the noise ≈ 15×, so a ϑ-periodic pattern of a
+   few mm/s² stands out;
+2. every residual sample also sits on the ``wheel_angle_mdeg`` timeline: the
+   tab "samples vs ϑ" draws them as a scatter once that timeline is selected
+   (time plots are empty then, and the scatter is empty on ``time``).
+
+Blueprint (:func:`session_blueprint`): left, three columns x / y / z — raw and
+model; residual against time; tabs "mean per 5° of ϑ" (bar chart) and
+"samples vs ϑ" — with the window lane across them; right — the report, ω(t).
+The per-axis views show one series of the three-column entities through a
+per-view ``visible_series`` override.  Time plots share their x-axis zoom.
+
+More residual sets (the closed loop's "before/after"): inside
+:func:`session_rrd`, call :meth:`SessionRrd.log_residuals`; the set lands in
+the same per-axis views (the blueprint is written last and knows every set)::
+
+    with session_rrd(path, result, recording, window) as rrd:
+        rrd.log_residuals("after", after.time_s, after.residual_mps2,
+                          wheel_angle_rad(after))
+
+Speed: no data are decimated (except ω, which is a polynomial).  Rerun spends
+its time per *row* (each row carries a 16-byte row id and its time), so the
+three axes share a row: ≈ 56 000 rows for a 90 s / 200 Hz session, encoded
+in a few tens of milliseconds (``benchmarks/bench_rrd.py``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from wheelcal.estimate.result import CalibrationResult
+from wheelcal.estimate.window import FreeSpinWindow
+from wheelcal.model import predict
+from wheelcal.model.parameters import AXES
+from wheelcal.recording import Recording
+from wheelcal.viz.rrd_file import rrd_file
+
+APPLICATION_ID = "wheelcal"
+TIME_TIMELINE = "time"
+ANGLE_TIMELINE = "wheel_angle_mdeg"
+#: Bins of ϑ for the mean-residual bar chart (5° each).
+ANGLE_BINS = 72
+#: The residual set of the calibration itself.
+FIT_SET = "fit"
+#: At most this many samples of ω(t) (a polynomial: nothing is lost).
+OMEGA_POINTS = 1000
+
+Rgb = tuple[int, int, int]
+
+_AXIS_COLORS: tuple[Rgb, Rgb, Rgb] = ((220, 50, 47), (40, 160, 60), (38, 110, 210))
+_RAW_COLORS: tuple[Rgb, Rgb, Rgb] = ((160, 160, 160),) * 3
+_SET_PALETTE: tuple[Rgb, ...] = (
+    (38, 110, 210),
+    (230, 120, 20),
+    (130, 60, 180),
+    (20, 160, 160),
+    (200, 40, 120),
+    (120, 120, 40),
+)
+_WINDOW_STATES = ("before", "free spin", "after")
+
+
+def _time_column(time_s: np.ndarray) -> rr.TimeColumn:
+    """A ``time`` duration column from seconds, rounded (not truncated) to whole ns."""
+    ns = np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
+    return rr.TimeColumn(TIME_TIMELINE, duration=ns.astype("timedelta64[ns]"))
+
+
+def angle_mdeg(theta_rad: np.ndarray) -> np.ndarray:
+    """ϑ mod 360° in whole millidegrees (0 … 359 999), the ``wheel_angle_mdeg`` values."""
+    mdeg = np.rint(np.rad2deg(np.mod(np.asarray(theta_rad, dtype=float), 2 * np.pi)) * 1e3)
+    return np.mod(mdeg.astype(np.int64), 360_000)
+
+
+def set_color(name: str) -> Rgb:
+    """Colour of a residual set: ``fit`` first in the palette, others by a stable hash."""
+    if name == FIT_SET:
+        return _SET_PALETTE[0]
+    return _SET_PALETTE[1 + zlib.crc32(name.encode()) % (len(_SET_PALETTE) - 1)]
+
+
+def _check_series(time_s, values, what: str) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(time_s, dtype=float).reshape(-1)
+    v = np.asarray(values, dtype=float)
+    if v.shape != (t.size, 3):
+        raise ValueError(f"{what}: need N times and (N, 3) values, got {t.shape} and {v.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+        raise ValueError(f"{what}: non-finite times or values")
+    return t, v
+
+
+def wheel_angle_rad(result: CalibrationResult) -> np.ndarray:
+    """ϑ(t) of eq. (2) at the fitted samples (not wrapped), rad."""
+    return result.params.spin.theta_at(result.centred_time_s)
+
+
+def binned_mean_by_angle(
+    theta_rad: np.ndarray, values: np.ndarray, bins: int = ANGLE_BINS
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean of ``values`` (N, 3) in ``bins`` equal bins of ϑ mod 2π.
+
+    Returns
+    -------
+    centres_deg, mean, count
+        Centres in degrees of the bins that hold samples, the per-axis mean
+        there (B, 3) and the number of samples in each.
+    """
+    wrapped = np.mod(np.asarray(theta_rad, dtype=float), 2 * np.pi)
+    index = np.minimum((wrapped * (bins / (2 * np.pi))).astype(np.int64), bins - 1)
+    count = np.bincount(index, minlength=bins)
+    sums = np.column_stack(
+        [np.bincount(index, weights=values[:, k], minlength=bins) for k in range(3)]
+    )
+    filled = count > 0
+    centres_deg = (np.arange(bins) + 0.5) * (360.0 / bins)
+    return centres_deg[filled], sums[filled] / count[filled, None], count[filled]
+
+
+def log_signal(
+    stream: rr.RecordingStream,
+    name: str,
+    time_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    colors: tuple[Rgb, Rgb, Rgb],
+    width: float = 1.0,
+) -> None:
+    """Log (N, 3) samples in m/s² as ``/signal/<name>``: three line series on ``time``."""
+    t, v = _check_series(time_s, accel_mps2, f"signal {name!r}")
+    path = f"signal/{name}"
+    style = rr.SeriesLines(
+        colors=list(colors), names=[f"{name} {a}" for a in AXES], widths=[width] * 3
+    )
+    stream.log(path, style, static=True)
+    stream.send_columns(path, indexes=[_time_column(t)], columns=rr.Scalars.columns(scalars=v))
+
+
+def log_residuals(
+    stream: rr.RecordingStream,
+    name: str,
+    time_s: np.ndarray,
+    residual_mps2: np.ndarray,
+    theta_rad: np.ndarray,
+    color: Rgb | None = None,
+) -> None:
+    """Log one set of residuals against time and against the wheel angle ϑ.
+
+    Writes ``/residual/<name>`` (x, y, z per row, on the ``time`` and
+    ``wheel_angle_mdeg`` timelines) and the static bar charts
+    ``/residual_angle_mean/<axis>/<name>`` (mean per 5° of ϑ).  Prefer
+    :meth:`SessionRrd.log_residuals`, which also puts the set in the
+    blueprint's per-axis views.
+
+    Parameters
+    ----------
+    stream:
+        The session's stream.
+    name:
+        Name of the set, one entity-path part (e.g. ``fit``, ``before``, ``after``).
+    time_s:
+        Sample times (N,), seconds on the recording's clock (``time`` timeline).
+    residual_mps2:
+        Data − model (N, 3), m/s².
+    theta_rad:
+        Wheel angle ϑ at each sample (N,), rad, wrapped or not.
+    color:
+        RGB of this set; default :func:`set_color` of the name.
+    """
+    if not name or "/" in name or name != name.strip():
+        raise ValueError(f"a residual set name must be one entity-path part, got {name!r}")
+    t, r = _check_series(time_s, residual_mps2, f"residual set {name!r}")
+    theta = np.asarray(theta_rad, dtype=float).reshape(-1)
+    if theta.size != t.size or not np.all(np.isfinite(theta)):
+        raise ValueError(f"residual set {name!r}: need {t.size} finite angles, got {theta.size}")
+    rgb = set_color(name) if color is None else tuple(color)
+    path = f"residual/{name}"
+    style = rr.SeriesLines(colors=[rgb] * 3, names=[f"{name} {a}" for a in AXES], widths=[1.0] * 3)
+    stream.log(path, style, static=True)
+    angles = rr.TimeColumn(ANGLE_TIMELINE, sequence=angle_mdeg(theta))
+    stream.send_columns(
+        path, indexes=[_time_column(t), angles], columns=rr.Scalars.columns(scalars=r)
+    )
+    centres_deg, mean, _ = binned_mean_by_angle(theta, r)
+    widths = np.full(centres_deg.size, 360.0 / ANGLE_BINS)
+    for k, axis in enumerate(AXES):
+        chart = rr.BarChart(
+            mean[:, k],
+            abscissa=centres_deg,
+            widths=widths,
+            color=(*rgb, 170),  # translucent: several sets overlap in one view
+        )
+        stream.log(f"residual_angle_mean/{axis}/{name}", chart, static=True)
+
+
+def log_window(
+    stream: rr.RecordingStream, start_s: float, end_s: float, first_s: float, last_s: float
+) -> None:
+    """The free-spin window as a state lane ``/window`` on ``time``."""
+    config = rr.StateConfiguration(
+        values=list(_WINDOW_STATES),
+        labels=[
+            "before (rest, push; not fitted)",
+            "free spin (fitted)",
+            "after (brake, rest; not fitted)",
+        ],
+        colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
+    )
+    stream.log("window", config, static=True)
+    times, states = [start_s], [_WINDOW_STATES[1]]
+    if first_s < start_s:
+        times.insert(0, first_s)
+        states.insert(0, _WINDOW_STATES[0])
+    if end_s < last_s:
+        times.append(end_s)
+        states.append(_WINDOW_STATES[2])
+    stream.send_columns(
+        "window",
+        indexes=[_time_column(np.array(times))],
+        columns=rr.StateChange.columns(state=states),
+    )
+
+
+def _fmt(x: float, digits: int) -> str:
+    if not math.isfinite(x):
+        return "∞ (not determined)" if x > 0 else str(x)
+    return f"{x:.{digits}g}"
+
+
+def _report_rank(name: str) -> int:
+    """Sensor parameters first, then bench, then motion and effects."""
+    for rank, prefix in enumerate(("gain_", "offset_", "tilt_", "euler_", "radius_")):
+        if name.startswith(prefix):
+            return rank
+    return 9
+
+
+def report_markdown(
+    result: CalibrationResult, window: FreeSpinWindow | None, start_s: float, end_s: float
+) -> str:
+    """The text panel: source, window, fit summary, parameters ± σ, warnings, notes.
+
+    Values are printed with 7 significant digits (``f"{value:.7g}"``), σ with 2.
+    """
+    info = result.info
+    topic = f" (topic `{result.topic}`)" if result.topic else ""
+    reason = window.reason if window is not None else "window given (not searched)"
+    status = "converged" if result.converged else "**NOT converged**"
+    rms = ", ".join(f"{v:.4g}" for v in result.residual_rms_mps2)
+    noise = ", ".join(f"{v:.4g}" for v in result.noise.marginal_std_mps2)
+    lines = [
+        f"# wheelcal — {Path(result.source).name}",
+        "",
+        f"- **source**: `{result.source}`{topic}",
+        f"- **sensor**: `{info.sensor_id or '—'}` · **mounting**: `{info.mounting_id or '—'}`",
+        f"- **window**: {start_s:.3f}–{end_s:.3f} s ({end_s - start_s:.1f} s) — {reason}",
+        f"- **fit**: {result.time_s.size} samples, {status} after {result.iterations} iterations",
+        f"- **residual RMS** (x, y, z): {rms} m/s² · **noise σ**: {noise} m/s²",
+        "",
+        "## Parameters",
+        "",
+        "σ stat: one sigma from this recording's noise.  σ sys: what the data cannot see "
+        "(radius, gravity, clock), shared by every session on the same bench.",
+        "",
+        "| parameter | value | σ stat | σ sys |",
+        "|---|---:|---:|---:|",
+    ]
+    budget = result.systematic
+    sys_std = dict(zip(budget.names, budget.total_std, strict=True))
+    std = result.std
+    for i in sorted(range(len(result.names)), key=lambda i: (_report_rank(result.names[i]), i)):
+        name = result.names[i]
+        sys = float(sys_std.get(name, 0.0))
+        # Parameters the unseen quantities do not move get round-off (~1e-14): print 0.
+        sys_text = _fmt(sys, 2) if sys > 1e-6 * float(std[i]) else "0"
+        lines.append(
+            f"| `{name}` | {_fmt(float(result.values[i]), 7)} | {_fmt(float(std[i]), 2)} "
+            f"| {sys_text} |"
+        )
+    lines += ["", "## Warnings", ""]
+    lines += [f"- {w}" for w in result.warnings] or ["- none"]
+    if result.notes:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in result.notes]
+    return "\n".join(lines) + "\n"
+
+
+def _only_axis(k: int) -> list[bool]:
+    return [j == k for j in range(3)]
+
+
+def session_blueprint(
+    start_s: float, end_s: float, residual_sets: tuple[str, ...] = (FIT_SET,)
+) -> rrb.Blueprint:
+    """The session layout (module docstring); the free-spin window is pre-selected.
+
+    Parameters
+    ----------
+    start_s, end_s:
+        The window on the ``time`` timeline, s.
+    residual_sets:
+        Names of the logged residual sets; each gets its per-axis overrides.
+    """
+    linked = rrb.TimeAxis(link=rrb.components.LinkAxis.LinkToGlobal)
+
+    def signal_view(k: int) -> rrb.TimeSeriesView:
+        only = _only_axis(k)
+        return rrb.TimeSeriesView(
+            origin="/signal",
+            name=f"{AXES[k]}: raw and model (m/s²)",
+            axis_x=linked,
+            overrides={
+                "/signal/raw": rr.SeriesLines(visible_series=only).visualizer(),
+                "/signal/model": rr.SeriesLines(visible_series=only).visualizer(),
+            },
+        )
+
+    def residual_view(k: int) -> rrb.TimeSeriesView:
+        only = _only_axis(k)
+        return rrb.TimeSeriesView(
+            origin="/residual",
+            name=f"{AXES[k]}: residual, data − model (m/s²)",
+            axis_x=linked,
+            overrides={
+                f"/residual/{s}": rr.SeriesLines(visible_series=only).visualizer()
+                for s in residual_sets
+            },
+        )
+
+    def angle_tabs(k: int) -> rrb.Tabs:
+        only = _only_axis(k)
+        scatter = rrb.TimeSeriesView(
+            origin="/residual",
+            name=f"{AXES[k]}: residual samples vs ϑ (select timeline {ANGLE_TIMELINE})",
+            overrides={
+                f"/residual/{s}": rr.SeriesPoints(
+                    visible_series=only, markers=["circle"] * 3, marker_sizes=[1.5] * 3
+                ).visualizer()
+                for s in residual_sets
+            },
+        )
+        mean = rrb.BarChartView(
+            origin=f"/residual_angle_mean/{AXES[k]}",
+            name=f"{AXES[k]}: mean residual per 5° of ϑ (deg; m/s²)",
+        )
+        return rrb.Tabs(mean, scatter, active_tab=0)
+
+    left = rrb.Vertical(
+        rrb.Horizontal(*[signal_view(k) for k in range(3)]),
+        rrb.StateTimelineView(origin="/window", name="free-spin window", time_view=linked),
+        rrb.Horizontal(*[residual_view(k) for k in range(3)]),
+        rrb.Horizontal(*[angle_tabs(k) for k in range(3)]),
+        row_shares=[3, 0.6, 3, 3],
+    )
+    right = rrb.Vertical(
+        rrb.TextDocumentView(origin="/report", name="calibration"),
+        rrb.TimeSeriesView(origin="/spin", name="ω(t) (rad/s)", axis_x=linked),
+        row_shares=[3, 1],
+    )
+    selection = rrb.components.AbsoluteTimeRange(min=round(start_s * 1e9), max=round(end_s * 1e9))
+    return rrb.Blueprint(
+        rrb.Horizontal(left, right, column_shares=[3, 1]),
+        rrb.TimePanel(timeline=TIME_TIMELINE, time_selection=selection),
+    )
+
+
+@dataclass
+class SessionRrd:
+    """A session file being written: its stream and the residual sets logged so far."""
+
+    stream: rr.RecordingStream
+    residual_sets: list[str] = field(default_factory=list)
+
+    def log_residuals(
+        self,
+        name: str,
+        time_s: np.ndarray,
+        residual_mps2: np.ndarray,
+        theta_rad: np.ndarray,
+        color: Rgb | None = None,
+    ) -> None:
+        """Add a residual set (see :func:`log_residuals`) to the file and its blueprint."""
+        if name in self.residual_sets:
+            raise ValueError(f"residual set {name!r} is already in this file")
+        log_residuals(self.stream, name, time_s, residual_mps2, theta_rad, color)
+        self.residual_sets.append(name)
+
+
+@contextlib.contextmanager
+def session_rrd(
+    path: str | os.PathLike,
+    result: CalibrationResult,
+    recording: Recording,
+    window: FreeSpinWindow | None,
+) -> Iterator[SessionRrd]:
+    """Log a session into a new file; the caller may add residual sets inside the block.
+
+    The file appears (atomically) when the block ends without an exception,
+    with the blueprint written last; an exception leaves no file (see
+    :func:`wheelcal.viz.rrd_file.rrd_file`).
+
+    Parameters
+    ----------
+    path:
+        Destination ``.rrd``.
+    result:
+        The calibration (residuals, parameters, noise, warnings).
+    recording:
+        The whole recording the window was cut from (raw signal, all samples).
+    window:
+        The free-spin window that was searched, or ``None`` when the window
+        was given (then the fitted samples' span is marked).
+
+    Yields
+    ------
+    SessionRrd
+        ``.log_residuals(...)`` adds a set; ``.stream`` is the Rerun stream.
+    """
+    # Plot on the recording's clock, whatever epoch the result counts from.
+    shift_s = (result.epoch_unix_ns - recording.epoch_unix_ns) * 1e-9
+    fit_time_s = result.time_s + shift_s
+    if window is not None:
+        start_s, end_s = window.start_s, window.end_s
+    else:
+        start_s, end_s = float(fit_time_s[0]), float(fit_time_s[-1])
+    name = Path(result.source).name or Path(path).stem
+    with rrd_file(path, APPLICATION_ID, name) as stream:
+        if recording.epoch_unix_ns:
+            stream.send_recording_start_time_nanos(recording.epoch_unix_ns)
+        log_signal(stream, "raw", recording.time_s, recording.accel_mps2, _RAW_COLORS)
+        model = predict(result.params, result.centred_time_s, result.layout)  # Eq. (6)
+        log_signal(stream, "model", fit_time_s, model, _AXIS_COLORS, width=1.5)
+        log_window(stream, start_s, end_s, float(recording.time_s[0]), float(recording.time_s[-1]))
+        every = max(1, math.ceil(fit_time_s.size / OMEGA_POINTS))
+        omega_t = result.centred_time_s[::every]
+        stream.log("spin/omega_radps", rr.SeriesLines(names=["ω (model)"]), static=True)
+        stream.send_columns(
+            "spin/omega_radps",
+            indexes=[_time_column(fit_time_s[::every])],
+            columns=rr.Scalars.columns(scalars=result.params.spin.omega_at(omega_t)),  # Eq. (2)
+        )
+        markdown = report_markdown(result, window, start_s, end_s)
+        stream.log(
+            "report", rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True
+        )
+        rrd = SessionRrd(stream)
+        rrd.log_residuals(FIT_SET, fit_time_s, result.residual_mps2, wheel_angle_rad(result))
+        yield rrd
+        stream.send_blueprint(session_blueprint(start_s, end_s, tuple(rrd.residual_sets)))
+
+
+def write_session_rrd(
+    path: str | os.PathLike,
+    result: CalibrationResult,
+    recording: Recording,
+    window: FreeSpinWindow | None,
+) -> Path:
+    """Write the session's ``.rrd`` (see the module docstring) atomically.
+
+    Parameters
+    ----------
+    path:
+        Destination, conventionally ``<out>/<stem>.rrd``.
+    result:
+        The calibration of the windowed recording.
+    recording:
+        The whole recording.
+    window:
+        The searched free-spin window, or ``None`` if it was given.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    with session_rrd(path, result, recording, window):
+        pass
+    return Path(path)
