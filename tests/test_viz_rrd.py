@@ -1,0 +1,416 @@
+"""Rerun files: written atomically, read back with rerun.chunk.RrdReader, values checked.
+
+The files are decoded with the SDK's own reader (``RrdReader(path).stream()``
+→ chunks → Arrow record batches), so every assertion is on what a viewer
+would load: entity paths, timelines, values, the text panel and the
+blueprint store.
+"""
+
+import copy
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import rerun as rr
+from rerun.chunk import RrdReader
+
+from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.window import find_free_spin
+from wheelcal.io.calibration_json import calibration_dict
+from wheelcal.simulate import table2
+from wheelcal.simulate.session import simulate_session
+from wheelcal.viz.batch_rrd import write_batch_rrd
+from wheelcal.viz.rrd_file import RrdWriteError
+from wheelcal.viz.session_rrd import (
+    ANGLE_BINS,
+    angle_mdeg,
+    binned_mean_by_angle,
+    session_rrd,
+    wheel_angle_rad,
+    write_session_rrd,
+)
+
+# ---------------------------------------------------------------- reading back
+
+
+def read_store(path, blueprint=False):
+    """{entity path: [chunks]} of the recording (or blueprint) store."""
+    reader = RrdReader(path)
+    store = reader.blueprints()[0] if blueprint else None
+    chunks = {}
+    for chunk in reader.stream(store=store).to_chunks():
+        chunks.setdefault(chunk.entity_path, []).append(chunk)
+    return chunks
+
+
+def temporal(chunks, entity, component, timeline):
+    """(index values, component values) of an entity's temporal rows, sorted by index."""
+    index, values = [], []
+    for chunk in chunks[entity]:
+        if chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        column = batch.column(timeline)
+        if str(column.type).startswith("duration"):
+            column = column.cast("int64")
+        index.append(column.to_numpy())
+        values.extend(batch.column(component).to_pylist())
+    index = np.concatenate(index)
+    order = np.argsort(index, kind="stable")
+    return index[order], [values[i] for i in order]
+
+
+def static(chunks, entity, component):
+    """The static value of one component (its first row)."""
+    for chunk in chunks[entity]:
+        batch = chunk.to_record_batch()
+        if chunk.is_static and component in batch.schema.names:
+            return batch.column(component).to_pylist()[0]
+    raise KeyError(f"{entity}: no static {component}")
+
+
+def blueprint_views(path):
+    """[(view class, display name, origin)] in the file's blueprint."""
+    views = []
+    for chunks in read_store(path, blueprint=True).values():
+        for chunk in chunks:
+            batch = chunk.to_record_batch()
+            if "ViewBlueprint:display_name" in batch.schema.names:
+                row = [
+                    batch.column(f"ViewBlueprint:{c}").to_pylist()[-1][0]
+                    for c in ("class_identifier", "display_name", "space_origin")
+                ]
+                views.append(tuple(row))
+    return views
+
+
+def blueprint_component(path, component):
+    """All values of one blueprint component, e.g. ``TimePanelBlueprint:timeline``."""
+    out = []
+    for chunks in read_store(path, blueprint=True).values():
+        for chunk in chunks:
+            batch = chunk.to_record_batch()
+            if component in batch.schema.names:
+                out.extend(batch.column(component).to_pylist())
+    return out
+
+
+def blueprint_entities(path):
+    return set(read_store(path, blueprint=True))
+
+
+# ---------------------------------------------------------------- fixtures
+
+
+@pytest.fixture(scope="module")
+def session():
+    """A full simulated session (rest, push, 90 s free spin at 200 Hz, brake, rest), fitted."""
+    sim = simulate_session(table2(rng=np.random.default_rng(5)), np.random.default_rng(6))
+    recording = sim.recording
+    window = find_free_spin(recording)
+    result = JointFit().fit(recording.window(window.start_s, window.end_s))
+    return recording, window, result
+
+
+@pytest.fixture(scope="module")
+def session_file(session, tmp_path_factory):
+    recording, window, result = session
+    path = tmp_path_factory.mktemp("rrd") / "s1.rrd"
+    assert write_session_rrd(path, result, recording, window) == path
+    return path, read_store(path)
+
+
+def no_leftovers(directory):
+    """No temporary files from the atomic writer."""
+    return [p.name for p in directory.iterdir() if p.name.endswith(".tmp")] == []
+
+
+# ---------------------------------------------------------------- session file
+
+
+def test_session_entity_paths(session_file):
+    _, chunks = session_file
+    expected = {
+        "/signal/raw",
+        "/signal/model",
+        "/window",
+        "/residual/fit",
+        "/residual_angle_mean/x/fit",
+        "/residual_angle_mean/y/fit",
+        "/residual_angle_mean/z/fit",
+        "/spin/omega_radps",
+        "/report",
+    }
+    assert expected <= set(chunks)
+    assert set(chunks) - expected <= {"/__properties"}
+
+
+def test_raw_signal_is_the_whole_recording(session, session_file):
+    recording, _, _ = session
+    _, chunks = session_file
+    t_ns, values = temporal(chunks, "/signal/raw", "Scalars:scalars", "time")
+    np.testing.assert_array_equal(t_ns, np.rint(recording.time_s * 1e9).astype(np.int64))
+    np.testing.assert_array_equal(np.array(values), recording.accel_mps2)
+
+
+def test_residual_series_equals_the_result(session, session_file):
+    _, _, result = session
+    _, chunks = session_file
+    t_ns, values = temporal(chunks, "/residual/fit", "Scalars:scalars", "time")
+    np.testing.assert_array_equal(np.array(values), result.residual_mps2)
+    assert np.max(np.abs(t_ns - result.time_s * 1e9)) <= 0.5  # rounded, not truncated
+    # The same rows carry the wheel angle ϑ mod 360° in millidegrees.
+    batch = next(c for c in chunks["/residual/fit"] if not c.is_static).to_record_batch()
+    mdeg = batch.column("wheel_angle_mdeg").to_numpy()
+    np.testing.assert_array_equal(mdeg, angle_mdeg(wheel_angle_rad(result)))
+    assert mdeg.min() >= 0 and mdeg.max() < 360_000
+
+
+def test_model_plus_residual_is_the_data(session, session_file):
+    recording, _, result = session
+    _, chunks = session_file
+    t_ns, model = temporal(chunks, "/signal/model", "Scalars:scalars", "time")
+    inside = np.isin(np.rint(recording.time_s * 1e9).astype(np.int64), t_ns)
+    np.testing.assert_allclose(
+        np.array(model) + result.residual_mps2, recording.accel_mps2[inside], atol=1e-9
+    )
+
+
+def test_omega_is_the_fitted_spin(session, session_file):
+    _, _, result = session
+    _, chunks = session_file
+    t_ns, omega = temporal(chunks, "/spin/omega_radps", "Scalars:scalars", "time")
+    assert 100 <= t_ns.size <= 1000
+    expected = result.params.spin.omega_at(t_ns * 1e-9 - result.centre_s)
+    np.testing.assert_allclose(np.array(omega)[:, 0], expected, rtol=1e-9)
+
+
+def test_window_is_marked(session, session_file):
+    recording, window, _ = session
+    _, chunks = session_file
+    t_ns, states = temporal(chunks, "/window", "StateChange:state", "time")
+    assert [s[0] for s in states] == ["before", "free spin", "after"]
+    expected = np.rint(np.array([recording.time_s[0], window.start_s, window.end_s]) * 1e9)
+    np.testing.assert_array_equal(t_ns, expected.astype(np.int64))
+
+
+def test_mean_residual_per_angle_bin(session, session_file):
+    _, _, result = session
+    _, chunks = session_file
+    theta = np.mod(wheel_angle_rad(result), 2 * np.pi)
+    for k, axis in enumerate("xyz"):
+        values = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:values")[0]
+        abscissa = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:abscissa")[0]
+        assert len(abscissa["buffer"]) == ANGLE_BINS  # every 5° bin holds samples
+        # Independent check of one bin: 90°–95°.
+        j = 18
+        assert abscissa["buffer"][j] == pytest.approx(92.5)
+        inside = (theta >= np.deg2rad(90.0)) & (theta < np.deg2rad(95.0))
+        assert values["buffer"][j] == pytest.approx(result.residual_mps2[inside, k].mean())
+
+
+def test_binned_mean_helper():
+    theta = np.deg2rad([1.0, 2.0, 359.0, 361.0, 180.0])
+    values = np.array([[1, 2, 3], [3, 4, 5], [10, 10, 10], [5, 6, 7], [0, 0, 0]], float)
+    centres, mean, count = binned_mean_by_angle(theta, values, bins=4)
+    np.testing.assert_allclose(centres, [45.0, 225.0, 315.0])
+    np.testing.assert_allclose(mean[0], [3, 4, 5])  # 1°, 2°, 361° ≡ 1°
+    np.testing.assert_array_equal(count, [3, 1, 1])
+
+
+def test_report_panel(session, session_file):
+    _, window, result = session
+    _, chunks = session_file
+    text = static(chunks, "/report", "TextDocument:text")[0]
+    media = static(chunks, "/report", "TextDocument:media_type")[0]
+    assert media == "text/markdown"
+    for name in ("gain_x", "offset_z_mps2", "tilt_deg"):
+        assert f"| `{name}` | {result.value_of(name):.7g} | {result.std_of(name):.2g} |" in text
+    assert f"{result.systematic.std_of('gain_x'):.2g}" in text
+    assert "## Warnings" in text
+    assert window.reason in text
+
+
+def test_session_blueprint(session, session_file):
+    _, window, _ = session
+    path, _ = session_file
+    views = blueprint_views(path)
+    classes = {v[0] for v in views}
+    assert {"TimeSeries", "BarChart", "TextDocument", "StateTimeline"} <= classes
+    names = {v[1] for v in views}
+    for axis in "xyz":
+        assert f"{axis}: raw and model (m/s²)" in names
+        assert f"{axis}: residual, data − model (m/s²)" in names
+    assert ("TextDocument", "calibration", "/report") in views
+    assert blueprint_component(path, "TimePanelBlueprint:timeline") == [["time"]]
+    (selection,) = blueprint_component(path, "TimePanelBlueprint:time_selection")
+    assert selection[0] == {"min": round(window.start_s * 1e9), "max": round(window.end_s * 1e9)}
+    # Per-axis views show one of the three series of an entity.
+    masks = blueprint_component(path, "SeriesLines:visible_series")
+    assert [True, False, False] in [m for m in masks]
+    reader = RrdReader(path)
+    assert reader.recordings()[0].application_id == "wheelcal"
+
+
+def test_window_none_marks_the_fitted_span(session, tmp_path):
+    recording, _, result = session
+    path = write_session_rrd(tmp_path / "given.rrd", result, recording, None)
+    chunks = read_store(path)
+    t_ns, states = temporal(chunks, "/window", "StateChange:state", "time")
+    assert states[1] == ["free spin"]
+    assert t_ns[1] == round(result.time_s[0] * 1e9) and t_ns[2] == round(result.time_s[-1] * 1e9)
+    assert "window given" in static(chunks, "/report", "TextDocument:text")[0]
+
+
+def test_more_residual_sets_for_the_closed_loop(session, tmp_path):
+    recording, window, result = session
+    path = tmp_path / "loop.rrd"
+    theta = wheel_angle_rad(result)
+    after = result.residual_mps2 * 0.5
+    with session_rrd(path, result, recording, window) as rrd:
+        rrd.log_residuals("after", result.time_s, after, theta)
+        assert rrd.residual_sets == ["fit", "after"]
+        assert not path.exists()  # written when the block ends
+    chunks = read_store(path)
+    _, values = temporal(chunks, "/residual/after", "Scalars:scalars", "time")
+    np.testing.assert_array_equal(np.array(values), after)
+    assert "/residual_angle_mean/y/after" in chunks
+    # The blueprint, written last, has per-axis overrides for the new set too.
+    assert any("overrides/residual/after" in e for e in blueprint_entities(path))
+
+
+# ---------------------------------------------------------------- no partial files
+
+
+def test_exception_while_writing_leaves_no_file(session, tmp_path):
+    recording, window, result = session
+    path = tmp_path / "broken.rrd"
+    with pytest.raises(RuntimeError, match="boom"):
+        with session_rrd(path, result, recording, window):
+            raise RuntimeError("boom")
+    assert not path.exists() and no_leftovers(tmp_path)
+
+
+def test_bad_data_leaves_no_file_and_keeps_the_old_one(session, tmp_path):
+    recording, window, result = session
+    path = tmp_path / "s.rrd"
+    path.write_bytes(b"previous")
+    with pytest.raises(ValueError, match="residual set 'after'"):
+        with session_rrd(path, result, recording, window) as rrd:
+            rrd.log_residuals("after", result.time_s, result.residual_mps2[:-1], np.zeros(3))
+    with pytest.raises(ValueError, match="already"):
+        with session_rrd(path, result, recording, window) as rrd:
+            rrd.log_residuals("fit", result.time_s, result.residual_mps2, wheel_angle_rad(result))
+    assert path.read_bytes() == b"previous" and no_leftovers(tmp_path)
+
+
+def test_rerun_misuse_raises_instead_of_warning(session, tmp_path):
+    """Strict mode inside the writer: a bad Rerun call aborts the file."""
+    recording, window, result = session
+    path = tmp_path / "misuse.rrd"
+    with pytest.raises(ValueError):
+        with session_rrd(path, result, recording, window) as rrd:
+            rrd.stream.log("oops", rr.Scalars(["not a number"]))
+    assert not path.exists() and no_leftovers(tmp_path)
+    assert not rr.strict_mode()  # only inside the writer
+
+
+def test_rerun_disabled_is_an_error(session, tmp_path, monkeypatch):
+    recording, window, result = session
+    monkeypatch.setenv("RERUN", "off")
+    with pytest.raises(RrdWriteError, match="RERUN=off"):
+        write_session_rrd(tmp_path / "off.rrd", result, recording, window)
+    assert not (tmp_path / "off.rrd").exists()
+
+
+def test_importing_viz_does_not_import_rerun():
+    code = "import sys, wheelcal.viz; print('rerun' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_calibrate_session_writes_the_rrd(session, tmp_path):
+    """The batch/CLI pipeline: write_session_rrd(out / f"{stem}.rrd", result, recording, window)."""
+    from wheelcal.batch.session import SessionOptions, calibrate_session
+    from wheelcal.io import write_recording
+
+    recording, _, _ = session
+    mcap = tmp_path / "bench1.mcap"
+    write_recording(recording, mcap)
+    outcome = calibrate_session(mcap, SessionOptions(rrd=True), tmp_path / "out")
+    assert outcome.ok, outcome.error
+    assert outcome.rrd_path == str(tmp_path / "out" / "bench1.rrd")
+    chunks = read_store(outcome.rrd_path)
+    _, values = temporal(chunks, "/residual/fit", "Scalars:scalars", "time")
+    np.testing.assert_array_equal(np.array(values), outcome.result.residual_mps2)
+
+
+# ---------------------------------------------------------------- batch file
+
+
+@pytest.fixture(scope="module")
+def batch_sessions(session):
+    """Five calibration dictionaries: two sensors, perturbed values, one undetermined σ."""
+    _, _, result = session
+    base = calibration_dict(result)
+    sessions = []
+    for i in range(5):
+        d = copy.deepcopy(base)
+        d["source"]["file"] = f"run{i}.mcap"
+        d["source"]["sensor_id"] = "imu A" if i % 2 else "imu/B"
+        d["source"]["mounting_id"] = "" if i % 2 else "m1"
+        d["parameters"]["gain_x"]["value"] += 1e-4 * i
+        sessions.append(d)
+    sessions[3]["parameters"]["tilt_deg"]["std"] = None  # ∞ σ → JSON null
+    return sessions
+
+
+def group_path(sensor, mounting):
+    parts = [rr.escape_entity_path_part(p or "unspecified") for p in (sensor, mounting)]
+    return "/batch/" + "/".join(parts)
+
+
+def test_batch_one_point_per_session(batch_sessions, tmp_path):
+    path = write_batch_rrd(tmp_path / "batch.rrd", batch_sessions)
+    chunks = read_store(path)
+    for sensor, mounting, members in (("imu A", "", [1, 3]), ("imu/B", "m1", [0, 2, 4])):
+        base = group_path(sensor, mounting)
+        for name in ("gain_x", "offset_y_mps2", "tilt_deg"):
+            index, values = temporal(chunks, f"{base}/{name}/value", "Scalars:scalars", "session")
+            assert index.tolist() == members
+            expected = [batch_sessions[i]["parameters"][name]["value"] for i in members]
+            assert [v[0] for v in values] == expected
+            index, band = temporal(chunks, f"{base}/{name}/band", "Scalars:scalars", "session")
+            for i, (lo, hi) in zip(index, band, strict=True):
+                p = batch_sessions[i]["parameters"][name]
+                assert lo == pytest.approx(p["value"] - p["std"], rel=1e-15)
+                assert hi == pytest.approx(p["value"] + p["std"], rel=1e-15)
+    # The session with an undetermined σ has a point but no band.
+    base = group_path("imu A", "")
+    index, _ = temporal(chunks, f"{base}/tilt_deg/band", "Scalars:scalars", "session")
+    assert index.tolist() == [1]
+
+
+def test_batch_reports_and_blueprint(batch_sessions, tmp_path):
+    path = write_batch_rrd(tmp_path / "batch.rrd", batch_sessions)
+    chunks = read_store(path)
+    overview = static(chunks, "/report", "TextDocument:text")[0]
+    assert "| 3 | `run3.mcap` | imu A | unspecified |" in overview
+    group = static(chunks, group_path("imu/B", "m1") + "/report", "TextDocument:text")[0]
+    gains = [batch_sessions[i]["parameters"]["gain_x"]["value"] for i in (0, 2, 4)]
+    assert f"| `gain_x` | {np.mean(gains):.7g} | {np.std(gains, ddof=1):.2g} |" in group
+    views = blueprint_views(path)
+    assert ("TimeSeries", "gain_x", group_path("imu/B", "m1") + "/gain_x") in views
+    assert blueprint_component(path, "TimePanelBlueprint:timeline") == [["session"]]
+    assert RrdReader(path).recordings()[0].application_id == "wheelcal_batch"
+
+
+def test_batch_bad_input(batch_sessions, tmp_path):
+    with pytest.raises(ValueError, match="no sessions"):
+        write_batch_rrd(tmp_path / "empty.rrd", [])
+    broken = [batch_sessions[0], {"source": {"file": "x"}}]
+    with pytest.raises(ValueError, match="session 1"):
+        write_batch_rrd(tmp_path / "broken.rrd", broken)
+    assert os.listdir(tmp_path) == []
