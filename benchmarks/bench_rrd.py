@@ -1,0 +1,82 @@
+"""Rerun logging speed: writing a session's .rrd against fitting it, one core, same process.
+
+The batch should be limited by the fit, not by logging.  Prints, for one
+90 s / 200 Hz Table I recording (18 001 samples × 3 axes):
+
+* the joint fit (raw samples → result);
+* ``write_session_rrd`` (encode + atomic write with fsync), and its ratio to the fit;
+* ``write_batch_rrd`` for many sessions' calibration dictionaries.
+
+Run:  python benchmarks/bench_rrd.py [--repeats 20] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from wheelcal.estimate.joint import JointFit
+from wheelcal.io.calibration_json import calibration_dict
+from wheelcal.simulate import simulate, table1
+from wheelcal.viz.batch_rrd import write_batch_rrd
+from wheelcal.viz.session_rrd import write_session_rrd
+
+
+def _times(fn, repeats: int) -> list[float]:
+    fn()  # warm-up (imports, caches)
+    out = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return out
+
+
+def _fmt(ts: list[float]) -> str:
+    q = statistics.quantiles(ts, n=4) if len(ts) >= 4 else [min(ts), statistics.median(ts), max(ts)]
+    med = 1e3 * statistics.median(ts)
+    return f"median {med:8.1f} ms   (IQR {1e3 * q[0]:.1f}–{1e3 * q[2]:.1f} ms, n={len(ts)})"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=20)
+    ap.add_argument("--batch-sessions", type=int, default=50)
+    ap.add_argument(
+        "--out", type=Path, default=None, help="directory for the files (default: temp)"
+    )
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp, threadpool_limits(1):
+        out = args.out or Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        recording = simulate(table1(), np.random.default_rng(0)).recording
+        result = JointFit().fit(recording)
+        fit = _times(lambda: JointFit().fit(recording), args.repeats)
+        path = out / "session.rrd"
+        write = _times(lambda: write_session_rrd(path, result, recording, None), args.repeats)
+        sessions = []
+        for i in range(args.batch_sessions):
+            d = calibration_dict(result)
+            d["source"]["sensor_id"] = f"imu{i % 3}"
+            sessions.append(d)
+        batch_path = out / "batch.rrd"
+        batch = _times(lambda: write_batch_rrd(batch_path, sessions), max(3, args.repeats // 4))
+        print(f"samples: {recording.samples} x 3 axes (90 s at 200 Hz), one BLAS thread")
+        print(f"joint fit              : {_fmt(fit)}")
+        print(f"write_session_rrd      : {_fmt(write)}   ({path.stat().st_size / 1e6:.1f} MB)")
+        ratio = statistics.median(write) / statistics.median(fit)
+        print(f"write / fit            : {ratio:8.2f}   (the batch is limited by the fit if << 1)")
+        print(
+            f"write_batch_rrd ({args.batch_sessions} sessions, 3 sensors): {_fmt(batch)}"
+            f"   ({batch_path.stat().st_size / 1e6:.2f} MB)"
+        )
+
+
+if __name__ == "__main__":
+    main()
