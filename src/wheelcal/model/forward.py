@@ -43,67 +43,130 @@ class ModelOutput:
     sensed_mps2: np.ndarray
 
 
+def _apply_spin_effect(
+    effect, values: np.ndarray, t: np.ndarray, kin: Kinematics, jacobian: bool
+) -> Kinematics:
+    """Add a spin effect to ϑ, ω, ω̇; chain its partials into the existing rows, append its own."""
+    d = effect.spin_delta(values, t, kin, jacobian)
+    theta = kin.theta_rad + d.theta
+    omega = kin.omega_radps + d.omega
+    omega_dot = kin.omega_dot_radps2 + d.omega_dot
+    if not jacobian:
+        return Kinematics(theta, omega, omega_dot)
+    rows = [kin.d_theta.copy(), kin.d_omega.copy(), kin.d_omega_dot.copy()]
+    for partials, base in ((d.by_theta, kin.d_theta), (d.by_omega, kin.d_omega)):
+        if partials is not None:
+            for k in range(3):
+                rows[k] += partials[k] * base
+    own = (d.d_own_theta, d.d_own_omega, d.d_own_omega_dot)
+    rows = [np.vstack([r, o]) for r, o in zip(rows, own, strict=True)]
+    return Kinematics(theta, omega, omega_dot, *rows)
+
+
+def _through_w(w3: np.ndarray, da: np.ndarray) -> np.ndarray:
+    """W·a for bench-frame vectors da (N, 3) → (3, N); W constant (3,3,1) or per sample (3,3,N)."""
+    if w3.shape[2] == 1:
+        return w3[:, :, 0] @ da.T
+    return np.einsum("ijn,nj->in", w3, da)
+
+
 def evaluate(
     params: CalibrationParams,
     t_s: np.ndarray,
     layout: ParameterLayout | None = None,
     jacobian: bool = False,
+    effects: tuple = (),
+    kinematics: Kinematics | None = None,
 ) -> ModelOutput:
     """Evaluate eq. (6) at times ``t_s`` (s from the window centre).
 
-    ``layout`` chooses the free parameters (and the effects in the model);
-    with ``jacobian=True`` it is required and ∂v/∂x is returned in its order,
-    shape (P, 3, N).
+    ``layout`` chooses the free parameters and the effects in the model
+    (``effects`` gives them when there is no layout); with ``jacobian=True``
+    the layout is required and ∂v/∂x is returned in its order, shape (P, 3, N).
+    ``kinematics`` replaces the polynomial spin of eq. (2) by a given motion
+    (the simulator's physical spin-down laws); no Jacobian then.
     """
-    if jacobian and layout is None:
-        raise ValueError("a Jacobian needs a ParameterLayout")
+    if jacobian and (layout is None or kinematics is not None):
+        raise ValueError("a Jacobian needs a ParameterLayout and the model's own spin")
+    effects = layout.effects if layout is not None else tuple(effects)
     t = np.asarray(t_s, dtype=float)
-    kin = spin_kinematics(params.spin, t, derivatives=jacobian)
+    kin = kinematics if kinematics is not None else spin_kinematics(params.spin, t, jacobian)
+    for effect in effects:
+        if effect.stage == "spin":
+            values = params.effect(effect.name, effect.size)
+            kin = _apply_spin_effect(effect, values, t, kin, jacobian)
     force = bench_force(kin, params.bench.tilt_rad, params.bench.radius_m, params.gravity_mps2)
     rot = params.bench.misalignment.matrix
     gain = params.sensor.gain
     sensed = force.accel_mps2 @ rot.T  # Eq. (4): s = R a
     predicted = params.sensor.offset_mps2 + gain * sensed  # Eq. (5)
+    sensor_terms = []
+    for effect in effects:
+        if effect.stage == "sensor":
+            values = params.effect(effect.name, effect.size)
+            term = effect.sensor_delta(values, t, sensed, gain, jacobian)
+            predicted = predicted + term.delta
+            sensor_terms.append((effect, term))
     if not jacobian:
         return ModelOutput(predicted, None, kin, force, sensed)
 
     jac = np.zeros((layout.size, 3, t.size))
     blocks = layout.blocks
-    w_mat = gain[:, None] * rot  # W = Γ R
-    # Spin coefficients act through ϑ, ω, ω̇ on a_X and a_Y only:
+    # W = ∂v/∂s · R: Γ R for the paper's sensor (constant), per sample with sensor effects.
+    extra_ds = [term.d_sensed for _, term in sensor_terms if term.d_sensed is not None]
+    if extra_ds:
+        dv_ds = np.diag(gain)[None] + sum(extra_ds)
+        w3 = np.einsum("nij,jk->ikn", dv_ds, rot)
+    else:
+        w3 = (gain[:, None] * rot)[:, :, None]
+    # Spin coefficients (and spin-effect parameters) act through ϑ, ω, ω̇ on a_X, a_Y:
     # dv/dp = W[:,0]·∂a_X/∂p + W[:,1]·∂a_Y/∂p (outer products, no 3×3 per sample).
     r = params.bench.radius_m
     dax = -force.g_sin_tilt * force.sin_theta * kin.d_theta
     dax += (2 * r) * kin.omega_radps * kin.d_omega
     day = force.g_sin_tilt * force.cos_theta * kin.d_theta
     day += r * kin.d_omega_dot
-    spin = blocks["spin"]
+    spin_rows = np.empty((dax.shape[0], 3, t.size))
     for i in range(3):
-        jac[spin, i, :] = w_mat[i, 0] * dax + w_mat[i, 1] * day
+        spin_rows[:, i, :] = w3[i, 0] * dax + w3[i, 1] * day
+    spin = blocks["spin"]
+    jac[spin] = spin_rows[: spin.stop - spin.start]
+    row = spin.stop - spin.start
+    for effect in effects:
+        if effect.stage == "spin":
+            jac[blocks[f"effect:{effect.name}"]] = spin_rows[row : row + effect.size]
+            row += effect.size
     if layout.fit_tilt:
-        jac[blocks["tilt"].start] = (d_force_d_tilt(force) @ w_mat.T).T
+        jac[blocks["tilt"].start] = _through_w(w3, d_force_d_tilt(force))
     if layout.fit_radius:
-        jac[blocks["radius"].start] = (d_force_d_radius(kin) @ w_mat.T).T
+        jac[blocks["radius"].start] = _through_w(w3, d_force_d_radius(kin))
     # Rotation: ∂(R exp([δ]×) a)/∂δ_k = R (e_k × a), so dv/dδ_k = W (e_k × a):
     # e_x × a = (0, −a_Z, a_Y), e_y × a = (a_Z, 0, −a_X), e_z × a = (−a_Y, a_X, 0).
     a = force.accel_mps2
     rot0 = blocks["rotation"].start
     a_x, a_y, a_z = a[:, 0], a[:, 1], force.g_cos_tilt  # a_Z is a constant
-    w_x, w_y, w_z = w_mat[:, 0, None], w_mat[:, 1, None], w_mat[:, 2, None]
+    w_x, w_y, w_z = w3[:, 0], w3[:, 1], w3[:, 2]
     jac[rot0] = w_z * a_y - w_y * a_z
     jac[rot0 + 1] = w_x * a_z - w_z * a_x
     jac[rot0 + 2] = w_y * a_x - w_x * a_y
     for i in range(3):
         jac[blocks["gain"].start + i, i, :] = sensed[:, i]
         jac[blocks["offset"].start + i, i, :] = 1.0
+    for effect, term in sensor_terms:
+        jac[blocks[f"effect:{effect.name}"]] = term.d_own
+        if term.d_gain is not None:
+            jac[blocks["gain"]] += term.d_gain
     return ModelOutput(predicted, jac, kin, force, sensed)
 
 
 def predict(
-    params: CalibrationParams, t_s: np.ndarray, layout: ParameterLayout | None = None
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    layout: ParameterLayout | None = None,
+    effects: tuple = (),
 ) -> np.ndarray:
-    """v(t) of eq. (6), shape (N, 3), in m/s²."""
-    return evaluate(params, t_s, layout).predicted_mps2
+    """v(t) of eq. (6), shape (N, 3), in m/s² (with ``effects`` when there is no layout)."""
+    return evaluate(params, t_s, layout, effects=effects).predicted_mps2
 
 
 def nuisance_sensitivity(

@@ -1,0 +1,381 @@
+"""Optional model extensions ("effects"): what the paper's model may lack.
+
+Each effect has named parameters whose zero means *absent*, so the paper's
+model is a point inside every extended model (nested hypotheses: a score test
+at the base fit is valid).  Effects act at one of two stages of eq. (6):
+
+* **spin** — they change ϑ(t), ω(t), ω̇(t) (and through eq. (1) the applied
+  acceleration): :class:`SpinPolynomialExtension`, :class:`Imbalance`;
+* **sensor** — they add Δv to v = o + Γ s: :class:`QuadraticNonlinearity`,
+  :class:`OffsetWarmup`, :class:`OffsetDrift`, :class:`GainDrift`,
+  :class:`CrossAxis`.
+
+Every effect supplies its value and exact partial derivatives (the model
+assembles the Jacobian by the chain rule), a human description, and its
+contract name for the calibration JSON (``effects.<name>``).  Time t is the
+model's centred time, so drifting quantities are reported at the window centre.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from wheelcal.model.kinematics import Kinematics
+
+
+@dataclass(frozen=True, eq=False)
+class SpinDelta:
+    """Changes of ϑ, ω, ω̇ and their derivatives.
+
+    ``d_own_*``: (k, N) w.r.t. the effect's parameters.  ``d_theta_*``,
+    ``d_omega_*``: (N,) partials of the changes w.r.t. the incoming ϑ and ω
+    (chain rule for the spin coefficients); ``None`` when they vanish.
+    """
+
+    theta: np.ndarray
+    omega: np.ndarray
+    omega_dot: np.ndarray
+    d_own_theta: np.ndarray | None = None
+    d_own_omega: np.ndarray | None = None
+    d_own_omega_dot: np.ndarray | None = None
+    by_theta: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # ∂(Δϑ, Δω, Δω̇)/∂ϑ
+    by_omega: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # ∂(Δϑ, Δω, Δω̇)/∂ω
+
+
+@dataclass(frozen=True, eq=False)
+class SensorDelta:
+    """Δv (N, 3) and its partials.
+
+    ``d_own``: (k, 3, N); ``d_sensed``: (N, 3, 3) = ∂Δv/∂s or None;
+    ``d_gain``: (3, 3, N) = ∂Δv/∂γ (rows γ_x, γ_y, γ_z) or None.
+    """
+
+    delta: np.ndarray
+    d_own: np.ndarray | None = None
+    d_sensed: np.ndarray | None = None
+    d_gain: np.ndarray | None = None
+
+
+class Effect(ABC):
+    """A named, optional extension of the model (zero parameters = absent)."""
+
+    name: ClassVar[str]
+    param_names: ClassVar[tuple[str, ...]]
+    stage: ClassVar[str]  # "spin" or "sensor"
+    description: ClassVar[str]
+    #: Sensor-intrinsic effects are shared by every recording of one sensor.
+    sensor_intrinsic: ClassVar[bool] = False
+
+    @property
+    def size(self) -> int:
+        """Number of parameters."""
+        return len(self.param_names)
+
+    def settings(self) -> dict:
+        """Fixed settings of this instance (e.g. a time constant) for reports."""
+        return {}
+
+    def label(self) -> str:
+        """Name plus settings, e.g. ``offset_warmup(tau_s=25)``."""
+        s = self.settings()
+        return (
+            self.name
+            if not s
+            else f"{self.name}(" + ", ".join(f"{k}={v:g}" for k, v in s.items()) + ")"
+        )
+
+    def spin_delta(
+        self, values: np.ndarray, t_s: np.ndarray, kin: Kinematics, jacobian: bool
+    ) -> SpinDelta:
+        """Spin-stage change (only for ``stage == "spin"``)."""
+        raise NotImplementedError
+
+    def sensor_delta(
+        self,
+        values: np.ndarray,
+        t_s: np.ndarray,
+        sensed: np.ndarray,
+        gain: np.ndarray,
+        jacobian: bool,
+    ) -> SensorDelta:
+        """Sensor-stage change (only for ``stage == "sensor"``)."""
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return self.label()
+
+    def __eq__(self, other: object) -> bool:
+        return type(self) is type(other) and self.settings() == other.settings()
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, tuple(sorted(self.settings().items()))))
+
+
+class _SpinEffect(Effect, ABC):
+    stage = "spin"
+
+    @abstractmethod
+    def spin_delta(self, values, t_s, kin, jacobian): ...
+
+
+class _SensorEffect(Effect, ABC):
+    stage = "sensor"
+
+    @abstractmethod
+    def sensor_delta(self, values, t_s, sensed, gain, jacobian): ...
+
+
+class SpinPolynomialExtension(_SpinEffect):
+    """Spin-down beyond the cubic: ω(t) gains ω₄t⁴ + ω₅t⁵ (+ …).
+
+    Strong air drag (ω̇ = −c ω²) bends ω(t) more than a cubic can follow over a
+    long spin; the extra coefficients are zero for the paper's model.
+    """
+
+    name = "spin_extension"
+    description = "spin-down beyond the cubic (higher-order terms of eq. 2)"
+
+    def __init__(self, extra_degrees: int = 2) -> None:
+        if extra_degrees < 1:
+            raise ValueError("extra_degrees must be >= 1")
+        self.extra_degrees = extra_degrees
+        self.param_names = tuple(f"omega{4 + j}_radps{5 + j}" for j in range(extra_degrees))
+
+    def settings(self) -> dict:
+        return {"extra_degrees": self.extra_degrees}
+
+    def spin_delta(self, values, t_s, kin, jacobian):
+        k = np.arange(4, 4 + self.extra_degrees)
+        powers = t_s[None, :] ** np.arange(3, 4 + self.extra_degrees + 1)[:, None]  # t^3 … t^(K+1)
+        p_k = powers[1:-1]  # t^4 …
+        p_k1 = powers[2:]  # t^5 …
+        p_km1 = powers[:-2]  # t^3 …
+        d_theta = p_k1 / (k + 1)[:, None]
+        d_omega = p_k
+        d_omega_dot = p_km1 * k[:, None]
+        return SpinDelta(
+            theta=values @ d_theta,
+            omega=values @ d_omega,
+            omega_dot=values @ d_omega_dot,
+            d_own_theta=d_theta,
+            d_own_omega=d_omega,
+            d_own_omega_dot=d_omega_dot,
+        )
+
+
+class Imbalance(_SpinEffect):
+    """An imperfect counterbalance: a once-per-turn torque, ω̇ += a sinϑ + b cosϑ.
+
+    (a, b) = ε(cos φ, sin φ) for ω̇ += ε sin(ϑ + φ); absent at (0, 0).  To first
+    order in ε/ω² (quasi-steady, ω slowly varying) the motion changes by
+
+        Δω̇ = a sinϑ + b cosϑ,  Δω = −(a cosϑ − b sinϑ)/ω,  Δϑ = −(a sinϑ + b cosϑ)/ω².
+    """
+
+    name = "imbalance"
+    param_names = ("sin_radps2", "cos_radps2")
+    description = "wheel imbalance: once-per-turn torque ε·sin(ϑ + φ)"
+
+    def spin_delta(self, values, t_s, kin, jacobian):
+        a, b = values
+        s, c = np.sin(kin.theta_rad), np.cos(kin.theta_rad)
+        w = kin.omega_radps
+        w = np.where(np.abs(w) < 1e-3, 1e-3, w)
+        u = a * s + b * c  # torque term
+        du = a * c - b * s  # ∂u/∂ϑ
+        d_theta = -u / w**2
+        d_omega = -du / w
+        d_omega_dot = u
+        own_theta = np.vstack([-s / w**2, -c / w**2])
+        own_omega = np.vstack([-c / w, s / w])
+        own_omega_dot = np.vstack([s, c])
+        by_theta = (-du / w**2, u / w, du)  # ∂/∂ϑ of (Δϑ, Δω, Δω̇); ∂du/∂ϑ = −u
+        by_omega = (2 * u / w**3, du / w**2, np.zeros_like(u))
+        return SpinDelta(
+            theta=d_theta,
+            omega=d_omega,
+            omega_dot=d_omega_dot,
+            d_own_theta=own_theta,
+            d_own_omega=own_omega,
+            d_own_omega_dot=own_omega_dot,
+            by_theta=by_theta,
+            by_omega=by_omega,
+        )
+
+
+class QuadraticNonlinearity(_SensorEffect):
+    """Per-axis quadratic response: v_i += γ_i k_i s_i² (k in 1/(m/s²))."""
+
+    description = "quadratic nonlinearity of one sensor axis"
+    sensor_intrinsic = True
+
+    def __init__(self, axis: int) -> None:
+        if axis not in (0, 1, 2):
+            raise ValueError("axis must be 0, 1 or 2")
+        self.axis = axis
+        self.name = f"nonlinearity_{'xyz'[axis]}"
+        self.param_names = ("k_per_mps2",)
+
+    def settings(self) -> dict:
+        return {}
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, QuadraticNonlinearity) and other.axis == self.axis
+
+    def __hash__(self) -> int:
+        return hash(("nonlinearity", self.axis))
+
+    def sensor_delta(self, values, t_s, sensed, gain, jacobian):
+        i = self.axis
+        k = values[0]
+        s_i = sensed[:, i]
+        delta = np.zeros_like(sensed)
+        delta[:, i] = gain[i] * k * s_i**2
+        if not jacobian:
+            return SensorDelta(delta)
+        d_own = np.zeros((1, 3, s_i.size))
+        d_own[0, i] = gain[i] * s_i**2
+        d_sensed = np.zeros((s_i.size, 3, 3))
+        d_sensed[:, i, i] = 2 * gain[i] * k * s_i
+        d_gain = np.zeros((3, 3, s_i.size))
+        d_gain[i, i] = k * s_i**2
+        return SensorDelta(delta, d_own, d_sensed, d_gain)
+
+
+class OffsetWarmup(_SensorEffect):
+    """Thermal warm-up of the offsets: Δo_i(t) = a_i (1 − e^{−t/τ}), zero at the centre.
+
+    A warm-up d·(1 − e^{−(t − t₀)/τ}) that started at any t₀ has this shape after
+    the constant part moves into o (reported at the centre); a_i is the change
+    still to come after the centre time.  τ exists only when the effect does:
+    candidates are tested on a grid of τ and the p-value is corrected for it.
+    """
+
+    name = "offset_warmup"
+    param_names = ("x_mps2", "y_mps2", "z_mps2")
+    description = "offset warm-up d·(1 − e^(−t/τ))"
+    sensor_intrinsic = False
+
+    def __init__(self, tau_s: float) -> None:
+        if not tau_s > 0:
+            raise ValueError("tau_s must be positive")
+        self.tau_s = float(tau_s)
+
+    def settings(self) -> dict:
+        return {"tau_s": self.tau_s}
+
+    def shape(self, t_s: np.ndarray) -> np.ndarray:
+        """1 − e^{−t/τ} (0 at the centre)."""
+        return -np.expm1(-t_s / self.tau_s)
+
+    def sensor_delta(self, values, t_s, sensed, gain, jacobian):
+        w = self.shape(t_s)
+        delta = w[:, None] * values[None, :]
+        if not jacobian:
+            return SensorDelta(delta)
+        d_own = np.zeros((3, 3, t_s.size))
+        for i in range(3):
+            d_own[i, i] = w
+        return SensorDelta(delta, d_own)
+
+
+class OffsetDrift(_SensorEffect):
+    """Linear offset drift: Δo_i(t) = r_i t (zero at the centre)."""
+
+    name = "offset_drift"
+    param_names = ("x_mps2_per_s", "y_mps2_per_s", "z_mps2_per_s")
+    description = "linear offset drift"
+
+    def sensor_delta(self, values, t_s, sensed, gain, jacobian):
+        delta = t_s[:, None] * values[None, :]
+        if not jacobian:
+            return SensorDelta(delta)
+        d_own = np.zeros((3, 3, t_s.size))
+        for i in range(3):
+            d_own[i, i] = t_s
+        return SensorDelta(delta, d_own)
+
+
+class GainDrift(_SensorEffect):
+    """Linear gain drift: γ_i(t) = γ_i (1 + h_i t), reported at the centre."""
+
+    name = "gain_drift"
+    param_names = ("x_per_s", "y_per_s", "z_per_s")
+    description = "linear gain drift"
+
+    def sensor_delta(self, values, t_s, sensed, gain, jacobian):
+        delta = (gain * values)[None, :] * t_s[:, None] * sensed
+        if not jacobian:
+            return SensorDelta(delta)
+        n = t_s.size
+        d_own = np.zeros((3, 3, n))
+        d_sensed = np.zeros((n, 3, 3))
+        d_gain = np.zeros((3, 3, n))
+        for i in range(3):
+            d_own[i, i] = gain[i] * t_s * sensed[:, i]
+            d_sensed[:, i, i] = gain[i] * values[i] * t_s
+            d_gain[i, i] = values[i] * t_s * sensed[:, i]
+        return SensorDelta(delta, d_own, d_sensed, d_gain)
+
+
+class CrossAxis(_SensorEffect):
+    """Non-orthogonal sensing axes: v = o + Γ (I + L) s, L strictly lower triangular.
+
+    With R a free rotation, Γ(I + L)R spans every 3×3 matrix (9 = 3 + 3 + 3), so
+    (l_yx, l_zx, l_zy) are the sensor's three non-orthogonality angles (rad).
+    One mounting sees only two columns of ΓR: these are identifiable only from
+    several mountings (see :mod:`wheelcal.diagnose.multi_mounting`).
+    """
+
+    name = "cross_axis"
+    param_names = ("yx_rad", "zx_rad", "zy_rad")
+    description = "cross-axis coupling (non-orthogonal sensing axes)"
+    sensor_intrinsic = True
+    _pairs = ((1, 0), (2, 0), (2, 1))  # (row i, column j) of L
+
+    def matrix(self, values: np.ndarray) -> np.ndarray:
+        """L (3×3, strictly lower triangular)."""
+        out = np.zeros((3, 3))
+        for v, (i, j) in zip(values, self._pairs, strict=True):
+            out[i, j] = v
+        return out
+
+    def sensor_delta(self, values, t_s, sensed, gain, jacobian):
+        lower = self.matrix(values)
+        coupled = sensed @ lower.T  # (L s) per sample
+        delta = gain[None, :] * coupled
+        if not jacobian:
+            return SensorDelta(delta)
+        n = t_s.size
+        d_own = np.zeros((3, 3, n))
+        for p, (i, j) in enumerate(self._pairs):
+            d_own[p, i] = gain[i] * sensed[:, j]
+        d_sensed = np.broadcast_to(gain[:, None] * lower, (n, 3, 3)).copy()
+        d_gain = np.zeros((3, 3, n))
+        for i in range(3):
+            d_gain[i, i] = coupled[:, i]
+        return SensorDelta(delta, d_own, d_sensed, d_gain)
+
+
+def warmup_grid(tau_s: tuple[float, ...] = (10.0, 20.0, 40.0, 80.0)) -> tuple[OffsetWarmup, ...]:
+    """Warm-up candidates over a grid of time constants."""
+    return tuple(OffsetWarmup(t) for t in tau_s)
+
+
+def default_candidates() -> tuple[Effect, ...]:
+    """Every effect the closed loop tries on a single recording."""
+    return (
+        SpinPolynomialExtension(),
+        Imbalance(),
+        QuadraticNonlinearity(0),
+        QuadraticNonlinearity(1),
+        QuadraticNonlinearity(2),
+        *warmup_grid(),
+        OffsetDrift(),
+        GainDrift(),
+        CrossAxis(),
+    )
