@@ -1,0 +1,39 @@
+"""Plan a calibration bench before building it: predicted σ, systematic budget, best mounting.
+
+Layers: :mod:`~wheelcal.plan.bench_plan` (the planned truth) →
+:mod:`~wheelcal.plan.fisher` (exact and decimated Fisher information) →
+:mod:`~wheelcal.plan.absorb` (exact null-space map of a wrong fixed quantity) →
+:mod:`~wheelcal.plan.budget`, :mod:`~wheelcal.plan.mounting`,
+:mod:`~wheelcal.plan.tradeoff` → :mod:`~wheelcal.plan.planner` →
+:mod:`~wheelcal.plan.text` (the terminal table).
+"""
+
+from wheelcal.plan.absorb import AssumedErrors, absorbed_fit, reported_shift
+from wheelcal.plan.bench_plan import PAPER_MOUNTING_EULER_DEG, PlannedSetup, drag_spin
+from wheelcal.plan.budget import PlanBudget, SourceEffect, plan_budget
+from wheelcal.plan.fisher import bound_from_fisher, decimation_stride, fisher_information
+from wheelcal.plan.mounting import MountingChoice, MountingResult, MountingSearch
+from wheelcal.plan.planner import PlanReport, plan_report
+from wheelcal.plan.tradeoff import TradeoffRow, geometry_tradeoffs
+
+__all__ = [
+    "PAPER_MOUNTING_EULER_DEG",
+    "AssumedErrors",
+    "MountingChoice",
+    "MountingResult",
+    "MountingSearch",
+    "PlanBudget",
+    "PlanReport",
+    "PlannedSetup",
+    "SourceEffect",
+    "TradeoffRow",
+    "absorbed_fit",
+    "bound_from_fisher",
+    "decimation_stride",
+    "drag_spin",
+    "fisher_information",
+    "geometry_tradeoffs",
+    "plan_budget",
+    "plan_report",
+    "reported_shift",
+]
