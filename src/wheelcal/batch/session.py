@@ -8,7 +8,6 @@ writes nothing for that session.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +17,7 @@ import numpy as np
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import FreeSpinWindow, find_free_spin
-from wheelcal.recording import DEFAULT_RADIUS_STD_M, Recording, RecordingError
+from wheelcal.recording import Recording, RecordingError
 
 #: The fit needs this many wheel turns in the window (paper: ~100 in 90 s).
 MIN_TURNS = 10.0
@@ -41,6 +40,7 @@ class SessionOptions:
     known_tilt_deg: float | None = None
     tilt_std_deg: float = 0.5
     rrd: bool = False
+    accel_unit: str | None = None  # "m/s^2" or "g" when the file misstates its unit
     #: Pipeline defaults: (key, value) pairs used where neither the file nor the
     #: command line gives a value (CONTRACT precedence: CLI > file > pipeline).
     defaults: tuple[tuple[str, object], ...] = ()
@@ -63,25 +63,9 @@ class SessionOptions:
         )
         return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
 
-    def with_defaults(self, recording: Recording) -> Recording:
-        """The recording with pipeline defaults filled in where its session facts are unset.
-
-        ``radius_std_m`` counts as unset while it has the built-in 1 mm default.
-        """
-        if not self.defaults:
-            return recording
-        info = recording.info
-        fill = {}
-        for key, value in self.defaults:
-            current = getattr(info, key)
-            unset = current in (None, "") or (
-                key == "radius_std_m" and current == DEFAULT_RADIUS_STD_M
-            )
-            if unset:
-                fill[key] = value
-        if not fill:
-            return recording
-        return dataclasses.replace(recording, info=dataclasses.replace(info, **fill))
+    def info_defaults(self) -> dict[str, object]:
+        """Pipeline defaults (used only where the file and the command line are silent)."""
+        return dict(self.defaults)
 
     def fitter(self) -> JointFit:
         """The joint-fit configuration for these options."""

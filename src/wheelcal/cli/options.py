@@ -36,6 +36,11 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     w = parser.add_argument_group("data")
     w.add_argument("--topic", help="accelerometer topic (default: the only one)")
     w.add_argument(
+        "--accel-unit",
+        choices=("m/s^2", "g"),
+        help="unit of the samples when the file states it wrongly (g means 9.80665 m/s²)",
+    )
+    w.add_argument(
         "--start-s", type=float, help="start of the free-spin window (s from the first sample)"
     )
     w.add_argument("--end-s", type=float, help="end of the free-spin window")
@@ -71,6 +76,7 @@ def session_options(args: argparse.Namespace, rrd: bool = False):
             known_tilt_deg=args.tilt_deg,
             tilt_std_deg=args.tilt_std_deg,
             rrd=rrd,
+            accel_unit=args.accel_unit,
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from None

@@ -112,9 +112,7 @@ class NoiseModel:
         if p == 0:  # white: L⁻¹ across axes in one batched product
             return r, np.matmul(inv_chol, jacobian)
         filtered = [
-            jacobian[:, i, p:]
-            if a.size == 1
-            else fir_filter(a, jacobian[:, i, :])[:, p:]
+            jacobian[:, i, p:] if a.size == 1 else fir_filter(a, jacobian[:, i, :])[:, p:]
             for i, a in enumerate(self.ar_polynomials)
         ]
         # L⁻¹ (lower triangular) across axes: six scaled adds over (P, M) blocks.

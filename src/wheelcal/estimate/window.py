@@ -34,7 +34,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 from wheelcal.recording import Recording, RecordingError
 
@@ -155,6 +154,8 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
         )
 
     # Noise: zero-phase low-pass (SOS: stable at any rate).
+    from scipy import signal  # heavy import, deferred until a window is searched
+
     sos = signal.butter(2, min(search.lowpass_hz, 0.4 * rate), fs=rate, output="sos")
     v = signal.sosfiltfilt(sos, v, axis=0)
     # A rough phase from dv/dt: differentiation suppresses the slow part

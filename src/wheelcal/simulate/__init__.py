@@ -2,6 +2,7 @@
 
 from wheelcal.simulate.noise import NoiseSpec, Quantiser
 from wheelcal.simulate.presets import PRESETS, hand_spin, preset, random_setup, table1, table2
+from wheelcal.simulate.session import SessionPlan, SimulatedFullSession, simulate_session
 from wheelcal.simulate.simulator import Scenario, SimulatedSession, simulate
 
 __all__ = [
@@ -9,11 +10,14 @@ __all__ = [
     "NoiseSpec",
     "Quantiser",
     "Scenario",
+    "SessionPlan",
+    "SimulatedFullSession",
     "SimulatedSession",
     "hand_spin",
     "preset",
     "random_setup",
     "simulate",
+    "simulate_session",
     "table1",
     "table2",
 ]
