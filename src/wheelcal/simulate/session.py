@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from wheelcal.model import CalibrationParams, predict
+from wheelcal.model import CalibrationParams
 from wheelcal.model.bench import bench_force
 from wheelcal.model.kinematics import Kinematics
 from wheelcal.recording import Recording
@@ -188,7 +188,7 @@ def simulate_session(
     sensor = truth.sensor
     # Eq. (4)–(5): s = R a, v = o + Γ s.
     clean[outside] = sensor.offset_mps2 + sensor.gain * (force @ bench.misalignment.matrix.T)
-    clean[free] = predict(truth, t[free] - centre)  # Phase 3: exactly the model
+    clean[free] = scenario.clean_signal(t[free] - centre)  # Phase 3: exactly the model
 
     noisy = clean + scenario.noise.sample(t.size, rate, rng)
     if scenario.quantiser is not None:

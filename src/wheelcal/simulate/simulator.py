@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wheelcal.model import CalibrationParams, predict
+from wheelcal.model import CalibrationParams, evaluate
 from wheelcal.recording import Recording, SessionInfo
 from wheelcal.simulate.noise import NoiseSpec, Quantiser
 
@@ -33,6 +33,10 @@ class Scenario:
     noise: NoiseSpec = field(default_factory=NoiseSpec)
     info: SessionInfo = field(default_factory=SessionInfo)
     quantiser: Quantiser | None = None
+    #: Effects present in the truth (their values in ``truth.effects``).
+    effects: tuple = ()
+    #: A physical motion (see :mod:`wheelcal.simulate.motion`) instead of ``truth.spin``.
+    motion: object | None = None
 
     def __post_init__(self) -> None:
         if not (self.duration_s > 0 and self.rate_hz > 0):
@@ -49,6 +53,13 @@ class Scenario:
         """Sample times about the centre of the recording."""
         t = self.times_s()
         return t - 0.5 * (t[0] + t[-1])
+
+    def clean_signal(self, t_centred_s: np.ndarray) -> np.ndarray:
+        """Noise-free v(t): the truth, its effects, and the physical motion if any."""
+        kin = None if self.motion is None else self.motion.kinematics(t_centred_s)
+        return evaluate(
+            self.truth, t_centred_s, effects=self.effects, kinematics=kin
+        ).predicted_mps2
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,7 +80,7 @@ def simulate(
 ) -> SimulatedSession:
     """Draw one noisy recording of ``scenario`` (randomness from ``rng`` only)."""
     t = scenario.times_s()
-    clean = predict(scenario.truth, scenario.centred_times_s())
+    clean = scenario.clean_signal(scenario.centred_times_s())
     noisy = clean + scenario.noise.sample(t.size, scenario.rate_hz, rng)
     if scenario.quantiser is not None:
         noisy = scenario.quantiser.apply(noisy)
