@@ -244,6 +244,7 @@ def test_session_blueprint(session, session_file):
         assert f"{axis}: raw and model (m/s²)" in names
         assert f"{axis}: residual, data − model (m/s²)" in names
     assert ("TextDocument", "calibration", "/report") in views
+    assert ("TimeSeries", "residual vs ϑ: select timeline wheel_angle_mdeg", "/residual") in views
     assert blueprint_component(path, "TimePanelBlueprint:timeline") == [["time"]]
     (selection,) = blueprint_component(path, "TimePanelBlueprint:time_selection")
     assert selection[0] == {"min": round(window.start_s * 1e9), "max": round(window.end_s * 1e9)}

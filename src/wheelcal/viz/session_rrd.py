@@ -40,12 +40,13 @@ are an open feature request), so
    (90 s at 200 Hz) lowers the noise ≈ 15×, so a ϑ-periodic pattern of a
    few mm/s² stands out;
 2. every residual sample also sits on the ``wheel_angle_mdeg`` timeline: the
-   tab "samples vs ϑ" draws them as a scatter once that timeline is selected
-   (time plots are empty then, and the scatter is empty on ``time``).
+   view "residual vs ϑ" draws them as a scatter (colour = axis, marker = set)
+   once that timeline is selected (time plots are empty then, and the scatter
+   is empty on ``time``).
 
 Blueprint (:func:`session_blueprint`): left, three columns x / y / z — raw and
-model; residual against time; tabs "mean per 5° of ϑ" (bar chart) and
-"samples vs ϑ" — with the window lane across them; right — the report, ω(t).
+model; the window lane across them; residual against time; mean residual per
+5° of ϑ (bar chart); right — the report, ω(t), the residual scatter against ϑ.
 The per-axis views show one series of the three-column entities through a
 per-view ``visible_series`` override.  Time plots share their x-axis zoom.
 
@@ -107,6 +108,7 @@ _SET_PALETTE: tuple[Rgb, ...] = (
     (120, 120, 40),
 )
 _WINDOW_STATES = ("before", "free spin", "after")
+_MARKERS = ("circle", "cross", "diamond", "plus", "square", "asterisk")
 
 
 def _time_column(time_s: np.ndarray) -> rr.TimeColumn:
@@ -373,35 +375,38 @@ def session_blueprint(
             },
         )
 
-    def angle_tabs(k: int) -> rrb.Tabs:
-        only = _only_axis(k)
-        scatter = rrb.TimeSeriesView(
-            origin="/residual",
-            name=f"{AXES[k]}: residual samples vs ϑ (select timeline {ANGLE_TIMELINE})",
-            overrides={
-                f"/residual/{s}": rr.SeriesPoints(
-                    visible_series=only, markers=["circle"] * 3, marker_sizes=[1.5] * 3
-                ).visualizer()
-                for s in residual_sets
-            },
-        )
-        mean = rrb.BarChartView(
+    def mean_view(k: int) -> rrb.BarChartView:
+        return rrb.BarChartView(
             origin=f"/residual_angle_mean/{AXES[k]}",
             name=f"{AXES[k]}: mean residual per 5° of ϑ (deg; m/s²)",
         )
-        return rrb.Tabs(mean, scatter, active_tab=0)
+
+    # One scatter for all axes (axis colours; sets told apart by their marker).
+    scatter = rrb.TimeSeriesView(
+        origin="/residual",
+        name=f"residual vs ϑ: select timeline {ANGLE_TIMELINE}",
+        overrides={
+            f"/residual/{s}": rr.SeriesPoints(
+                colors=list(_AXIS_COLORS),
+                markers=[_MARKERS[j % len(_MARKERS)]] * 3,
+                marker_sizes=[1.5] * 3,
+            ).visualizer()
+            for j, s in enumerate(residual_sets)
+        },
+    )
 
     left = rrb.Vertical(
         rrb.Horizontal(*[signal_view(k) for k in range(3)]),
         rrb.StateTimelineView(origin="/window", name="free-spin window", time_view=linked),
         rrb.Horizontal(*[residual_view(k) for k in range(3)]),
-        rrb.Horizontal(*[angle_tabs(k) for k in range(3)]),
+        rrb.Horizontal(*[mean_view(k) for k in range(3)]),
         row_shares=[3, 0.6, 3, 3],
     )
     right = rrb.Vertical(
         rrb.TextDocumentView(origin="/report", name="calibration"),
         rrb.TimeSeriesView(origin="/spin", name="ω(t) (rad/s)", axis_x=linked),
-        row_shares=[3, 1],
+        scatter,
+        row_shares=[3, 1, 2],
     )
     selection = rrb.components.AbsoluteTimeRange(min=round(start_s * 1e9), max=round(end_s * 1e9))
     return rrb.Blueprint(
