@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 from wheelcal.simulate import simulate, table1
 
@@ -10,3 +11,10 @@ from wheelcal.simulate import simulate, table1
 def table1_session():
     """One Table I recording at σ_n = 0.08 m/s² (seed 11)."""
     return simulate(table1(), np.random.default_rng(11))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def single_threaded_blas():
+    """One BLAS thread, as the CLI uses (small products; threads only add contention)."""
+    with threadpool_limits(1):
+        yield

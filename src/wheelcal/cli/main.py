@@ -5,6 +5,9 @@ Each command lives in ``wheelcal/cli/<name>_cmd.py`` and exposes
 function ``(args) -> int``.  Heavy imports happen inside the handlers, so
 ``wheelcal --help`` is instant.
 
+BLAS runs single-threaded (see :func:`main`); batches and studies use worker
+processes instead.
+
 Exit status (CONTRACT): 0 success; 1 some sessions failed (the others still
 ran, each failure is named); 2 bad usage.  Errors name the file and what is
 wrong — never a bare traceback (``--debug`` shows one).
@@ -66,7 +69,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.handler(args) or 0)
+        # wheelcal's linear algebra is many small products (P ≈ 15–50 columns): BLAS
+        # threads do not speed them up, and on a busy machine their spin-waiting
+        # can make a fit 10–20× slower.  Parallelism comes from worker processes.
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(1):
+            return int(args.handler(args) or 0)
     except UsageError as exc:
         print(f"wheelcal {args.command}: error: {exc}", file=sys.stderr)
         return 2

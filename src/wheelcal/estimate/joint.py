@@ -22,6 +22,7 @@ Geometry modes (paper II-C): ``radius`` — r known, α fitted (the paper's choi
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +46,7 @@ from wheelcal.estimate.systematic import (
     nuisance_extra,
     systematic_budget,
 )
-from wheelcal.estimate.twins import choose_twin
+from wheelcal.estimate.twins import TwinChoice, choose_twin, twin_of
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
 from wheelcal.recording import Recording, RecordingError
 
@@ -75,6 +76,10 @@ class JointFit:
     clock_std_ppm, gravity_std_mps2:
         Systematic-budget inputs; ``gravity_std_mps2=None`` uses 0.02 m/s² when the
         session does not give local gravity and 1e-4 m/s² when it does.
+    effects:
+        Model extensions to fit (:mod:`wheelcal.model.effects`).  The discrete
+        twin is chosen on the paper's model first (effects such as a nonlinearity
+        break the twin symmetry), then the effects are fitted from zero.
     """
 
     spin_degree: int = 3
@@ -86,6 +91,7 @@ class JointFit:
     max_iterations: int = 100
     clock_std_ppm: float = DEFAULT_CLOCK_STD_PPM
     gravity_std_mps2: float | None = None
+    effects: tuple = ()
 
     def __post_init__(self) -> None:
         if self.geometry not in GEOMETRY_MODES:
@@ -100,7 +106,10 @@ class JointFit:
         """Free parameters for this configuration."""
         radius_known = self.geometry == "radius"
         return ParameterLayout(
-            spin_degree=self.spin_degree, fit_tilt=radius_known, fit_radius=not radius_known
+            spin_degree=self.spin_degree,
+            fit_tilt=radius_known,
+            fit_radius=not radius_known,
+            effects=tuple(self.effects),
         )
 
     def _fixed_tilt_rad(self) -> float | None:
@@ -127,6 +136,9 @@ class JointFit:
         gravity = info.gravity_or_standard_mps2
         layout = self.layout
         notes: list[str] = []
+        if initial is None and self.effects:
+            # Settle the twin on the paper's model, then free the effects from zero.
+            initial = dataclasses.replace(self, effects=()).fit(recording).params
         if initial is None:
             guess = initial_guess(
                 tc,
@@ -165,7 +177,10 @@ class JointFit:
         converged = out.converged
         # Stage 3: canonical twin; the Fisher information and the cross terms
         # with the quantities held fixed (systematic budget) at the optimum.
-        twin = choose_twin(out.params)
+        if self.effects:  # the twin was chosen on the base model (see `effects`)
+            twin = TwinChoice(out.params, twin_of(out.params), ambiguous=False)
+        else:
+            twin = choose_twin(out.params)
         params = twin.chosen
         nuisances = nuisance_columns(layout)
         normal = out.normal

@@ -79,13 +79,25 @@ class Effect(ABC):
         """Fixed settings of this instance (e.g. a time constant) for reports."""
         return {}
 
+    def refinements(self) -> tuple[Effect, ...]:
+        """Finer alternatives of a setting (e.g. τ), tried once the effect is detected."""
+        return ()
+
+    def with_free_setting(self) -> Effect | None:
+        """The same effect with its setting (e.g. τ) as a fitted parameter, if it has one."""
+        return None
+
+    def values_from(self, other_values: np.ndarray, other: Effect) -> np.ndarray:
+        """Starting values for this effect from a fitted ``other`` of the same family."""
+        return np.asarray(other_values, dtype=float)
+
     def label(self) -> str:
         """Name plus settings, e.g. ``offset_warmup(tau_s=25)``."""
         s = self.settings()
         return (
             self.name
             if not s
-            else f"{self.name}(" + ", ".join(f"{k}={v:g}" for k, v in s.items()) + ")"
+            else f"{self.name}(" + ", ".join(f"{k}={v:.3g}" for k, v in s.items()) + ")"
         )
 
     def spin_delta(
@@ -268,6 +280,13 @@ class OffsetWarmup(_SensorEffect):
     def settings(self) -> dict:
         return {"tau_s": self.tau_s}
 
+    def refinements(self) -> tuple[Effect, ...]:
+        # 24 time constants, log-spaced over the grid's range and a little beyond.
+        return tuple(OffsetWarmup(float(t)) for t in np.geomspace(5.0, 160.0, 24))
+
+    def with_free_setting(self) -> Effect:
+        return OffsetWarmupFreeTau(self.tau_s)
+
     def shape(self, t_s: np.ndarray) -> np.ndarray:
         """1 − e^{−t/τ} (0 at the centre)."""
         return -np.expm1(-t_s / self.tau_s)
@@ -280,6 +299,44 @@ class OffsetWarmup(_SensorEffect):
         d_own = np.zeros((3, 3, t_s.size))
         for i in range(3):
             d_own[i, i] = w
+        return SensorDelta(delta, d_own)
+
+
+class OffsetWarmupFreeTau(OffsetWarmup):
+    """Offset warm-up with τ fitted too (values: amplitudes, then ln τ).
+
+    Only meaningful once the warm-up is present (at zero amplitude τ has no
+    information), so the closed loop first fits the amplitudes at the best grid
+    τ, then frees τ.  ``tau_s`` is the starting value; the fitted τ is
+    exp(values[3]).
+    """
+
+    param_names = ("x_mps2", "y_mps2", "z_mps2", "log_tau_s")
+
+    def refinements(self) -> tuple[Effect, ...]:
+        return ()
+
+    def with_free_setting(self) -> None:
+        return None
+
+    def settings(self) -> dict:
+        return {"tau_start_s": self.tau_s}
+
+    def values_from(self, other_values, other) -> np.ndarray:
+        return np.concatenate([np.asarray(other_values, float)[:3], [np.log(other.tau_s)]])
+
+    def sensor_delta(self, values, t_s, sensed, gain, jacobian):
+        amp, tau = np.asarray(values[:3]), float(np.exp(values[3]))
+        decay = np.exp(-t_s / tau)
+        w = 1.0 - decay
+        delta = w[:, None] * amp[None, :]
+        if not jacobian:
+            return SensorDelta(delta)
+        d_own = np.zeros((4, 3, t_s.size))
+        for i in range(3):
+            d_own[i, i] = w
+        # ∂w/∂lnτ = τ ∂w/∂τ = −(t/τ) e^{−t/τ}
+        d_own[3] = (-(t_s / tau) * decay)[None, :] * amp[:, None]
         return SensorDelta(delta, d_own)
 
 

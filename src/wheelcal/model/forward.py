@@ -63,6 +63,51 @@ def _apply_spin_effect(
     return Kinematics(theta, omega, omega_dot, *rows)
 
 
+def _sensor_w(gain: np.ndarray, rot: np.ndarray, terms: list) -> np.ndarray:
+    """W = ∂v/∂s · R as (3, 3, 1) for the paper's sensor, (3, 3, N) with sensor effects."""
+    extra_ds = [term.d_sensed for term in terms if term.d_sensed is not None]
+    if not extra_ds:
+        return (gain[:, None] * rot)[:, :, None]
+    dv_ds = np.diag(gain)[None] + sum(extra_ds)
+    return np.einsum("nij,jk->ikn", dv_ds, rot)
+
+
+def _spin_rows_to_v(w3: np.ndarray, force: BenchForce, kin_rows, omega, radius_m) -> np.ndarray:
+    """dv/dp (rows, 3, N) of parameters acting through (∂ϑ, ∂ω, ∂ω̇)/∂p rows."""
+    d_theta, d_omega, d_omega_dot = kin_rows
+    dax = -force.g_sin_tilt * force.sin_theta * d_theta + (2 * radius_m) * omega * d_omega
+    day = force.g_sin_tilt * force.cos_theta * d_theta + radius_m * d_omega_dot
+    out = np.empty((dax.shape[0], 3, dax.shape[1]))
+    for i in range(3):
+        out[:, i, :] = w3[i, 0] * dax + w3[i, 1] * day
+    return out
+
+
+def candidate_columns(
+    params: CalibrationParams, t_s: np.ndarray, layout: ParameterLayout, candidate
+) -> np.ndarray:
+    """∂v/∂θ (k, 3, N) of a candidate effect *not* in ``layout``, at its zero values.
+
+    Cheaper than a full Jacobian: at zero the candidate changes nothing else,
+    so only its own columns are computed (for the closed loop's score tests).
+    """
+    t = np.asarray(t_s, dtype=float)
+    out = evaluate(params, t, layout)
+    gain = params.sensor.gain
+    if candidate.stage == "sensor":
+        term = candidate.sensor_delta(np.zeros(candidate.size), t, out.sensed_mps2, gain, True)
+        return term.d_own
+    terms = [
+        e.sensor_delta(params.effect(e.name, e.size), t, out.sensed_mps2, gain, True)
+        for e in layout.effects
+        if e.stage == "sensor"
+    ]
+    w3 = _sensor_w(gain, params.bench.misalignment.matrix, terms)
+    d = candidate.spin_delta(np.zeros(candidate.size), t, out.kinematics, True)
+    rows = (d.d_own_theta, d.d_own_omega, d.d_own_omega_dot)
+    return _spin_rows_to_v(w3, out.force, rows, out.kinematics.omega_radps, params.bench.radius_m)
+
+
 def _through_w(w3: np.ndarray, da: np.ndarray) -> np.ndarray:
     """W·a for bench-frame vectors da (N, 3) → (3, N); W constant (3,3,1) or per sample (3,3,N)."""
     if w3.shape[2] == 1:
@@ -112,23 +157,12 @@ def evaluate(
 
     jac = np.zeros((layout.size, 3, t.size))
     blocks = layout.blocks
-    # W = ∂v/∂s · R: Γ R for the paper's sensor (constant), per sample with sensor effects.
-    extra_ds = [term.d_sensed for _, term in sensor_terms if term.d_sensed is not None]
-    if extra_ds:
-        dv_ds = np.diag(gain)[None] + sum(extra_ds)
-        w3 = np.einsum("nij,jk->ikn", dv_ds, rot)
-    else:
-        w3 = (gain[:, None] * rot)[:, :, None]
+    w3 = _sensor_w(gain, rot, [term for _, term in sensor_terms])
     # Spin coefficients (and spin-effect parameters) act through ϑ, ω, ω̇ on a_X, a_Y:
     # dv/dp = W[:,0]·∂a_X/∂p + W[:,1]·∂a_Y/∂p (outer products, no 3×3 per sample).
     r = params.bench.radius_m
-    dax = -force.g_sin_tilt * force.sin_theta * kin.d_theta
-    dax += (2 * r) * kin.omega_radps * kin.d_omega
-    day = force.g_sin_tilt * force.cos_theta * kin.d_theta
-    day += r * kin.d_omega_dot
-    spin_rows = np.empty((dax.shape[0], 3, t.size))
-    for i in range(3):
-        spin_rows[:, i, :] = w3[i, 0] * dax + w3[i, 1] * day
+    kin_rows = (kin.d_theta, kin.d_omega, kin.d_omega_dot)
+    spin_rows = _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r)
     spin = blocks["spin"]
     jac[spin] = spin_rows[: spin.stop - spin.start]
     row = spin.stop - spin.start

@@ -1,0 +1,140 @@
+"""Score (Lagrange-multiplier) tests of candidate effects at a fitted model.
+
+For effect parameters θ_e that are zero in the fitted model, the score test
+needs only the fit itself: with whitened residual r̃ and Jacobian columns of
+the free parameters (b) and of the effect (e),
+
+    H = J̃ᵀJ̃ = [[H_bb, H_be], [H_eb, H_ee]],   g = J̃ᵀ r̃,
+    C = H_ee − H_eb H_bb⁻¹ H_be            (information left after the fit),
+    u = g_e − H_eb H_bb⁻¹ g_b,
+    S = uᵀ C⁻¹ u  ~  χ²(k)  if the effect is absent.
+
+The whitening is the fit's own noise model (AR colour, cross-axis
+correlation), so coloured noise does not pose as an effect.  C⁻¹ is also the
+Cramér–Rao bound of θ_e at the fit and −C⁻¹u the one-step estimate of its size.
+
+An effect whose C is (nearly) singular — the fit's own parameters can mimic
+it — cannot be identified from this recording: it is reported as such and
+never tested or fitted into noise.  The fraction of its information left,
+λ_min(D⁻½ C D⁻½) with D = diag(H_ee), measures that.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.estimate.normal_equations import accumulate
+from wheelcal.estimate.result import CalibrationResult
+from wheelcal.model import CalibrationParams, ModelOutput
+from wheelcal.model.effects import Effect
+from wheelcal.model.forward import candidate_columns
+from wheelcal.recording import Recording
+
+#: Below this fraction of its own information an effect counts as not identifiable.
+IDENTIFIABLE_FRACTION = 1e-4
+
+
+@dataclass(frozen=True, eq=False)
+class ScoreTest:
+    """The verdict on one candidate effect."""
+
+    effect: Effect
+    statistic: float
+    dof: int
+    p_value: float
+    p_corrected: float
+    identifiable: bool
+    information_fraction: float
+    estimate: np.ndarray  # one-step size of the effect parameters
+    predicted_std: np.ndarray  # CRLB of the effect parameters at the fit
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary."""
+        fin = np.isfinite
+        return {
+            "effect": self.effect.name,
+            "label": self.effect.label(),
+            "settings": self.effect.settings(),
+            "statistic": float(self.statistic) if fin(self.statistic) else None,
+            "dof": self.dof,
+            "p_value": float(self.p_value) if fin(self.p_value) else None,
+            "p_corrected": float(self.p_corrected) if fin(self.p_corrected) else None,
+            "identifiable": self.identifiable,
+            "information_fraction": float(self.information_fraction),
+            "estimate": dict(zip(self.effect.param_names, map(float, self.estimate), strict=True)),
+            "predicted_std": dict(
+                zip(self.effect.param_names, map(float, self.predicted_std), strict=True)
+            ),
+        }
+
+
+def _candidate_columns(layout, candidates):
+    """``extra`` callback: ∂v/∂θ_e of every candidate at the current parameters."""
+
+    def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
+        return np.concatenate([candidate_columns(params, t_s, layout, c) for c in candidates])
+
+    return extra
+
+
+def _pinv(matrix: np.ndarray, floor: float = 1e-12) -> np.ndarray:
+    scale = np.sqrt(np.maximum(np.diag(matrix), 1e-300))
+    w, v = np.linalg.eigh(matrix / np.outer(scale, scale))
+    keep = w > w.max() * floor
+    return (v[:, keep] / w[keep]) @ v[:, keep].T / np.outer(scale, scale)
+
+
+def score_tests(
+    fit: CalibrationResult, recording: Recording, candidates: tuple[Effect, ...]
+) -> list[ScoreTest]:
+    """Score-test every candidate (not already in the fit's model) at the fit."""
+    from scipy import stats
+
+    present = {e.name for e in fit.layout.effects}
+    candidates = tuple(c for c in candidates if c.name not in present)
+    if not candidates:
+        return []
+    tc = recording.time_s - fit.centre_s
+    normal = accumulate(
+        fit.params,
+        tc,
+        recording.accel_mps2,
+        fit.layout,
+        fit.noise,
+        extra=_candidate_columns(fit.layout, candidates),
+    )
+    size = fit.layout.size
+    h, g = normal.hessian, normal.gradient
+    h_bb_inv = _pinv(h[:size, :size])
+    results = []
+    start = size
+    for cand in candidates:
+        sl = slice(start, start + cand.size)
+        start += cand.size
+        h_eb = h[sl, :size]
+        c = h[sl, sl] - h_eb @ h_bb_inv @ h_eb.T
+        u = g[sl] - h_eb @ h_bb_inv @ g[:size]
+        d = np.sqrt(np.maximum(np.diag(h[sl, sl]), 1e-300))
+        frac = float(max(np.linalg.eigvalsh(c / np.outer(d, d)).min(), 0.0))
+        identifiable = frac > IDENTIFIABLE_FRACTION
+        if identifiable:
+            c_inv = np.linalg.inv(c)
+            stat = float(u @ c_inv @ u)
+            p = float(stats.chi2.sf(stat, cand.size))
+            estimate = -c_inv @ u
+            predicted = np.sqrt(np.diag(c_inv))
+        else:
+            stat, p = np.nan, np.nan
+            estimate = np.full(cand.size, np.nan)
+            predicted = np.full(cand.size, np.inf)
+        results.append(
+            ScoreTest(cand, stat, cand.size, p, np.nan, identifiable, frac, estimate, predicted)
+        )
+    tested = sum(r.identifiable for r in results)
+    return [
+        dataclasses.replace(r, p_corrected=min(1.0, r.p_value * tested)) if r.identifiable else r
+        for r in results
+    ]
