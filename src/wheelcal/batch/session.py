@@ -161,14 +161,18 @@ def calibrate_session(
         t1 = time.perf_counter()
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        json_path = write_calibration(
-            out / f"{stem}.calibration.json", result, options.geometry, provenance
-        )
+        # The .rrd first: the calibration JSON marks a complete session (the batch's
+        # up-to-date check), so it is written last.
         rrd_path = None
         if options.rrd:
             from wheelcal.viz.session_rrd import write_session_rrd
 
             rrd_path = write_session_rrd(out / f"{stem}.rrd", result, recording, window)
+            timings["rrd"] = time.perf_counter() - t1
+            t1 = time.perf_counter()
+        json_path = write_calibration(
+            out / f"{stem}.calibration.json", result, options.geometry, provenance
+        )
         timings["write"] = time.perf_counter() - t1
     except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:
         message = str(exc)
