@@ -40,6 +40,9 @@ class SessionOptions:
     known_tilt_deg: float | None = None
     tilt_std_deg: float = 0.5
     rrd: bool = False
+    #: Run the closed loop (find and fit effects the paper's model lacks).
+    diagnose: bool = False
+    alpha: float = 0.01
     accel_unit: str | None = None  # "m/s^2" or "g" when the file misstates its unit
     #: Pipeline defaults: (key, value) pairs used where neither the file nor the
     #: command line gives a value (CONTRACT precedence: CLI > file > pipeline).
@@ -89,6 +92,8 @@ class SessionOutcome:
     calibration_path: str | None = None
     rrd_path: str | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
+    diagnosis: object | None = None  # wheelcal.diagnose.closed_loop.Diagnosis
+    diagnosis_path: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -128,6 +133,20 @@ def check_turns(result: CalibrationResult) -> float:
     return turns
 
 
+def _write_rrd(path: Path, result, recording, window, diagnosis) -> Path:
+    """Session .rrd; with a diagnosis, the paper's model's residual is a second set."""
+    from wheelcal.viz.session_rrd import session_rrd, wheel_angle_rad
+
+    with session_rrd(path, result, recording, window) as rrd:
+        if diagnosis is not None and diagnosis.steps:
+            base = diagnosis.base
+            shift_s = (base.epoch_unix_ns - recording.epoch_unix_ns) * 1e-9
+            rrd.log_residuals(
+                "paper_model", base.time_s + shift_s, base.residual_mps2, wheel_angle_rad(base)
+            )
+    return path
+
+
 def calibrate_session(
     path: str | Path,
     options: SessionOptions,
@@ -163,13 +182,25 @@ def calibrate_session(
         out.mkdir(parents=True, exist_ok=True)
         # The .rrd first: the calibration JSON marks a complete session (the batch's
         # up-to-date check), so it is written last.
+        diagnosis = diagnosis_path = None
+        if options.diagnose:
+            from wheelcal.diagnose.closed_loop import ClosedLoop
+            from wheelcal.io.diagnosis_json import write_diagnosis
+
+            loop = ClosedLoop(fit=options.fitter(), alpha=options.alpha)
+            diagnosis = loop.run(windowed, base=result)
+            timings["diagnose"] = time.perf_counter() - t1
+            t1 = time.perf_counter()
+            result = diagnosis.final
+        # The .rrd first: the calibration JSON marks a complete session (the batch's
+        # up-to-date check), so it is written last.
         rrd_path = None
         if options.rrd:
-            from wheelcal.viz.session_rrd import write_session_rrd
-
-            rrd_path = write_session_rrd(out / f"{stem}.rrd", result, recording, window)
+            rrd_path = _write_rrd(out / f"{stem}.rrd", result, recording, window, diagnosis)
             timings["rrd"] = time.perf_counter() - t1
             t1 = time.perf_counter()
+        if diagnosis is not None:
+            diagnosis_path = str(write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis))
         json_path = write_calibration(
             out / f"{stem}.calibration.json", result, options.geometry, provenance
         )
@@ -186,6 +217,8 @@ def calibrate_session(
         window=window,
         window_reason=reason,
         calibration_path=str(json_path),
+        diagnosis=diagnosis,
+        diagnosis_path=diagnosis_path,
         rrd_path=None if rrd_path is None else str(rrd_path),
         timings_s=timings,
     )

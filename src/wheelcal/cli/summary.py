@@ -64,3 +64,30 @@ def session_summary(outcome: SessionOutcome) -> str:
         f"  → {outcome.calibration_path}" + (f", {outcome.rrd_path}" if outcome.rrd_path else "")
     )
     return "\n".join(lines)
+
+
+def diagnosis_summary(outcome: SessionOutcome) -> str:
+    """The closed loop in a few lines: each step, what was not identifiable, before/after."""
+    d = outcome.diagnosis
+    lines = [f"{outcome.source}: {len(d.steps)} effect(s) added (family-wise α = {d.alpha:g})"]
+    for step in d.steps:
+        t = step.test
+        rms = " ".join(f"{x:.4f}" for x in step.result.residual_rms_mps2)
+        lines.append(
+            f"  + {t.effect.label():<32} χ²={t.statistic:9.1f} dof={t.dof}  "
+            f"p={t.p_corrected:.2g} (corrected)  residual rms {rms} m/s²"
+        )
+    if d.not_identifiable:
+        names = ", ".join(sorted({t.effect.name for t in d.not_identifiable}))
+        lines.append(f"  not identifiable from this recording: {names}")
+    bias = d.base_bias_sigma()
+    if d.steps and bias:
+        worst = sorted(bias.items(), key=lambda kv: -abs(kv[1]))[:4]
+        lines.append(
+            "  the paper's model was off by (σ): " + ", ".join(f"{k} {v:+.1f}" for k, v in worst)
+        )
+    base_rms = " ".join(f"{x:.4f}" for x in d.base.residual_rms_mps2)
+    final_rms = " ".join(f"{x:.4f}" for x in d.final.residual_rms_mps2)
+    lines.append(f"  residual rms: paper's model {base_rms} → final {final_rms} m/s²")
+    lines.append(f"  → {outcome.diagnosis_path}, {outcome.calibration_path}")
+    return "\n".join(lines)

@@ -52,22 +52,24 @@ class ScoreTest:
     predicted_std: np.ndarray  # CRLB of the effect parameters at the fit
 
     def as_dict(self) -> dict:
-        """JSON-ready summary."""
-        fin = np.isfinite
+        """JSON-ready summary (non-finite numbers as None)."""
+
+        def num(x):
+            return float(x) if np.isfinite(x) else None
+
+        names = self.effect.param_names
         return {
             "effect": self.effect.name,
             "label": self.effect.label(),
             "settings": self.effect.settings(),
-            "statistic": float(self.statistic) if fin(self.statistic) else None,
+            "statistic": num(self.statistic),
             "dof": self.dof,
-            "p_value": float(self.p_value) if fin(self.p_value) else None,
-            "p_corrected": float(self.p_corrected) if fin(self.p_corrected) else None,
+            "p_value": num(self.p_value),
+            "p_corrected": num(self.p_corrected),
             "identifiable": self.identifiable,
-            "information_fraction": float(self.information_fraction),
-            "estimate": dict(zip(self.effect.param_names, map(float, self.estimate), strict=True)),
-            "predicted_std": dict(
-                zip(self.effect.param_names, map(float, self.predicted_std), strict=True)
-            ),
+            "information_fraction": num(self.information_fraction),
+            "estimate": dict(zip(names, map(num, self.estimate), strict=True)),
+            "predicted_std": dict(zip(names, map(num, self.predicted_std), strict=True)),
         }
 
 

@@ -95,7 +95,7 @@ def calibration_dict(
         },
         "bench": bench,
         "motion": motion,
-        "effects": {name: _vec(v) for name, v in params.effects.items()},
+        "effects": effects_dict(result),
         "parameters": {
             n: {"value": _num(v), "std": _num(s)}
             for n, v, s in zip(result.names, result.values, result.std, strict=True)
@@ -141,6 +141,22 @@ def calibration_dict(
             "equation": "a = matrix @ (v - bias)",
         },
     }
+
+
+def effects_dict(result: CalibrationResult) -> dict:
+    """``effects`` block: per effect its parameters (value, std), settings and meaning."""
+    std = dict(zip(result.names, result.std, strict=True))
+    out = {}
+    for effect in result.layout.effects:
+        values = result.params.effect(effect.name, effect.size)
+        entry = {
+            p: {"value": _num(v), "std": _num(std.get(f"{effect.name}.{p}", float("nan")))}
+            for p, v in zip(effect.param_names, values, strict=True)
+        }
+        entry["settings"] = effect.settings()
+        entry["description"] = effect.description
+        out[effect.name] = entry
+    return out
 
 
 def _std_key(name: str) -> str:
