@@ -187,7 +187,7 @@ class MountingSearch:
 
         best_rot, best_val = reference, cost(reference, plan_tilt)
         for start in starts:
-            rot, val = self._refine(cost, start, plan_tilt, tilt_free=False)
+            rot, val = self._refine(cost, start, plan_tilt)
             if val < best_val:
                 best_rot, best_val = rot, val
         at_plan_tilt = _closest_equivalent(best_rot, reference)
@@ -211,7 +211,7 @@ class MountingSearch:
             stride=stride,
         )
 
-    def _refine(self, cost, start: Rotation, tilt_deg: float, tilt_free: bool):
+    def _refine(self, cost, start: Rotation, tilt_deg: float):
         def f(delta):
             return np.log(cost(start.perturbed(delta), tilt_deg))
 
