@@ -138,11 +138,11 @@ def _tradeoffs(report: PlanReport) -> str:
             f"{_num(row.offset_systematic_mps2):>12}{_num(row.gain_std):>10}"
             f"{_num(row.gain_systematic):>10}{_num(row.gain_second_order):>10}{mark}"
         )
-    lines.append(
-        "  radius mode: offset σ and radius-error shifts grow like tan α toward vertical; "
-        "tilt mode: a levelling error δ moves gains by cot α·δ and offsets by g δ/sin α; "
-        "vertical: offsets by g δ (0.17 m/s² per °), gains only by −δ²/2"
-    )
+    lines += [
+        "  radius mode: offset σ and radius-error shifts grow like tan α toward vertical",
+        "  tilt mode: a levelling error δ moves gains by cot α·δ, offsets by g δ/sin α",
+        "  vertical: offsets move by g δ (0.17 m/s² per degree), gains only by −δ²/2",
+    ]
     return "\n".join(lines)
 
 
