@@ -75,7 +75,15 @@ _SECTIONS = {
         "sensor_id",
         "mounting_id",
     },
-    "run": {"calibrate", "diagnose", "rerun", "geometry", "known_tilt_deg", "tilt_std_deg"},
+    "run": {
+        "calibrate",
+        "diagnose",
+        "alpha",
+        "rerun",
+        "geometry",
+        "known_tilt_deg",
+        "tilt_std_deg",
+    },
     "executor": {"kind", "workers", "address"},
 }
 
@@ -200,6 +208,8 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
             known_tilt_deg=run.get("known_tilt_deg"),
             tilt_std_deg=run.get("tilt_std_deg", 0.5),
             rrd=bool(run.get("rerun", False)),
+            diagnose=bool(run.get("diagnose", False)),
+            alpha=float(run.get("alpha", 0.01)),
             defaults=tuple(sorted(data.get("defaults", {}).items())),
             **overrides,
         )

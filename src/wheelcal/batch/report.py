@@ -105,8 +105,29 @@ def _outliers(files: list[str], name: str, values: np.ndarray, n_tests: int) -> 
     return out
 
 
-def build_report(calibrations: list[dict], failed: list[dict], skipped: int = 0) -> dict:
-    """The ``report.json`` dictionary (CONTRACT keys plus additive extras)."""
+def _stats_of(members: list[dict], names: list[str]) -> dict:
+    """group_statistics for each name over member parameter tables ({name: {value, std}})."""
+    out = {}
+    for name in names:
+        values = np.array([m[name]["value"] for m in members], dtype=float)
+        stds = np.array([np.nan if m[name]["std"] is None else m[name]["std"] for m in members])
+        out[name] = group_statistics(values, stds)
+    return out
+
+
+def build_report(
+    calibrations: list[dict],
+    failed: list[dict],
+    skipped: int = 0,
+    diagnoses: list[dict] | None = None,
+) -> dict:
+    """The ``report.json`` dictionary (CONTRACT keys plus additive extras).
+
+    With ``diagnoses`` (closed loop on every session) each group also gets the
+    same statistics for the paper's model (``parameters_paper_model``) and how
+    often each effect was found (``effects_found``): the ratio before and after.
+    """
+    by_file = {d["source"]["file"]: d for d in diagnoses or []}
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for cal in calibrations:
         src = cal.get("source", {})
@@ -137,16 +158,25 @@ def build_report(calibrations: list[dict], failed: list[dict], skipped: int = 0)
                     suffix = "" if key == "gain_std" else "_mps2"
                     systematic[f"{prefix}_{axis}{suffix}"] = _finite(v)
             systematic["tilt_deg"] = _finite(sys_block.get("tilt_std_deg"))
-        out_groups.append(
-            {
-                "sensor_id": sensor_id,
-                "mounting_id": mounting_id,
-                "sessions": len(members),
-                "files": files,
-                "parameters": params,
-                "systematic_std": systematic,
-            }
-        )
+        group = {
+            "sensor_id": sensor_id,
+            "mounting_id": mounting_id,
+            "sessions": len(members),
+            "files": files,
+            "parameters": params,
+            "systematic_std": systematic,
+        }
+        diags = [by_file[f] for f in files if f in by_file]
+        if diags and len(diags) == len(files):
+            group["parameters_paper_model"] = _stats_of(
+                [d["base"]["parameters"] for d in diags], names
+            )
+            found: dict[str, int] = defaultdict(int)
+            for d in diags:
+                for step in d["steps"]:
+                    found[step["effect"]] += 1
+            group["effects_found"] = dict(sorted(found.items()))
+        out_groups.append(group)
     return {
         "format": "wheelcal.report/1",
         "sessions": len(calibrations) + len(failed),
@@ -167,6 +197,13 @@ def _fmt(x, digits=5) -> str:
     return f"{x:.{digits}g}"
 
 
+def _with_before_column() -> str:
+    return (
+        "| parameter | mean | std | predicted std | ratio | p (ratio) | ratio, paper's model "
+        "| systematic σ (shared) |\n|---|---:|---:|---:|---:|---:|---:|---:|"
+    )
+
+
 def report_markdown(report: dict, title: str = "Repeatability report") -> str:
     """``report.md`` for people."""
     lines = [
@@ -185,6 +222,9 @@ def report_markdown(report: dict, title: str = "Repeatability report") -> str:
     for g in report["groups"]:
         who = f"sensor `{g['sensor_id'] or '-'}`, mounting `{g['mounting_id'] or '-'}`"
         lines += [f"## {who} ({g['sessions']} sessions)", "", _TABLE_HEAD]
+        before = g.get("parameters_paper_model")
+        if before:
+            lines[-1] = _with_before_column()
         for name, st in g["parameters"].items():
             flag = " ⚠" if st["ratio_p_value"] is not None and st["ratio_p_value"] < 0.01 else ""
             cells = [
@@ -196,7 +236,12 @@ def report_markdown(report: dict, title: str = "Repeatability report") -> str:
                 _fmt(st["ratio_p_value"], 2),
                 _fmt(g["systematic_std"].get(name), 3),
             ]
+            if before:
+                cells.insert(6, _fmt(before[name]["ratio"], 3))
             lines.append("| " + " | ".join(cells) + " |")
+        if g.get("effects_found"):
+            found = ", ".join(f"`{k}` in {v}" for k, v in g["effects_found"].items())
+            lines += ["", f"Closed loop: effects found — {found} of {g['sessions']} sessions."]
         lines.append("")
     lines += [_RATIO_NOTE, ""]
     if report["outliers"]:

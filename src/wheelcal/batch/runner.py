@@ -130,7 +130,9 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
         key = run_key(sha, pipeline.options, produces)
         cal = out / f"{stem}.calibration.json"
         rrd = out / f"{stem}.rrd"
-        if stored_run_key(cal) == key and (not pipeline.rerun or rrd.exists()):
+        diag = out / f"{stem}.diagnosis.json"
+        complete = (not pipeline.rerun or rrd.exists()) and (not pipeline.diagnose or diag.exists())
+        if stored_run_key(cal) == key and complete:
             up_to_date.append(
                 SessionRecord(
                     source=str(f),
@@ -244,8 +246,16 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     calibrations = [
         json.loads(Path(r.calibration_path).read_text(encoding="utf-8")) for r in records if r.ok
     ]
+    diagnoses = []
+    if pipeline.diagnose:
+        for r in records:
+            if r.ok:
+                path = Path(r.calibration_path).with_name(f"{r.stem}.diagnosis.json")
+                diagnoses.append(json.loads(path.read_text(encoding="utf-8")))
     failed = [{"file": r.source, "error": r.error} for r in records if not r.ok]
-    report = build_report(calibrations, failed, skipped=sum(r.skipped for r in records))
+    report = build_report(
+        calibrations, failed, skipped=sum(r.skipped for r in records), diagnoses=diagnoses
+    )
     report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
     report["provenance"] = {"report_key": report_key}
     atomic_write_text(paths[1], report_markdown(report, f"Repeatability report — {pipeline.name}"))
