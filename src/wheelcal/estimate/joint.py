@@ -181,6 +181,9 @@ class JointFit:
             twin = TwinChoice(out.params, twin_of(out.params), ambiguous=False)
         else:
             twin = choose_twin(out.params)
+            if self.geometry == "vertical" and twin.chosen.spin.omega_radps[0] < 0:
+                # At α = 90° both twins have the same offsets: report positive spin.
+                twin = TwinChoice(twin.rejected, twin.chosen, ambiguous=True)
         params = twin.chosen
         nuisances = nuisance_columns(layout)
         normal = out.normal
@@ -216,6 +219,12 @@ class JointFit:
             warnings.append(f"the fit did not converge ({out.message})")
         if twin.warning and self.geometry != "vertical":
             warnings.append(twin.warning)
+        if self.geometry != "radius" and info.gravity_mps2 is None:
+            warnings.append(
+                f"{self.geometry} mode without local gravity: the gains scale with the assumed "
+                f"g ({gravity:.5f} m/s²) one for one — give gravity_mps2 for gains better "
+                "than ~0.2 %"
+            )
         if self.geometry == "vertical":
             warnings.append(
                 "vertical wheel: the wheel axis has no upward side, so R is reported for the "
