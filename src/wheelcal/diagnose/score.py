@@ -89,12 +89,20 @@ def _pinv(matrix: np.ndarray, floor: float = 1e-12) -> np.ndarray:
     return (v[:, keep] / w[keep]) @ v[:, keep].T / np.outer(scale, scale)
 
 
-def score_tests(
-    fit: CalibrationResult, recording: Recording, candidates: tuple[Effect, ...]
-) -> list[ScoreTest]:
-    """Score-test every candidate (not already in the fit's model) at the fit."""
-    from scipy import stats
+@dataclass(frozen=True, eq=False)
+class ScoreContribution:
+    """One recording's share of a score test: u (k,), C (k, k) and diag(H_ee) (k,)."""
 
+    effect: Effect
+    score: np.ndarray
+    information: np.ndarray
+    raw_information_diag: np.ndarray
+
+
+def score_contributions(
+    fit: CalibrationResult, recording: Recording, candidates: tuple[Effect, ...]
+) -> list[ScoreContribution]:
+    """The score u and information C of every candidate not yet in the fit's model."""
     present = {e.name for e in fit.layout.effects}
     candidates = tuple(c for c in candidates if c.name not in present)
     if not candidates:
@@ -111,7 +119,7 @@ def score_tests(
     size = fit.layout.size
     h, g = normal.hessian, normal.gradient
     h_bb_inv = _pinv(h[:size, :size])
-    results = []
+    out = []
     start = size
     for cand in candidates:
         sl = slice(start, start + cand.size)
@@ -119,7 +127,18 @@ def score_tests(
         h_eb = h[sl, :size]
         c = h[sl, sl] - h_eb @ h_bb_inv @ h_eb.T
         u = g[sl] - h_eb @ h_bb_inv @ g[:size]
-        d = np.sqrt(np.maximum(np.diag(h[sl, sl]), 1e-300))
+        out.append(ScoreContribution(cand, u, c, np.diag(h[sl, sl]).copy()))
+    return out
+
+
+def finish_tests(contributions: list[ScoreContribution]) -> list[ScoreTest]:
+    """Statistics, p-values and Bonferroni correction from (summed) contributions."""
+    from scipy import stats
+
+    results = []
+    for part in contributions:
+        cand, u, c = part.effect, part.score, part.information
+        d = np.sqrt(np.maximum(part.raw_information_diag, 1e-300))
         frac = float(max(np.linalg.eigvalsh(c / np.outer(d, d)).min(), 0.0))
         identifiable = frac > IDENTIFIABLE_FRACTION
         if identifiable:
@@ -140,3 +159,40 @@ def score_tests(
         dataclasses.replace(r, p_corrected=min(1.0, r.p_value * tested)) if r.identifiable else r
         for r in results
     ]
+
+
+def score_tests(
+    fit: CalibrationResult, recording: Recording, candidates: tuple[Effect, ...]
+) -> list[ScoreTest]:
+    """Score-test every candidate (not already in the fit's model) at the fit."""
+    return finish_tests(score_contributions(fit, recording, candidates))
+
+
+def pooled_score_tests(
+    fits: list[CalibrationResult], recordings: list[Recording], candidates: tuple[Effect, ...]
+) -> list[ScoreTest]:
+    """One test per candidate of a parameter *shared* by all recordings.
+
+    Under H₀ the per-recording scores are independent with covariances C_k, so
+    S = (Σu_k)ᵀ (Σ C_k)⁻¹ (Σu_k) ~ χ²(k) — the candidate's own degrees of
+    freedom, not their sum.  Each recording keeps its own bench, spin, offset
+    and gain here (the conservative choice: nothing is assumed shared but the
+    effect), so the test is valid whatever the other parameters do.
+    """
+    pooled: dict[str, ScoreContribution] = {}
+    order: list[str] = []
+    for fit, recording in zip(fits, recordings, strict=True):
+        for part in score_contributions(fit, recording, candidates):
+            key = part.effect.label()
+            if key not in pooled:
+                pooled[key] = part
+                order.append(key)
+            else:
+                prev = pooled[key]
+                pooled[key] = ScoreContribution(
+                    part.effect,
+                    prev.score + part.score,
+                    prev.information + part.information,
+                    prev.raw_information_diag + part.raw_information_diag,
+                )
+    return finish_tests([pooled[k] for k in order])
