@@ -78,6 +78,7 @@ _SECTIONS = {
     "run": {
         "calibrate",
         "diagnose",
+        "closure",
         "alpha",
         "rerun",
         "geometry",
@@ -126,6 +127,7 @@ class Pipeline:
     options: SessionOptions = field(default_factory=SessionOptions)
     calibrate: bool = True
     diagnose: bool = False
+    closure: bool = False
     rerun: bool = False
     executor: Executor = field(default_factory=Executor)
 
@@ -224,6 +226,7 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
         options=options,
         calibrate=bool(run.get("calibrate", True)),
         diagnose=bool(run.get("diagnose", False)),
+        closure=bool(run.get("closure", run.get("diagnose", False))),
         rerun=bool(run.get("rerun", False)),
         executor=executor,
     )

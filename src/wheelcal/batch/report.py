@@ -244,6 +244,7 @@ def report_markdown(report: dict, title: str = "Repeatability report") -> str:
             lines += ["", f"Closed loop: effects found — {found} of {g['sessions']} sessions."]
         lines.append("")
     lines += [_RATIO_NOTE, ""]
+    lines += closure_markdown(report.get("closure"))
     if report["outliers"]:
         lines += [
             "## Outlier sessions",
@@ -289,3 +290,83 @@ def sessions_csv(calibrations: list[dict]) -> str:
         row += [*cal["fit"]["residual_rms_mps2"], len(cal["fit"]["warnings"])]
         writer.writerow(row)
     return buf.getvalue()
+
+
+def _row(*cells) -> str:
+    return "| " + " | ".join(str(c) for c in cells) + " |"
+
+
+def closure_markdown(closure: dict | None) -> list[str]:
+    """Sensor-level closure: pooled tests, the sensor model, and the spread before/after."""
+    if not closure or not closure.get("sensors"):
+        return []
+    lines = []
+    for sensor in closure["sensors"]:
+        lines += [
+            f"## Closure: sensor `{sensor['sensor_id'] or '-'}` ({sensor['sessions']} sessions)",
+            "",
+        ]
+        lines += [
+            "Pooled tests of sensor-intrinsic effects (one test per shared parameter, "
+            f"Bonferroni-corrected, α = {sensor['alpha']:g}):",
+            "",
+            "| effect | χ² | dof | p (corrected) | verdict |",
+            "|---|---:|---:|---:|---|",
+        ]
+        for t in sensor["pooled_tests"]:
+            if not t["identifiable"]:
+                lines.append(_row(f"`{t['label']}`", "–", t["dof"], "–", "not identifiable here"))
+                continue
+            verdict = "**present**" if t["p_corrected"] < sensor["alpha"] else "not shown"
+            stat = f"{t['statistic']:.1f}"
+            lines.append(
+                _row(f"`{t['label']}`", stat, t["dof"], _fmt(t["p_corrected"], 2), verdict)
+            )
+        fit = sensor.get("sensor_fit")
+        if fit:
+            lines += ["", "Joint sensor fit (shared offset, gain and the effects found):", ""]
+            lines += [
+                "| parameter | value | σ | σ best single | pooling gain |",
+                "|---|---:|---:|---:|---:|",
+            ]
+            for name, p in fit["parameters"].items():
+                best = _fmt(fit["best_single_std"].get(name), 3)
+                gain = _fmt(fit["pooling_gain"].get(name), 3)
+                lines.append(_row(f"`{name}`", _fmt(p["value"], 7), _fmt(p["std"], 3), best, gain))
+            lines += [f"- {w}" for w in fit["warnings"]]
+        inflated = [s for s in sensor["spread"] if s["inflated_before"] or s["inflated_after"]]
+        lines += [
+            "",
+            f"Spread over sessions vs the per-session σ ({sensor['spread_correction']}); "
+            "offsets that warm up or drift are compared at the start of each recording:",
+            "",
+            _row(
+                "parameter",
+                "mounting",
+                "ratio, paper's model",
+                "p",
+                "ratio, with effects",
+                "p",
+                "verdict",
+            ),
+            "|---|---|---:|---:|---:|---:|---|",
+        ]
+        for s in sensor["spread"]:
+            if s["inflated_after"]:
+                verdict = "**still inflated**: an effect not among the candidates"
+            elif s["inflated_before"]:
+                verdict = "inflated, explained by the effects"
+            else:
+                verdict = "consistent"
+            if s in inflated or s["parameter"].startswith(("offset", "gain")):
+                lines.append(
+                    f"| `{s['parameter']}` | {s['mounting_id'] or '-'} | {s['ratio_before']:.2f} "
+                    f"| {_fmt(s['p_before_corrected'], 2)} | {s['ratio_after']:.2f} "
+                    f"| {_fmt(s['p_after_corrected'], 2)} | {verdict} |"
+                )
+        lines += [
+            "",
+            "Candidate causes tested: " + ", ".join(f"`{c}`" for c in sensor["candidates_tested"]),
+            "",
+        ]
+    return lines

@@ -256,6 +256,10 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     report = build_report(
         calibrations, failed, skipped=sum(r.skipped for r in records), diagnoses=diagnoses
     )
+    if pipeline.closure:
+        from wheelcal.batch.closure import run_closure
+
+        report["closure"] = run_closure(pipeline, calibrations)
     report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
     report["provenance"] = {"report_key": report_key}
     atomic_write_text(paths[1], report_markdown(report, f"Repeatability report — {pipeline.name}"))

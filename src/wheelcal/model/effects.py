@@ -69,6 +69,8 @@ class Effect(ABC):
     description: ClassVar[str]
     #: Sensor-intrinsic effects are shared by every recording of one sensor.
     sensor_intrinsic: ClassVar[bool] = False
+    #: Effects that only move the offset over time (Δv independent of s).
+    offset_like: ClassVar[bool] = False
 
     @property
     def size(self) -> int:
@@ -269,6 +271,7 @@ class OffsetWarmup(_SensorEffect):
 
     name = "offset_warmup"
     param_names = ("x_mps2", "y_mps2", "z_mps2")
+    offset_like = True
     description = "offset warm-up d·(1 − e^(−t/τ))"
     sensor_intrinsic = False
 
@@ -345,6 +348,7 @@ class OffsetDrift(_SensorEffect):
 
     name = "offset_drift"
     param_names = ("x_mps2_per_s", "y_mps2_per_s", "z_mps2_per_s")
+    offset_like = True
     description = "linear offset drift"
 
     def sensor_delta(self, values, t_s, sensed, gain, jacobian):
@@ -434,5 +438,37 @@ def default_candidates() -> tuple[Effect, ...]:
         *warmup_grid(),
         OffsetDrift(),
         GainDrift(),
+        CrossAxis(),
+    )
+
+
+def make_effect(name: str, settings: dict | None = None) -> Effect:
+    """An effect from its contract name and settings (as written in the calibration JSON)."""
+    settings = settings or {}
+    if name.startswith("nonlinearity_"):
+        return QuadraticNonlinearity("xyz".index(name[-1]))
+    if name == "offset_warmup":
+        if "tau_start_s" in settings:
+            return OffsetWarmupFreeTau(float(settings["tau_start_s"]))
+        return OffsetWarmup(float(settings.get("tau_s", 25.0)))
+    if name == "spin_extension":
+        return SpinPolynomialExtension(int(settings.get("extra_degrees", 2)))
+    simple = {
+        "imbalance": Imbalance,
+        "offset_drift": OffsetDrift,
+        "gain_drift": GainDrift,
+        "cross_axis": CrossAxis,
+    }
+    if name not in simple:
+        raise ValueError(f"unknown effect {name!r}")
+    return simple[name]()
+
+
+def intrinsic_candidates() -> tuple[Effect, ...]:
+    """Sensor-intrinsic effects tested on all recordings of a sensor together."""
+    return (
+        QuadraticNonlinearity(0),
+        QuadraticNonlinearity(1),
+        QuadraticNonlinearity(2),
         CrossAxis(),
     )

@@ -1,0 +1,79 @@
+"""The batch's sensor-level closure: re-read each sensor's free spins and pool their evidence.
+
+Runs :func:`wheelcal.diagnose.sensor_closure.close_sensor` for every
+``sensor_id`` with two or more calibrated sessions, using the windows and the
+local effects (warm-up, drift, imbalance …) each session's own closed loop found,
+and writes the sensor model of the joint fit to ``sensors/<sensor_id>.sensor.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections import defaultdict
+
+from wheelcal.batch.pipeline import Pipeline
+from wheelcal.diagnose.sensor_closure import SessionInput, close_sensor
+from wheelcal.io.atomic import atomic_write_text
+from wheelcal.model.effects import make_effect
+
+
+def _inputs(pipeline: Pipeline, members: list[dict]) -> list[SessionInput]:
+    from wheelcal.io import read_recording
+
+    options = pipeline.options
+    out = []
+    for cal in members:
+        src = cal["source"]
+        recording = read_recording(
+            src["file"],
+            topic=src.get("topic") or options.topic,
+            info_overrides=options.info_overrides(),
+            info_defaults=options.info_defaults(),
+            accel_unit=options.accel_unit,
+        )
+        start, end = src["window_s"]
+        effects = tuple(
+            make_effect(name, entry.get("settings"))
+            for name, entry in cal.get("effects", {}).items()
+        )
+        local = tuple(e for e in effects if not e.sensor_intrinsic)
+        out.append(SessionInput(recording.window(start, end), src.get("mounting_id", ""), local))
+    return out
+
+
+def run_closure(pipeline: Pipeline, calibrations: list[dict]) -> dict:
+    """``report.json``'s ``closure`` block (and one sensor JSON per sensor)."""
+    by_sensor: dict[str, list[dict]] = defaultdict(list)
+    for cal in calibrations:
+        by_sensor[cal["source"].get("sensor_id", "")].append(cal)
+    sensors, skipped = [], []
+    for sensor_id, members in sorted(by_sensor.items()):
+        if len(members) < 2:
+            skipped.append({"sensor_id": sensor_id, "reason": "fewer than two calibrated sessions"})
+            continue
+        try:
+            closure = close_sensor(
+                sensor_id,
+                _inputs(pipeline, members),
+                alpha=pipeline.options.alpha,
+                fit=pipeline.options.fitter(),
+            )
+        except (ValueError, OSError, ArithmeticError) as exc:
+            skipped.append({"sensor_id": sensor_id, "reason": str(exc)})
+            continue
+        entry = closure.as_dict()
+        entry["files"] = [m["source"]["file"] for m in members]
+        if closure.sensor_fit is not None:
+            safe = re.sub(r"[^A-Za-z0-9_.-]", "_", sensor_id or "unnamed")
+            path = pipeline.output / "sensors" / f"{safe}.sensor.json"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            doc = {
+                "format": "wheelcal.sensor/1",
+                "sensor_id": sensor_id,
+                **closure.sensor_fit.as_dict(),
+            }
+            atomic_write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+            entry["sensor_file"] = str(path)
+        sensors.append(entry)
+    return {"sensors": sensors, "skipped": skipped}
