@@ -10,13 +10,18 @@ inflated to pass anything).  :func:`monte_carlo` runs an estimator on
 * reported σ / observed std (is its own uncertainty honest?)
 
 ϑ₀ is compared modulo 2π.  Runs go to worker processes (one BLAS thread each).
+
+Larger studies (:mod:`wheelcal.study.runner`) mix many scenarios and
+estimators in one process pool with :func:`run_fits` and turn each group of
+outcomes into a summary with :func:`summarise`; :func:`monte_carlo` is the
+one-scenario case of the same two steps.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +32,13 @@ from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.reporting import report_transform
 from wheelcal.model import ParameterLayout
 from wheelcal.simulate import Scenario, simulate
+
+#: One Monte Carlo fit: simulate ``scenario`` with ``seed``, fit with ``estimator``.
+FitTask = tuple[Scenario, object, int]
+#: Outcome of one fit: reported values and σ (NaN when not given), or ``None`` if it failed.
+FitOutcome = tuple[np.ndarray, np.ndarray] | None
+#: Progress callback: (fits done, fits in total).
+FitProgress = Callable[[int, int], None]
 
 #: Parameter groups of the paper's Fig. 7–8 (and Table I).
 PARAMETER_GROUPS = ("motion", "tilt", "misalignment", "gain", "offset")
@@ -153,24 +165,53 @@ def monte_carlo(
     seeds: Sequence[int],
     workers: int | None = None,
     layout: ParameterLayout | None = None,
+    progress: FitProgress | None = None,
 ) -> MonteCarloSummary:
     """Run ``estimator.fit`` on one noisy recording of ``scenario`` per seed.
 
     ``estimator`` is any configuration object with ``fit(recording)`` returning
     a result with ``params`` (and optionally ``std`` and ``layout``), e.g.
     :class:`~wheelcal.estimate.joint.JointFit` or
-    :class:`~wheelcal.estimate.paper.PaperEstimator`.
+    :class:`~wheelcal.estimate.paper.PaperEstimator`.  ``progress`` (optional)
+    is called with (fits done, fits in total) as fits finish.
     """
     bound = scenario_bound(scenario, layout)
     tasks = [(scenario, estimator, int(s)) for s in seeds]
+    return summarise(bound, run_fits(tasks, workers, progress))
+
+
+def run_fits(
+    tasks: Sequence[FitTask],
+    workers: int | None = None,
+    progress: FitProgress | None = None,
+) -> list[FitOutcome]:
+    """Run many (scenario, estimator, seed) fits, in worker processes when ``workers`` > 1.
+
+    Returns the outcomes in the order of ``tasks`` (``None`` for a failed fit).
+    ``workers`` defaults to every core; each worker uses one BLAS thread.
+    Tasks are handed out one at a time, so put the slowest first for the best
+    load balance.
+    """
+    tasks = list(tasks)
+    outcomes: list[FitOutcome] = [None] * len(tasks)
     workers = workers or min(len(tasks), os.cpu_count() or 1)
-    if workers > 1:
+    if workers > 1 and len(tasks) > 1:
         with ProcessPoolExecutor(workers, initializer=_single_thread) as pool:
-            outcomes = list(
-                pool.map(_one_run, tasks, chunksize=max(1, len(tasks) // (4 * workers)))
-            )
+            futures = {pool.submit(_one_run, task): i for i, task in enumerate(tasks)}
+            for done, future in enumerate(as_completed(futures), start=1):
+                outcomes[futures[future]] = future.result()
+                if progress is not None:
+                    progress(done, len(tasks))
     else:
-        outcomes = [_one_run(t) for t in tasks]
+        for i, task in enumerate(tasks):
+            outcomes[i] = _one_run(task)
+            if progress is not None:
+                progress(i + 1, len(tasks))
+    return outcomes
+
+
+def summarise(bound: Bound, outcomes: Sequence[FitOutcome]) -> MonteCarloSummary:
+    """Errors against the truth of ``bound`` (ϑ₀ wrapped into (−π, π]) and failure count."""
     ok = [o for o in outcomes if o is not None]
     if not ok:
         raise RuntimeError("every Monte Carlo run failed")
