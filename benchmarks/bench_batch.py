@@ -1,0 +1,103 @@
+"""Batch throughput: sessions per second with 1 and 2 workers, with and without Rerun output.
+
+Generates N recordings (90 s at 200 Hz, Table II bench, a different hand spin
+each, ROS 2 MCAP) once, then runs the same batch four times into fresh output
+folders and prints, measured in this process:
+
+* sessions per second for each run and the ratios (2 workers vs 1, Rerun on vs off);
+* the per-session cost breakdown (read, window search, fit, Rerun, JSON) from
+  the sessions' own timings, and what share of a session the fit is.
+
+Run:  python benchmarks/bench_batch.py [--sessions 1000] [--keep DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wheelcal.batch.pipeline import load_pipeline
+from wheelcal.batch.runner import run_batch
+
+
+def _make_recordings(folder: Path, count: int) -> float:
+    from wheelcal.io import write_recording
+    from wheelcal.simulate import simulate, table2
+
+    t0 = time.perf_counter()
+    folder.mkdir(parents=True, exist_ok=True)
+    for i in range(count):
+        path = folder / f"r{i:05d}.mcap"
+        if path.exists():
+            continue
+        rng = np.random.default_rng([99, i])
+        rec = simulate(table2(rng=rng), rng).recording
+        info = rec.info.merged(sensor_id="bench", mounting_id="m1")
+        write_recording(rec.__class__(rec.time_s, rec.accel_mps2, info, rec.epoch_unix_ns), path)
+    return time.perf_counter() - t0
+
+
+def _run(root: Path, inputs: Path, workers: int, rerun: bool):
+    out = root / f"out_w{workers}_{'rrd' if rerun else 'norrd'}"
+    shutil.rmtree(out, ignore_errors=True)
+    toml = root / f"p_w{workers}_{rerun}.toml"
+    toml.write_text(
+        f"[pipeline]\nname='bench'\noutput='{out}'\n[inputs]\nglobs=['{inputs}/*.mcap']\n"
+        f"[run]\nrerun={'true' if rerun else 'false'}\n[executor]\nworkers={workers}\n"
+    )
+    t0 = time.perf_counter()
+    outcome = run_batch(load_pipeline(toml))
+    wall = time.perf_counter() - t0
+    assert not outcome.failed, outcome.failed[:3]
+    return wall, outcome
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sessions", type=int, default=1000)
+    ap.add_argument("--keep", metavar="DIR", help="reuse/keep recordings and outputs here")
+    args = ap.parse_args()
+    root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="wheelcal-bench-"))
+    inputs = root / "recordings"
+    gen = _make_recordings(inputs, args.sessions)
+    print(
+        f"{args.sessions} recordings (90 s, 200 Hz, ROS 2 MCAP) in {inputs} (generated in {gen:.0f} s)"
+    )
+    results = {}
+    for workers in (1, 2):
+        for rerun in (False, True):
+            wall, outcome = _run(root, inputs, workers, rerun)
+            results[(workers, rerun)] = (wall, outcome)
+            rate = args.sessions / wall
+            print(
+                f"workers={workers} rerun={'on ' if rerun else 'off'}: {wall:7.1f} s  {rate:6.1f} sessions/s"
+            )
+    base = results[(1, False)][0]
+    print(f"speed-up 2 workers vs 1 (no Rerun): {base / results[(2, False)][0]:.2f}x")
+    print(f"cost of Rerun output (1 worker):    {results[(1, True)][0] / base:.2f}x the time")
+    # Per-session breakdown from the single-worker runs (no contention between sessions).
+    for rerun in (False, True):
+        records = results[(1, rerun)][1].records
+        keys = ["read", "window", "fit", "rrd", "write"]
+        means = {k: statistics.mean(r.timings_s.get(k, 0.0) for r in records) for k in keys}
+        total = sum(means.values())
+        parts = "  ".join(f"{k} {1e3 * v:6.1f} ms" for k, v in means.items())
+        print(
+            f"per session (1 worker, rerun {'on' if rerun else 'off'}): {parts}  | fit share {means['fit'] / total:.0%}"
+        )
+    report_overhead = base - sum(sum(r.timings_s.values()) for r in results[(1, False)][1].records)
+    print(
+        f"batch overhead outside sessions (plan, hashing, report, 1 worker): {report_overhead:.1f} s"
+    )
+    if not args.keep:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
