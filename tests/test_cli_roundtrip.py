@@ -162,3 +162,25 @@ def test_export_c_header_compiles_and_corrects_like_python(calibration_file, tmp
         subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split(), float
     )
     np.testing.assert_allclose(got, expected, rtol=1e-5)
+
+
+def test_convert_csv_in_g_and_ms_calibrates_like_the_original(tmp_path, calibration_file):
+    mcap = calibration_file.with_name("e.mcap")
+    rec = read_recording(mcap)
+    csv = tmp_path / "log.csv"
+    rows = ["time_ms;ax;ay;az"] + [
+        f"{1e3 * t:.3f};{a[0] / 9.80665:.8f};{a[1] / 9.80665:.8f};{a[2] / 9.80665:.8f}"
+        for t, a in zip(rec.time_s, rec.accel_mps2, strict=True)
+    ]
+    csv.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "log.mcap"
+    args = ["convert", str(csv), str(out), "--time-column", "time_ms", "--time-unit", "ms"]
+    assert main([*args, "--accel-unit", "g", "--radius", "0.28"]) == 0
+    assert main(["calibrate", str(out), "--out", str(tmp_path), "--quiet"]) == 0
+    a = load_calibration(tmp_path / "log.calibration.json")["sensor"]
+    b = load_calibration(calibration_file)["sensor"]
+    np.testing.assert_allclose(a["gain"], b["gain"], atol=1e-6)
+    np.testing.assert_allclose(a["offset_mps2"], b["offset_mps2"], atol=1e-4)
+    # A column that is not there is named in the error.
+    assert main(["convert", str(csv), str(tmp_path / "x.mcap"), "--accel-unit", "g"]) == 1
+    assert not (tmp_path / "x.mcap").exists()
