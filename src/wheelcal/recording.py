@@ -16,6 +16,15 @@ import numpy as np
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 
 DEFAULT_RADIUS_STD_M = 1e-3
+#: Session facts a user may give (file metadata, command line, pipeline file).
+SESSION_FACT_KEYS = (
+    "radius_m",
+    "radius_std_m",
+    "gravity_mps2",
+    "full_scale_g",
+    "sensor_id",
+    "mounting_id",
+)
 
 
 class RecordingError(ValueError):

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from wheelcal.batch.session import SessionOptions
+from wheelcal.recording import SESSION_FACT_KEYS
 
 
 class PipelineError(ValueError):
@@ -59,22 +60,8 @@ _SECTIONS = {
         "quantise",
         "push_and_stop",
     },
-    "defaults": {
-        "radius_m",
-        "radius_std_m",
-        "gravity_mps2",
-        "full_scale_g",
-        "sensor_id",
-        "mounting_id",
-    },
-    "overrides": {
-        "radius_m",
-        "radius_std_m",
-        "gravity_mps2",
-        "full_scale_g",
-        "sensor_id",
-        "mounting_id",
-    },
+    "defaults": set(SESSION_FACT_KEYS),
+    "overrides": set(SESSION_FACT_KEYS),
     "run": {
         "calibrate",
         "diagnose",

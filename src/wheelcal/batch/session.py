@@ -17,7 +17,7 @@ import numpy as np
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import FreeSpinWindow, find_free_spin
-from wheelcal.recording import Recording, RecordingError
+from wheelcal.recording import SESSION_FACT_KEYS, Recording, RecordingError
 
 #: The fit needs this many wheel turns in the window (paper: ~100 in 90 s).
 MIN_TURNS = 10.0
@@ -56,15 +56,7 @@ class SessionOptions:
 
     def info_overrides(self) -> dict[str, object]:
         """Session facts given on the command line (they override the file)."""
-        keys = (
-            "radius_m",
-            "radius_std_m",
-            "gravity_mps2",
-            "full_scale_g",
-            "sensor_id",
-            "mounting_id",
-        )
-        return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+        return {k: getattr(self, k) for k in SESSION_FACT_KEYS if getattr(self, k) is not None}
 
     def info_defaults(self) -> dict[str, object]:
         """Pipeline defaults (used only where the file and the command line are silent)."""
