@@ -1,1 +1,1 @@
-"""Estimators: the joint ML fit (at the Cramér–Rao bound), the paper's four steps, and their tools."""
+"""Estimators: the joint ML fit at the Cramér–Rao bound, the paper's four steps, and tools."""
