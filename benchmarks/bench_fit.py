@@ -21,6 +21,7 @@ from threadpoolctl import threadpool_limits
 
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.paper import PaperEstimator
+from wheelcal.runtime import tune_allocator
 from wheelcal.simulate import simulate, table1
 
 
@@ -47,6 +48,7 @@ def main() -> None:
     ap.add_argument("--skip-100x", action="store_true", help="skip the 1.8 M-sample case")
     args = ap.parse_args()
     with threadpool_limits(1):
+        tune_allocator()  # as the CLI does (see wheelcal.runtime)
         recording = simulate(table1(), np.random.default_rng(0)).recording
         joint = _times(lambda: JointFit().fit(recording), args.repeats)
         paper = _times(lambda: PaperEstimator().fit(recording), args.paper_repeats)

@@ -15,6 +15,9 @@ def table1_session():
 
 @pytest.fixture(scope="session", autouse=True)
 def single_threaded_blas():
-    """One BLAS thread, as the CLI uses (small products; threads only add contention)."""
+    """One BLAS thread and the tuned allocator, as the CLI uses (see wheelcal.runtime)."""
+    from wheelcal.runtime import tune_allocator
+
+    tune_allocator()
     with threadpool_limits(1):
         yield

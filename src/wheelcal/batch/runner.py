@@ -27,6 +27,7 @@ from threadpoolctl import threadpool_limits
 from wheelcal.batch.pipeline import Pipeline, PipelineError
 from wheelcal.batch.provenance import file_sha256, run_key, stored_run_key
 from wheelcal.batch.session import SessionOptions, calibrate_session, session_stem
+from wheelcal.runtime import tune_allocator
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,7 @@ class _Task:
 
 def _run_task(task: _Task) -> SessionRecord:
     """Worker entry point (top level: it must pickle)."""
+    tune_allocator()
     with threadpool_limits(1):
         outcome = calibrate_session(
             task.path,

@@ -74,6 +74,9 @@ def main(argv: list[str] | None = None) -> int:
         # can make a fit 10–20× slower.  Parallelism comes from worker processes.
         from threadpoolctl import threadpool_limits
 
+        from wheelcal.runtime import tune_allocator
+
+        tune_allocator()  # large arrays stay in the heap (see wheelcal.runtime)
         with threadpool_limits(1):
             return int(args.handler(args) or 0)
     except UsageError as exc:

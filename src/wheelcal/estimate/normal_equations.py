@@ -60,25 +60,33 @@ def accumulate(
     cost = 0.0
     entries = 0
     hess = grad = None
+    extra_size = None  # learnt from the first chunk
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         lo = max(0, start - p)  # p samples of history for the FIR whitening
-        out = evaluate(params, t_s[lo:stop], layout, jacobian=jacobian)
-        resid = out.predicted_mps2 - accel_mps2[lo:stop]
         if not jacobian:
-            rw, _ = noise.whiten(resid)
+            out = evaluate(params, t_s[lo:stop], layout)
+            rw, _ = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop])
             cost += float(np.sum(rw * rw))
             entries += rw.size
             continue
-        rw, jw = noise.whiten(resid, out.jacobian)
+        # One buffer for the free parameters' columns and the extra ones: one
+        # whitening and one Gram product (cheaper than blocks, measured).
+        rows = layout.size + (extra_size or 0)
+        buf = np.empty((rows, 3, stop - lo))
+        out = evaluate(params, t_s[lo:stop], layout, jacobian=True, out=buf[: layout.size])
+        if extra is not None:
+            cols = extra(params, out, t_s[lo:stop])
+            if extra_size is None:  # first chunk: now we know how many
+                extra_size = cols.shape[0]
+                buf = np.concatenate([buf, cols])
+            else:
+                buf[layout.size :] = cols
+        rw, jw = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop], buf)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)
-        blocks = [jt]
-        if extra is not None:  # whitened separately: no copy of the big Jacobian
-            _, ew = noise.whiten(np.zeros_like(resid), extra(params, out, t_s[lo:stop]))
-            blocks.append(ew.reshape(ew.shape[0], -1))
-        h_chunk = _cross(blocks)
-        g_chunk = np.concatenate([b @ r_flat for b in blocks])
+        h_chunk = jt @ jt.T
+        g_chunk = jt @ r_flat
         if hess is None:
             hess, grad = h_chunk, g_chunk
         else:
@@ -87,18 +95,3 @@ def accumulate(
         cost += float(r_flat @ r_flat)
         entries += r_flat.size
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
-
-
-def _cross(blocks: list[np.ndarray]) -> np.ndarray:
-    """[B₀; B₁; …] [B₀; B₁; …]ᵀ from row blocks without stacking them."""
-    if len(blocks) == 1:
-        return blocks[0] @ blocks[0].T
-    sizes = [b.shape[0] for b in blocks]
-    out = np.empty((sum(sizes), sum(sizes)))
-    edges = np.concatenate([[0], np.cumsum(sizes)])
-    for i, bi in enumerate(blocks):
-        for j in range(i, len(blocks)):
-            block = bi @ blocks[j].T
-            out[edges[i] : edges[i + 1], edges[j] : edges[j + 1]] = block
-            out[edges[j] : edges[j + 1], edges[i] : edges[i + 1]] = block.T
-    return out

@@ -72,14 +72,25 @@ def _sensor_w(gain: np.ndarray, rot: np.ndarray, terms: list) -> np.ndarray:
     return np.einsum("nij,jk->ikn", dv_ds, rot)
 
 
-def _spin_rows_to_v(w3: np.ndarray, force: BenchForce, kin_rows, omega, radius_m) -> np.ndarray:
-    """dv/dp (rows, 3, N) of parameters acting through (∂ϑ, ∂ω, ∂ω̇)/∂p rows."""
+def _spin_rows_to_v(
+    w3: np.ndarray, force: BenchForce, kin_rows, omega, radius_m, out: np.ndarray | None = None
+) -> np.ndarray:
+    """dv/dp (rows, 3, N) of parameters acting through (∂ϑ, ∂ω, ∂ω̇)/∂p rows.
+
+    ∂a_X/∂p = −g sinα sinϑ ∂ϑ/∂p + 2rω ∂ω/∂p and ∂a_Y/∂p = g sinα cosϑ ∂ϑ/∂p + r ∂ω̇/∂p,
+    then dv/dp = W[:,0] ∂a_X/∂p + W[:,1] ∂a_Y/∂p (written into ``out`` when given).
+    """
     d_theta, d_omega, d_omega_dot = kin_rows
-    dax = -force.g_sin_tilt * force.sin_theta * d_theta + (2 * radius_m) * omega * d_omega
-    day = force.g_sin_tilt * force.cos_theta * d_theta + radius_m * d_omega_dot
-    out = np.empty((dax.shape[0], 3, dax.shape[1]))
+    dax = d_theta * (-force.g_sin_tilt * force.sin_theta)
+    dax += d_omega * ((2 * radius_m) * omega)
+    day = d_theta * (force.g_sin_tilt * force.cos_theta)
+    day += radius_m * d_omega_dot
+    if out is None:
+        out = np.empty((dax.shape[0], 3, dax.shape[1]))
     for i in range(3):
-        out[:, i, :] = w3[i, 0] * dax + w3[i, 1] * day
+        row = out[:, i, :]
+        np.multiply(dax, w3[i, 0], out=row)
+        row += w3[i, 1] * day
     return out
 
 
@@ -108,6 +119,17 @@ def candidate_columns(
     return _spin_rows_to_v(w3, out.force, rows, out.kinematics.omega_radps, params.bench.radius_m)
 
 
+def blocks_needing_zeros(layout: ParameterLayout) -> np.ndarray:
+    """Rows of the Jacobian that evaluate() fills only partly (gain, offset, sensor effects)."""
+    b = layout.blocks
+    rows = list(range(b["gain"].start, b["offset"].stop))
+    for effect in layout.effects:
+        if effect.stage == "sensor":
+            block = b[f"effect:{effect.name}"]
+            rows += list(range(block.start, block.stop))
+    return np.array(rows, dtype=int)
+
+
 def _through_w(w3: np.ndarray, da: np.ndarray) -> np.ndarray:
     """W·a for bench-frame vectors da (N, 3) → (3, N); W constant (3,3,1) or per sample (3,3,N)."""
     if w3.shape[2] == 1:
@@ -122,6 +144,7 @@ def evaluate(
     jacobian: bool = False,
     effects: tuple = (),
     kinematics: Kinematics | None = None,
+    out: np.ndarray | None = None,
 ) -> ModelOutput:
     """Evaluate eq. (6) at times ``t_s`` (s from the window centre).
 
@@ -130,6 +153,8 @@ def evaluate(
     the layout is required and ∂v/∂x is returned in its order, shape (P, 3, N).
     ``kinematics`` replaces the polynomial spin of eq. (2) by a given motion
     (the simulator's physical spin-down laws); no Jacobian then.
+    ``out`` is an optional (P, 3, N) buffer for the Jacobian (its contents are
+    overwritten), so callers can stack extra columns after it without a copy.
     """
     if jacobian and (layout is None or kinematics is not None):
         raise ValueError("a Jacobian needs a ParameterLayout and the model's own spin")
@@ -155,21 +180,30 @@ def evaluate(
     if not jacobian:
         return ModelOutput(predicted, None, kin, force, sensed)
 
-    jac = np.zeros((layout.size, 3, t.size))
+    if out is None:
+        jac = np.zeros((layout.size, 3, t.size))
+    else:
+        if out.shape != (layout.size, 3, t.size):
+            raise ValueError(f"out must have shape {(layout.size, 3, t.size)}, got {out.shape}")
+        jac = out
+        jac[blocks_needing_zeros(layout)] = 0.0
     blocks = layout.blocks
     w3 = _sensor_w(gain, rot, [term for _, term in sensor_terms])
     # Spin coefficients (and spin-effect parameters) act through ϑ, ω, ω̇ on a_X, a_Y:
     # dv/dp = W[:,0]·∂a_X/∂p + W[:,1]·∂a_Y/∂p (outer products, no 3×3 per sample).
     r = params.bench.radius_m
     kin_rows = (kin.d_theta, kin.d_omega, kin.d_omega_dot)
-    spin_rows = _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r)
     spin = blocks["spin"]
-    jac[spin] = spin_rows[: spin.stop - spin.start]
-    row = spin.stop - spin.start
-    for effect in effects:
-        if effect.stage == "spin":
+    spin_effects = [e for e in effects if e.stage == "spin"]
+    if spin_effects:
+        spin_rows = _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r)
+        jac[spin] = spin_rows[: spin.stop - spin.start]
+        row = spin.stop - spin.start
+        for effect in spin_effects:
             jac[blocks[f"effect:{effect.name}"]] = spin_rows[row : row + effect.size]
             row += effect.size
+    else:  # the paper's model: straight into the Jacobian, no copy
+        _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r, out=jac[spin])
     if layout.fit_tilt:
         jac[blocks["tilt"].start] = _through_w(w3, d_force_d_tilt(force))
     if layout.fit_radius:

@@ -25,7 +25,6 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from wheelcal.estimate.crlb import Bound, cramer_rao_bound
 from wheelcal.estimate.noise_model import NoiseModel
@@ -231,4 +230,6 @@ def summarise(bound: Bound, outcomes: Sequence[FitOutcome]) -> MonteCarloSummary
 
 def _single_thread() -> None:
     """One BLAS thread per worker process (the workers already use every core)."""
-    threadpool_limits(1)
+    from wheelcal.runtime import worker_init
+
+    worker_init()
