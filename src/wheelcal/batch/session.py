@@ -125,11 +125,11 @@ def check_turns(result: CalibrationResult) -> float:
     return turns
 
 
-def _write_rrd(path: Path, result, recording, window, diagnosis) -> Path:
+def _write_rrd(path: Path, result, recording, window, diagnosis, durable: bool = True) -> Path:
     """Session .rrd; with a diagnosis, the paper's model's residual is a second set."""
     from wheelcal.viz.session_rrd import session_rrd, wheel_angle_rad
 
-    with session_rrd(path, result, recording, window) as rrd:
+    with session_rrd(path, result, recording, window, durable=durable) as rrd:
         if diagnosis is not None and diagnosis.steps:
             base = diagnosis.base
             shift_s = (base.epoch_unix_ns - recording.epoch_unix_ns) * 1e-9
@@ -144,11 +144,14 @@ def calibrate_session(
     options: SessionOptions,
     out_dir: str | Path,
     provenance: dict | None = None,
+    durable: bool = True,
 ) -> SessionOutcome:
     """Calibrate one recording and write ``<out>/<stem>.calibration.json``.
 
     Never raises for bad input: the outcome carries the error instead.
     ``provenance`` is stored in the JSON (the batch runner's up-to-date check).
+    ``durable=False`` skips the per-file fsyncs (the batch syncs once at the end);
+    the files are still written atomically.
     """
     from wheelcal.io import read_recording
     from wheelcal.io.calibration_json import write_calibration
@@ -188,13 +191,17 @@ def calibrate_session(
         # up-to-date check), so it is written last.
         rrd_path = None
         if options.rrd:
-            rrd_path = _write_rrd(out / f"{stem}.rrd", result, recording, window, diagnosis)
+            rrd_path = _write_rrd(
+                out / f"{stem}.rrd", result, recording, window, diagnosis, durable
+            )
             timings["rrd"] = time.perf_counter() - t1
             t1 = time.perf_counter()
         if diagnosis is not None:
-            diagnosis_path = str(write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis))
+            diagnosis_path = str(
+                write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis, durable=durable)
+            )
         json_path = write_calibration(
-            out / f"{stem}.calibration.json", result, options.geometry, provenance
+            out / f"{stem}.calibration.json", result, options.geometry, provenance, durable
         )
         timings["write"] = time.perf_counter() - t1
     except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:

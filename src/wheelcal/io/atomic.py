@@ -40,7 +40,9 @@ def _fsync_directory(directory: Path) -> None:
 
 
 @contextlib.contextmanager
-def atomic_output(path: str | os.PathLike, binary: bool = True) -> Iterator[IO]:
+def atomic_output(
+    path: str | os.PathLike, binary: bool = True, durable: bool = True
+) -> Iterator[IO]:
     """Open a temporary file that replaces ``path`` when the ``with`` block succeeds.
 
     Parameters
@@ -49,6 +51,12 @@ def atomic_output(path: str | os.PathLike, binary: bool = True) -> Iterator[IO]:
         Destination.  Its directory must exist.
     binary:
         ``True`` for a binary stream, ``False`` for UTF-8 text.
+    durable:
+        ``True`` (default) also ``fsync``-s the file and its directory, so the
+        new file survives a power cut.  ``False`` keeps the atomicity (a reader
+        or a crashed process never sees a partial file) without the syncs; the
+        batch runner uses it per session and syncs once at the end, because on
+        a journalling file system each fsync flushes everything else pending.
 
     Yields
     ------
@@ -66,23 +74,25 @@ def atomic_output(path: str | os.PathLike, binary: bool = True) -> Iterator[IO]:
         with os.fdopen(fd, mode, **kwargs) as stream:
             yield stream
             stream.flush()
-            os.fsync(stream.fileno())
+            if durable:
+                os.fsync(stream.fileno())
         os.chmod(tmp, _default_mode())
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
-    _fsync_directory(directory)
+    if durable:
+        _fsync_directory(directory)
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+def atomic_write_bytes(path: str | os.PathLike, data: bytes, durable: bool = True) -> None:
     """Write ``data`` to ``path`` atomically (see :func:`atomic_output`)."""
-    with atomic_output(path, binary=True) as stream:
+    with atomic_output(path, binary=True, durable=durable) as stream:
         stream.write(data)
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+def atomic_write_text(path: str | os.PathLike, text: str, durable: bool = True) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`atomic_output`)."""
-    with atomic_output(path, binary=False) as stream:
+    with atomic_output(path, binary=False, durable=durable) as stream:
         stream.write(text)

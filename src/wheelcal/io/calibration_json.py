@@ -175,10 +175,11 @@ def write_calibration(
     result: CalibrationResult,
     geometry: str = "radius",
     provenance: dict | None = None,
+    durable: bool = True,
 ) -> Path:
-    """Write the calibration JSON atomically; returns the path."""
+    """Write the calibration JSON atomically; returns the path (``durable``: see atomic)."""
     text = json.dumps(calibration_dict(result, geometry, provenance), indent=2, allow_nan=False)
-    atomic_write_text(path, text + "\n")
+    atomic_write_text(path, text + "\n", durable=durable)
     return Path(path)
 
 

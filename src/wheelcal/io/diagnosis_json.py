@@ -84,7 +84,8 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
     }
 
 
-def write_diagnosis(path: str | os.PathLike, diagnosis: Diagnosis) -> Path:
-    """Write the diagnosis JSON atomically."""
-    atomic_write_text(path, json.dumps(diagnosis_dict(diagnosis), indent=2, allow_nan=False) + "\n")
+def write_diagnosis(path: str | os.PathLike, diagnosis: Diagnosis, durable: bool = True) -> Path:
+    """Write the diagnosis JSON atomically (``durable``: see ``atomic_output``)."""
+    text = json.dumps(diagnosis_dict(diagnosis), indent=2, allow_nan=False) + "\n"
+    atomic_write_text(path, text, durable=durable)
     return Path(path)

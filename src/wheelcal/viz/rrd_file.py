@@ -35,7 +35,7 @@ class RrdWriteError(OSError):
 
 @contextlib.contextmanager
 def rrd_file(
-    path: str | os.PathLike, application_id: str, recording_name: str
+    path: str | os.PathLike, application_id: str, recording_name: str, durable: bool = True
 ) -> Iterator[rr.RecordingStream]:
     """A fresh recording stream whose contents become ``path`` when the block succeeds.
 
@@ -48,6 +48,8 @@ def rrd_file(
         application id, so files with different layouts use different ids.
     recording_name:
         Human-readable name shown in the viewer's recording list.
+    durable:
+        Passed to :func:`wheelcal.io.atomic.atomic_output` (fsync or not).
 
     Yields
     ------
@@ -79,4 +81,4 @@ def rrd_file(
         stream.disconnect()
     if not data:
         raise RrdWriteError(f"{target}: Rerun produced no data to write")
-    atomic_write_bytes(target, data)
+    atomic_write_bytes(target, data, durable=durable)

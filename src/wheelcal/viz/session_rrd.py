@@ -446,6 +446,7 @@ def session_rrd(
     result: CalibrationResult,
     recording: Recording,
     window: FreeSpinWindow | None,
+    durable: bool = True,
 ) -> Iterator[SessionRrd]:
     """Log a session into a new file; the caller may add residual sets inside the block.
 
@@ -464,6 +465,8 @@ def session_rrd(
     window:
         The free-spin window that was searched, or ``None`` when the window
         was given (then the fitted samples' span is marked).
+    durable:
+        fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
 
     Yields
     ------
@@ -478,7 +481,7 @@ def session_rrd(
     else:
         start_s, end_s = float(fit_time_s[0]), float(fit_time_s[-1])
     name = Path(result.source).name or Path(path).stem
-    with rrd_file(path, APPLICATION_ID, name) as stream:
+    with rrd_file(path, APPLICATION_ID, name, durable=durable) as stream:
         if recording.epoch_unix_ns:
             stream.send_recording_start_time_nanos(recording.epoch_unix_ns)
         log_signal(stream, "raw", recording.time_s, recording.accel_mps2, _RAW_COLORS)
@@ -508,6 +511,7 @@ def write_session_rrd(
     result: CalibrationResult,
     recording: Recording,
     window: FreeSpinWindow | None,
+    durable: bool = True,
 ) -> Path:
     """Write the session's ``.rrd`` (see the module docstring) atomically.
 
@@ -521,12 +525,14 @@ def write_session_rrd(
         The whole recording.
     window:
         The searched free-spin window, or ``None`` if it was given.
+    durable:
+        fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
 
     Returns
     -------
     Path
         ``path``.
     """
-    with session_rrd(path, result, recording, window):
+    with session_rrd(path, result, recording, window, durable=durable):
         pass
     return Path(path)
