@@ -35,6 +35,7 @@ class NoiseModel:
         cov = np.asarray(self.innovation_cov, dtype=float)
         object.__setattr__(self, "ar_polynomials", polys)
         object.__setattr__(self, "innovation_cov", cov)
+        object.__setattr__(self, "_gains", np.array([_ar_gain(a) for a in polys]))
         chol = np.linalg.cholesky(cov)
         object.__setattr__(self, "_inv_chol", np.tril(np.linalg.inv(chol)))
 
@@ -72,7 +73,7 @@ class NoiseModel:
     @property
     def marginal_std_mps2(self) -> np.ndarray:
         """Std of the noise itself per axis (what a datasheet would quote)."""
-        return np.sqrt(np.diag(self.innovation_cov) * [_ar_gain(a) for a in self.ar_polynomials])
+        return np.sqrt(np.diag(self.innovation_cov) * self._gains)
 
     @property
     def long_run_std_mps2(self) -> np.ndarray:
@@ -146,15 +147,21 @@ def fir_filter(a: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def _ar_gain(a: np.ndarray) -> float:
-    """Σ h_k² of the all-pole filter 1/A(z): the variance of x for unit innovations."""
-    if a.size == 1:
+    """Σ h_k² of the all-pole filter 1/A(z): the variance of x for unit innovations.
+
+    Exact, from the Yule–Walker equations γ(k) + Σ_j a_j γ(|k − j|) = δ_k,
+    k = 0…p, solved for the autocovariances γ(0…p).
+    """
+    p = a.size - 1
+    if p == 0:
         return 1.0
-    h = np.zeros(4096)
-    h[0] = 1.0
-    for n in range(1, h.size):  # recursion h_n = −Σ a_k h_{n−k}
-        k = min(n, a.size - 1)
-        h[n] = -a[1 : k + 1] @ h[n - k : n][::-1]
-    return float(h @ h)
+    system = np.zeros((p + 1, p + 1))
+    for k in range(p + 1):
+        for j in range(p + 1):
+            system[k, abs(k - j)] += a[j]
+    rhs = np.zeros(p + 1)
+    rhs[0] = 1.0
+    return float(np.linalg.solve(system, rhs)[0])
 
 
 def _yule_walker_aic(x: np.ndarray, max_order: int) -> np.ndarray:
