@@ -201,7 +201,12 @@ def calibrate_session(
                 write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis, durable=durable)
             )
         json_path = write_calibration(
-            out / f"{stem}.calibration.json", result, options.geometry, provenance, durable
+            out / f"{stem}.calibration.json",
+            result,
+            options.geometry,
+            provenance,
+            durable,
+            window_reason=reason,
         )
         timings["write"] = time.perf_counter() - t1
     except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:

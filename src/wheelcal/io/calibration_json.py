@@ -42,7 +42,10 @@ def _vec(values) -> list:
 
 
 def calibration_dict(
-    result: CalibrationResult, geometry: str = "radius", provenance: dict | None = None
+    result: CalibrationResult,
+    geometry: str = "radius",
+    provenance: dict | None = None,
+    window_reason: str = "",
 ) -> dict:
     """The contract dictionary for one calibration result.
 
@@ -83,6 +86,7 @@ def calibration_dict(
             "topic": result.topic,
             "samples": int(result.time_s.size),
             "window_s": list(result.window_s),
+            "window_reason": window_reason,
             "sensor_id": result.info.sensor_id,
             "mounting_id": result.info.mounting_id,
             "notes": list(result.notes),
@@ -176,9 +180,11 @@ def write_calibration(
     geometry: str = "radius",
     provenance: dict | None = None,
     durable: bool = True,
+    window_reason: str = "",
 ) -> Path:
     """Write the calibration JSON atomically; returns the path (``durable``: see atomic)."""
-    text = json.dumps(calibration_dict(result, geometry, provenance), indent=2, allow_nan=False)
+    doc = calibration_dict(result, geometry, provenance, window_reason)
+    text = json.dumps(doc, indent=2, allow_nan=False)
     atomic_write_text(path, text + "\n", durable=durable)
     return Path(path)
 
