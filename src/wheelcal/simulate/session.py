@@ -190,16 +190,7 @@ def simulate_session(
     clean[outside] = sensor.offset_mps2 + sensor.gain * (force @ bench.misalignment.matrix.T)
     clean[free] = scenario.clean_signal(t[free] - centre)  # Phase 3: exactly the model
 
-    noisy = clean + scenario.noise.sample(t.size, rate, rng)
-    if scenario.quantiser is not None:
-        noisy = scenario.quantiser.apply(noisy)
-    recording = Recording(
-        time_s=t,
-        accel_mps2=noisy,
-        info=scenario.info,
-        epoch_unix_ns=epoch_unix_ns,
-        source=source,
-    )
+    recording = scenario.record(t, clean, rng, epoch_unix_ns, source)
     return SimulatedFullSession(
         recording=recording,
         truth=truth,

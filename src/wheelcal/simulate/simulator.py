@@ -54,6 +54,26 @@ class Scenario:
         t = self.times_s()
         return t - 0.5 * (t[0] + t[-1])
 
+    def record(
+        self,
+        time_s: np.ndarray,
+        clean_mps2: np.ndarray,
+        rng: np.random.Generator,
+        epoch_unix_ns: int,
+        source: str,
+    ) -> Recording:
+        """The sensor's output stage: noise, optional quantisation, a typed recording."""
+        noisy = clean_mps2 + self.noise.sample(time_s.size, self.rate_hz, rng)
+        if self.quantiser is not None:
+            noisy = self.quantiser.apply(noisy)
+        return Recording(
+            time_s=time_s,
+            accel_mps2=noisy,
+            info=self.info,
+            epoch_unix_ns=epoch_unix_ns,
+            source=source,
+        )
+
     def clean_signal(self, t_centred_s: np.ndarray) -> np.ndarray:
         """Noise-free v(t): the truth, its effects, and the physical motion if any."""
         kin = None if self.motion is None else self.motion.kinematics(t_centred_s)
@@ -81,16 +101,7 @@ def simulate(
     """Draw one noisy recording of ``scenario`` (randomness from ``rng`` only)."""
     t = scenario.times_s()
     clean = scenario.clean_signal(scenario.centred_times_s())
-    noisy = clean + scenario.noise.sample(t.size, scenario.rate_hz, rng)
-    if scenario.quantiser is not None:
-        noisy = scenario.quantiser.apply(noisy)
-    recording = Recording(
-        time_s=t,
-        accel_mps2=noisy,
-        info=scenario.info,
-        epoch_unix_ns=epoch_unix_ns,
-        source=source,
-    )
+    recording = scenario.record(t, clean, rng, epoch_unix_ns, source)
     return SimulatedSession(
         recording=recording, truth=scenario.truth, clean_mps2=clean, scenario=scenario
     )
