@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.information import information_fraction, scaled_pinv
 from wheelcal.estimate.normal_equations import accumulate
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import CalibrationParams, ModelOutput
@@ -82,13 +83,6 @@ def _candidate_columns(layout, candidates):
     return extra
 
 
-def _pinv(matrix: np.ndarray, floor: float = 1e-12) -> np.ndarray:
-    scale = np.sqrt(np.maximum(np.diag(matrix), 1e-300))
-    w, v = np.linalg.eigh(matrix / np.outer(scale, scale))
-    keep = w > w.max() * floor
-    return (v[:, keep] / w[keep]) @ v[:, keep].T / np.outer(scale, scale)
-
-
 @dataclass(frozen=True, eq=False)
 class ScoreContribution:
     """One recording's share of a score test: u (k,), C (k, k) and diag(H_ee) (k,)."""
@@ -118,7 +112,7 @@ def score_contributions(
     )
     size = fit.layout.size
     h, g = normal.hessian, normal.gradient
-    h_bb_inv = _pinv(h[:size, :size])
+    h_bb_inv = scaled_pinv(h[:size, :size])
     out = []
     start = size
     for cand in candidates:
@@ -138,8 +132,7 @@ def finish_tests(contributions: list[ScoreContribution]) -> list[ScoreTest]:
     results = []
     for part in contributions:
         cand, u, c = part.effect, part.score, part.information
-        d = np.sqrt(np.maximum(part.raw_information_diag, 1e-300))
-        frac = float(max(np.linalg.eigvalsh(c / np.outer(d, d)).min(), 0.0))
+        frac = information_fraction(c, part.raw_information_diag)
         identifiable = frac > IDENTIFIABLE_FRACTION
         if identifiable:
             c_inv = np.linalg.inv(c)

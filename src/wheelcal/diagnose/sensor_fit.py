@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.diagnose.score import IDENTIFIABLE_FRACTION
+from wheelcal.estimate.information import block_information_fraction, covariance_from_fisher
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.normal_equations import NormalEquations, accumulate
-from wheelcal.estimate.reporting import covariance_from_fisher
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import CalibrationParams, ParameterLayout, SensorParams
 from wheelcal.model.effects import Effect
@@ -214,7 +214,7 @@ class SensorFit:
         if probe_only:  # the information at the start, for the identifiability check
             fisher = normal(tuple(state), True).hessian
             fractions = {
-                e.name: _information_fraction(
+                e.name: block_information_fraction(
                     fisher, [shared_names.index(f"{e.name}.{p}") for p in e.param_names]
                 )
                 for e in self.shared_effects
@@ -232,7 +232,7 @@ class SensorFit:
         fractions = {}
         for effect in self.shared_effects:
             block = [shared_names.index(f"{effect.name}.{p}") for p in effect.param_names]
-            frac = _information_fraction(fisher, block)
+            frac = block_information_fraction(fisher, block)
             fractions[effect.name] = frac
             if frac < IDENTIFIABLE_FRACTION:
                 std[block] = np.inf
@@ -317,18 +317,3 @@ def _predict(params, t, layout):
     from wheelcal.model import predict
 
     return predict(params, t, layout)
-
-
-def _information_fraction(fisher: np.ndarray, block: list[int]) -> float:
-    """λ_min of the block's Schur complement, scaled by its own diagonal."""
-    rest = [i for i in range(fisher.shape[0]) if i not in block]
-    h_bb = fisher[np.ix_(block, block)]
-    h_br = fisher[np.ix_(block, rest)]
-    h_rr = fisher[np.ix_(rest, rest)]
-    scale = np.sqrt(np.maximum(np.diag(h_rr), 1e-300))
-    w, v = np.linalg.eigh(h_rr / np.outer(scale, scale))
-    keep = w > w.max() * 1e-12
-    h_rr_inv = (v[:, keep] / w[keep]) @ v[:, keep].T / np.outer(scale, scale)
-    schur = h_bb - h_br @ h_rr_inv @ h_br.T
-    d = np.sqrt(np.maximum(np.diag(h_bb), 1e-300))
-    return float(max(np.linalg.eigvalsh(schur / np.outer(d, d)).min(), 0.0))

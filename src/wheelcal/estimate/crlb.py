@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.information import fisher_covariance
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.reporting import fisher_covariance, report_transform, transform_covariance
+from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
 
 

@@ -28,15 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.identifiability import check_identifiability
+from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.initial import initial_guess
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.normal_equations import accumulate
-from wheelcal.estimate.reporting import (
-    covariance_from_fisher,
-    report_transform,
-    transform_covariance,
-)
+from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.systematic import (
     DEFAULT_CLOCK_STD_PPM,

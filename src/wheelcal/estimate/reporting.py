@@ -60,36 +60,6 @@ def report_transform(
     return tuple(names), np.array(values, dtype=float), g
 
 
-def fisher_covariance(whitened_jacobian: np.ndarray, relative_floor: float = 1e-12):
-    """Inverse Fisher information from a whitened, transposed Jacobian (P, 3, M).
-
-    Directions with eigenvalues below ``relative_floor``·max (after column
-    scaling) carry no information: parameters with weight on them get an
-    infinite variance instead of a confident number.
-
-    Returns ``(covariance, fisher)``.
-    """
-    jt = whitened_jacobian.reshape(whitened_jacobian.shape[0], -1)
-    fisher = jt @ jt.T
-    return covariance_from_fisher(fisher, relative_floor), fisher
-
-
-def covariance_from_fisher(fisher: np.ndarray, relative_floor: float = 1e-12) -> np.ndarray:
-    """Pseudo-inverse of the Fisher matrix with ∞ variance in null directions."""
-    scale = np.sqrt(np.maximum(np.diag(fisher), 1e-300))
-    fs = fisher / np.outer(scale, scale)
-    w, v = np.linalg.eigh(fs)
-    keep = w > w.max() * relative_floor
-    cov = (v[:, keep] / w[keep]) @ v[:, keep].T / np.outer(scale, scale)
-    null_weight = np.sum(v[:, ~keep] ** 2, axis=1)
-    unidentifiable = null_weight > 1e-6
-    if np.any(unidentifiable):
-        cov[unidentifiable, :] = np.nan
-        cov[:, unidentifiable] = np.nan
-        cov[unidentifiable, unidentifiable] = np.inf
-    return cov
-
-
 def transform_covariance(g: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """G C Gᵀ that keeps ∞ variance (unidentifiable parameters) as ∞, never NaN."""
     bad = ~np.isfinite(np.diag(cov))

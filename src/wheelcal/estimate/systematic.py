@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wheelcal.estimate.information import scaled_pinv
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, nuisance_sensitivity
 
 #: Spread of local gravity when the session does not give it: 9.780 m/s² at the
@@ -105,11 +106,11 @@ def systematic_budget(
     :func:`nuisance_extra`.
     """
     size = layout.size
-    solve = _pseudo_solver(hessian[:size, :size])
+    inverse = scaled_pinv(hessian[:size, :size])
 
     def shift(nuisance: str) -> np.ndarray:
         k = size + nuisances.index(nuisance)
-        return -(report_jacobian @ solve(hessian[:size, k]))
+        return -(report_jacobian @ (inverse @ hessian[:size, k]))
 
     sources = [SystematicSource("gravity", "m/s^2", gravity_std_mps2, shift("gravity_mps2"))]
     if "radius_m" in nuisances:
@@ -122,16 +123,3 @@ def systematic_budget(
         per_deg = shift("tilt_rad") * np.deg2rad(1.0)
         sources.insert(0, SystematicSource("tilt", "deg", tilt_std_deg, per_deg))
     return SystematicBudget(names=names, sources=tuple(sources))
-
-
-def _pseudo_solver(fisher: np.ndarray):
-    scale = np.sqrt(np.maximum(np.diag(fisher), 1e-300))
-    fs = fisher / np.outer(scale, scale)
-    w, v = np.linalg.eigh(fs)
-    keep = w > w.max() * 1e-12
-
-    def solve(rhs: np.ndarray) -> np.ndarray:
-        y = v[:, keep].T @ (rhs / scale)
-        return (v[:, keep] @ (y / w[keep])) / scale
-
-    return solve

@@ -36,13 +36,10 @@ from __future__ import annotations
 import numpy as np
 
 from wheelcal.estimate.crlb import Bound
+from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.normal_equations import accumulate
-from wheelcal.estimate.reporting import (
-    covariance_from_fisher,
-    report_transform,
-    transform_covariance,
-)
+from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.estimate.systematic import nuisance_extra
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate, nuisance_sensitivity
 

@@ -34,7 +34,7 @@ import numpy as np
 from scipy import optimize
 from threadpoolctl import threadpool_limits
 
-from wheelcal.estimate.reporting import covariance_from_fisher
+from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.systematic import nuisance_columns
 from wheelcal.model import BenchParams, Rotation
 from wheelcal.plan.bench_plan import PlannedSetup
