@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.model.ar_process import ar_variance_gain, fir_filter
+
 
 @dataclass(frozen=True, eq=False)
 class NoiseModel:
@@ -35,7 +37,7 @@ class NoiseModel:
         cov = np.asarray(self.innovation_cov, dtype=float)
         object.__setattr__(self, "ar_polynomials", polys)
         object.__setattr__(self, "innovation_cov", cov)
-        object.__setattr__(self, "_gains", np.array([_ar_gain(a) for a in polys]))
+        object.__setattr__(self, "_gains", np.array([ar_variance_gain(a) for a in polys]))
         chol = np.linalg.cholesky(cov)
         object.__setattr__(self, "_inv_chol", np.tril(np.linalg.inv(chol)))
 
@@ -136,32 +138,6 @@ class NoiseModel:
             "effective_sample_fraction": self.effective_sample_fraction.tolist(),
             "innovation_correlation": self.cross_correlation.tolist(),
         }
-
-
-def fir_filter(a: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """y_n = Σ_k a_k x_{n−k} along the last axis, zero history (= lfilter(a, [1], x))."""
-    y = a[0] * x
-    for k in range(1, a.size):
-        y[..., k:] += a[k] * x[..., :-k]
-    return y
-
-
-def _ar_gain(a: np.ndarray) -> float:
-    """Σ h_k² of the all-pole filter 1/A(z): the variance of x for unit innovations.
-
-    Exact, from the Yule–Walker equations γ(k) + Σ_j a_j γ(|k − j|) = δ_k,
-    k = 0…p, solved for the autocovariances γ(0…p).
-    """
-    p = a.size - 1
-    if p == 0:
-        return 1.0
-    system = np.zeros((p + 1, p + 1))
-    for k in range(p + 1):
-        for j in range(p + 1):
-            system[k, abs(k - j)] += a[j]
-    rhs = np.zeros(p + 1)
-    rhs[0] = 1.0
-    return float(np.linalg.solve(system, rhs)[0])
 
 
 def _yule_walker_aic(x: np.ndarray, max_order: int) -> np.ndarray:

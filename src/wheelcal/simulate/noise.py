@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.model.ar_process import ar_variance_gain
+
 
 @dataclass(frozen=True)
 class NoiseSpec:
@@ -58,7 +60,7 @@ class NoiseSpec:
 
     def innovation_std(self, rate_hz: float) -> np.ndarray:
         """Std of the white innovations e_n that give the marginal std."""
-        return self.std / np.sqrt(_ar_gain(self.ar_polynomial(rate_hz)))
+        return self.std / np.sqrt(ar_variance_gain(self.ar_polynomial(rate_hz)))
 
     def sample(self, n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
         """Draw (n, 3) samples of stationary noise."""
@@ -73,18 +75,6 @@ class NoiseSpec:
         warm = rng.standard_normal((burn, 3)) * self.innovation_std(rate_hz)
         out = signal.lfilter([1.0], a, np.vstack([warm, e]), axis=0)
         return out[burn:]
-
-
-def _ar_gain(a: np.ndarray) -> float:
-    """Variance of x for unit-variance innovations, Σ h_k² of 1/A(z)."""
-    if a.size == 1:
-        return 1.0
-    from scipy import signal
-
-    impulse = np.zeros(20000)
-    impulse[0] = 1.0
-    h = signal.lfilter([1.0], a, impulse)
-    return float(h @ h)
 
 
 @dataclass(frozen=True)
