@@ -133,3 +133,13 @@ def test_layout_pack_unpack_round_trip():
     q = layout.unpack(x, p)
     assert np.allclose(predict(q, np.linspace(-5, 5, 50)), predict(p, np.linspace(-5, 5, 50)))
     assert layout.names[layout.index("gain_y")] == "gain_y"
+
+
+def test_equal_offset_twins_report_positive_spin():
+    """A vertical wheel (α = 90°): both twins share the offsets; the positive spin is kept."""
+    p = _params(bench=BenchParams(np.pi / 2, 0.28, Rotation.from_euler_deg(30, 20, 25)))
+    negative = twin_of(p)
+    assert negative.spin.omega_radps[0] < 0
+    for start in (p, negative):
+        choice = choose_twin(start)
+        assert choice.chosen.spin.omega_radps[0] > 0 and choice.ambiguous

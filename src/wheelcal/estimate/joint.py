@@ -179,9 +179,6 @@ class JointFit:
             twin = TwinChoice(out.params, twin_of(out.params), ambiguous=False)
         else:
             twin = choose_twin(out.params)
-            if self.geometry == "vertical" and twin.chosen.spin.omega_radps[0] < 0:
-                # At α = 90° both twins have the same offsets: report positive spin.
-                twin = TwinChoice(twin.rejected, twin.chosen, ambiguous=True)
         params = twin.chosen
         nuisances = nuisance_columns(layout)
         normal = out.normal

@@ -11,7 +11,8 @@ tilt:
 The residual is identical, so only prior knowledge can choose: a real offset is
 far below g, so the twin with the smaller |o| is reported.  When the two
 offsets differ by less than :data:`AMBIGUOUS_OFFSET_GAP_MPS2` (|α − 90°| small)
-the choice is a guess and a warning says so.
+the choice is a guess and a warning says so; when they are equal (a vertical
+wheel) the twin with positive spin is reported.
 """
 
 from __future__ import annotations
@@ -114,6 +115,12 @@ def choose_twin(params: CalibrationParams) -> TwinChoice:
     b = to_contract_frame(twin_of(a))
     norm_a = np.linalg.norm(a.sensor.offset_mps2)
     norm_b = np.linalg.norm(b.sensor.offset_mps2)
-    chosen, rejected = (a, b) if norm_a <= norm_b else (b, a)
     gap = abs(norm_a - norm_b)
+    if gap <= 1e-9 * max(1.0, norm_a):
+        # Equal offsets (a vertical wheel, α = 90°): the axis has no upward side,
+        # so report the twin that spins positively.
+        a_first = a.spin.omega_radps[0] >= 0
+    else:
+        a_first = norm_a < norm_b
+    chosen, rejected = (a, b) if a_first else (b, a)
     return TwinChoice(chosen=chosen, rejected=rejected, ambiguous=gap < AMBIGUOUS_OFFSET_GAP_MPS2)
