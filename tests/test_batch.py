@@ -157,3 +157,15 @@ def test_globs_that_match_nothing_are_a_usage_error(tmp_path, capsys):
     )
     assert main(["batch", str(path)]) == 2
     assert "match no files" in capsys.readouterr().err
+
+
+def test_calibrate_false_only_simulates_the_inputs(tmp_path):
+    path = tmp_path / "p.toml"
+    path.write_text(
+        f"[pipeline]\noutput='{tmp_path / 'out'}'\n[simulate]\ncount=2\nseed=1\npush_and_stop=false\n"
+        "[run]\ncalibrate=false\n"
+    )
+    outcome = run_batch(load_pipeline(path))
+    assert outcome.simulated == 2 and outcome.records == ()
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["recordings"]
+    assert len(list((tmp_path / "out" / "recordings").glob("*.mcap"))) == 2

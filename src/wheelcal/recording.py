@@ -122,7 +122,3 @@ class Recording:
                 f"{self.source}: window [{start_s:.3f}, {end_s:.3f}] s holds fewer than two samples"
             )
         return replace(self, time_s=self.time_s[keep], accel_mps2=self.accel_mps2[keep])
-
-    def with_notes(self, *notes: str) -> Recording:
-        """A copy with more notes appended."""
-        return replace(self, notes=self.notes + tuple(notes))

@@ -199,6 +199,8 @@ def run_batch(
     say = progress or (lambda event: None)
     pipeline.output.mkdir(parents=True, exist_ok=True)
     made = simulate_inputs(pipeline, lambda msg: say(ProgressEvent(0, 0, message=msg)))
+    if not pipeline.calibrate:  # [run] calibrate = false: only make the simulated inputs
+        return BatchOutcome(pipeline, (), (), False, len(made), time.perf_counter() - t0)
     files = pipeline.input_files()
     if not files:
         raise PipelineError(

@@ -75,10 +75,6 @@ class FreeSpinWindow:
         """Length of the window."""
         return self.end_s - self.start_s
 
-    def as_tuple(self) -> tuple[float, float]:
-        """(start_s, end_s)."""
-        return (self.start_s, self.end_s)
-
 
 def _moving_average(x: np.ndarray, n: int) -> np.ndarray:
     if n <= 1:

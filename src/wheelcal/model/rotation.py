@@ -113,11 +113,6 @@ class Rotation:
         return cls(_rot_z(e1) @ _rot_y(e2) @ _rot_x(e3))
 
     @classmethod
-    def from_rotvec(cls, rotvec: np.ndarray) -> Rotation:
-        """Build R from a rotation vector (axis × angle in rad)."""
-        return cls(exp_so3(rotvec))
-
-    @classmethod
     def nearest(cls, matrix: np.ndarray) -> Rotation:
         """The proper rotation closest (Frobenius) to an arbitrary 3×3 matrix."""
         u, _, vt = np.linalg.svd(np.asarray(matrix, dtype=float))
