@@ -78,7 +78,9 @@ def _candidate_columns(layout, candidates):
     """``extra`` callback: ∂v/∂θ_e of every candidate at the current parameters."""
 
     def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
-        return np.concatenate([candidate_columns(params, t_s, layout, c) for c in candidates])
+        return np.concatenate(
+            [candidate_columns(params, t_s, layout, c, output) for c in candidates]
+        )
 
     return extra
 

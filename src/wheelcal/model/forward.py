@@ -95,15 +95,20 @@ def _spin_rows_to_v(
 
 
 def candidate_columns(
-    params: CalibrationParams, t_s: np.ndarray, layout: ParameterLayout, candidate
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    layout: ParameterLayout,
+    candidate,
+    output: ModelOutput | None = None,
 ) -> np.ndarray:
     """∂v/∂θ (k, 3, N) of a candidate effect *not* in ``layout``, at its zero values.
 
     Cheaper than a full Jacobian: at zero the candidate changes nothing else,
     so only its own columns are computed (for the closed loop's score tests).
+    ``output`` (an :func:`evaluate` result at the same point) saves re-evaluating.
     """
     t = np.asarray(t_s, dtype=float)
-    out = evaluate(params, t, layout)
+    out = output if output is not None else evaluate(params, t, layout)
     gain = params.sensor.gain
     if candidate.stage == "sensor":
         term = candidate.sensor_delta(np.zeros(candidate.size), t, out.sensed_mps2, gain, True)
