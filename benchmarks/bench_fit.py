@@ -14,31 +14,15 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import statistics
-import time
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from _timing import fmt, times
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.paper import PaperEstimator
 from wheelcal.runtime import tune_allocator
 from wheelcal.simulate import simulate, table1
-
-
-def _times(fn, repeats: int) -> list[float]:
-    fn()  # warm-up (imports, caches)
-    out = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return out
-
-
-def _fmt(ts: list[float]) -> str:
-    q = statistics.quantiles(ts, n=4) if len(ts) >= 4 else [min(ts), statistics.median(ts), max(ts)]
-    med = 1e3 * statistics.median(ts)
-    return f"median {med:8.1f} ms   (IQR {1e3 * q[0]:.1f}–{1e3 * q[2]:.1f} ms, n={len(ts)})"
 
 
 def main() -> None:
@@ -50,11 +34,11 @@ def main() -> None:
     with threadpool_limits(1):
         tune_allocator()  # as the CLI does (see wheelcal.runtime)
         recording = simulate(table1(), np.random.default_rng(0)).recording
-        joint = _times(lambda: JointFit().fit(recording), args.repeats)
-        paper = _times(lambda: PaperEstimator().fit(recording), args.paper_repeats)
+        joint = times(lambda: JointFit().fit(recording), args.repeats)
+        paper = times(lambda: PaperEstimator().fit(recording), args.paper_repeats)
         print(f"samples: {recording.samples} x 3 axes (90 s at 200 Hz), one BLAS thread")
-        print(f"joint ML fit        : {_fmt(joint)}")
-        print(f"paper Nelder–Mead   : {_fmt(paper)}")
+        print(f"joint ML fit        : {fmt(joint)}")
+        print(f"paper Nelder–Mead   : {fmt(paper)}")
         ratio = statistics.median(paper) / statistics.median(joint)
         print(f"speed-up joint/paper: {ratio:8.1f}x   (target >= 20x)")
         print("scaling with samples (same 90 s, higher rate):")
@@ -64,7 +48,7 @@ def main() -> None:
                 continue
             scenario = dataclasses.replace(table1(), rate_hz=200.0 * factor)
             rec = simulate(scenario, np.random.default_rng(1)).recording
-            ts = _times(lambda rec=rec: JointFit().fit(rec), max(1, args.repeats // factor))
+            ts = times(lambda rec=rec: JointFit().fit(rec), max(1, args.repeats // factor))
             med = statistics.median(ts)
             print(
                 f"  {factor:4d}x {rec.samples:9d} samples: {1e3 * med:9.1f} ms"

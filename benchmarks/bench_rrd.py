@@ -22,27 +22,13 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from _timing import fmt, times
 from wheelcal.estimate.joint import JointFit
 from wheelcal.io.calibration_json import calibration_dict
+from wheelcal.runtime import tune_allocator
 from wheelcal.simulate import simulate, table1
 from wheelcal.viz.batch_rrd import write_batch_rrd
 from wheelcal.viz.session_rrd import write_session_rrd
-
-
-def _times(fn, repeats: int, clock=time.perf_counter) -> list[float]:
-    fn()  # warm-up (imports, caches)
-    out = []
-    for _ in range(repeats):
-        t0 = clock()
-        fn()
-        out.append(clock() - t0)
-    return out
-
-
-def _fmt(ts: list[float]) -> str:
-    q = statistics.quantiles(ts, n=4) if len(ts) >= 4 else [min(ts), statistics.median(ts), max(ts)]
-    med = 1e3 * statistics.median(ts)
-    return f"median {med:8.1f} ms   (IQR {1e3 * q[0]:.1f}–{1e3 * q[2]:.1f} ms, n={len(ts)})"
 
 
 def main() -> None:
@@ -53,39 +39,40 @@ def main() -> None:
         "--out", type=Path, default=None, help="directory for the files (default: temp)"
     )
     args = ap.parse_args()
+    tune_allocator()  # as the CLI and the batch workers do (see wheelcal.runtime)
     with tempfile.TemporaryDirectory() as tmp, threadpool_limits(1):
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)
         recording = simulate(table1(), np.random.default_rng(0)).recording
         result = JointFit().fit(recording)
-        fit = _times(lambda: JointFit().fit(recording), args.repeats)
+        fit = times(lambda: JointFit().fit(recording), args.repeats)
         path = out / "session.rrd"
-        write = _times(lambda: write_session_rrd(path, result, recording, None), args.repeats)
+        write = times(lambda: write_session_rrd(path, result, recording, None), args.repeats)
         sessions = []
         for i in range(args.batch_sessions):
             d = calibration_dict(result)
             d["source"]["sensor_id"] = f"imu{i % 3}"
             sessions.append(d)
         # Process CPU time (Rerun encodes on its own threads): robust to a busy machine.
-        fit_cpu = _times(lambda: JointFit().fit(recording), args.repeats, time.process_time)
-        write_cpu = _times(
+        fit_cpu = times(lambda: JointFit().fit(recording), args.repeats, time.process_time)
+        write_cpu = times(
             lambda: write_session_rrd(path, result, recording, None),
             args.repeats,
             time.process_time,
         )
         batch_path = out / "batch.rrd"
-        batch = _times(lambda: write_batch_rrd(batch_path, sessions), max(3, args.repeats // 4))
+        batch = times(lambda: write_batch_rrd(batch_path, sessions), max(3, args.repeats // 4))
         print(f"samples: {recording.samples} x 3 axes (90 s at 200 Hz), one BLAS thread")
-        print(f"joint fit              : {_fmt(fit)}")
-        print(f"write_session_rrd      : {_fmt(write)}   ({path.stat().st_size / 1e6:.1f} MB)")
+        print(f"joint fit              : {fmt(fit)}")
+        print(f"write_session_rrd      : {fmt(write)}   ({path.stat().st_size / 1e6:.1f} MB)")
         ratio = statistics.median(write) / statistics.median(fit)
         print(f"write / fit (wall)     : {ratio:8.2f}   (the batch is limited by the fit if << 1)")
-        print(f"joint fit, CPU         : {_fmt(fit_cpu)}")
-        print(f"write_session_rrd, CPU : {_fmt(write_cpu)}")
+        print(f"joint fit, CPU         : {fmt(fit_cpu)}")
+        print(f"write_session_rrd, CPU : {fmt(write_cpu)}")
         ratio = statistics.median(write_cpu) / statistics.median(fit_cpu)
         print(f"write / fit (CPU)      : {ratio:8.2f}")
         print(
-            f"write_batch_rrd ({args.batch_sessions} sessions, 3 sensors): {_fmt(batch)}"
+            f"write_batch_rrd ({args.batch_sessions} sessions, 3 sensors): {fmt(batch)}"
             f"   ({batch_path.stat().st_size / 1e6:.2f} MB)"
         )
 

@@ -162,8 +162,8 @@ def test_globs_that_match_nothing_are_a_usage_error(tmp_path, capsys):
 def test_calibrate_false_only_simulates_the_inputs(tmp_path):
     path = tmp_path / "p.toml"
     path.write_text(
-        f"[pipeline]\noutput='{tmp_path / 'out'}'\n[simulate]\ncount=2\nseed=1\npush_and_stop=false\n"
-        "[run]\ncalibrate=false\n"
+        f"[pipeline]\noutput='{tmp_path / 'out'}'\n"
+        "[simulate]\ncount=2\nseed=1\npush_and_stop=false\n[run]\ncalibrate=false\n"
     )
     outcome = run_batch(load_pipeline(path))
     assert outcome.simulated == 2 and outcome.records == ()

@@ -30,6 +30,7 @@ from wheelcal.estimate.crlb import Bound, cramer_rao_bound
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.reporting import report_transform
 from wheelcal.model import ParameterLayout
+from wheelcal.runtime import worker_init
 from wheelcal.simulate import Scenario, simulate
 
 #: One Monte Carlo fit: simulate ``scenario`` with ``seed``, fit with ``estimator``.
@@ -195,7 +196,7 @@ def run_fits(
     outcomes: list[FitOutcome] = [None] * len(tasks)
     workers = workers or min(len(tasks), os.cpu_count() or 1)
     if workers > 1 and len(tasks) > 1:
-        with ProcessPoolExecutor(workers, initializer=_single_thread) as pool:
+        with ProcessPoolExecutor(workers, initializer=worker_init) as pool:
             futures = {pool.submit(_one_run, task): i for i, task in enumerate(tasks)}
             for done, future in enumerate(as_completed(futures), start=1):
                 outcomes[futures[future]] = future.result()
@@ -226,10 +227,3 @@ def summarise(bound: Bound, outcomes: Sequence[FitOutcome]) -> MonteCarloSummary
         reported_std=np.array([o[1] for o in ok]),
         failures=len(outcomes) - len(ok),
     )
-
-
-def _single_thread() -> None:
-    """One BLAS thread per worker process (the workers already use every core)."""
-    from wheelcal.runtime import worker_init
-
-    worker_init()
