@@ -55,6 +55,11 @@ def build_parser() -> argparse.ArgumentParser:
             "Calibrate a triaxial accelerometer with a tilted, hand-spun bicycle wheel "
             "(offsets, gains, and the bench it was never told about)."
         ),
+        epilog=(
+            "Exit status: 0 success, 1 some sessions failed (the others still ran), 2 bad usage. "
+            "Frame and sign conventions, input formats and every output file "
+            "(calibration/diagnosis JSON, report.json, .rrd) are described in README.md."
+        ),
     )
     parser.add_argument("--version", action="version", version=f"wheelcal {__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
