@@ -31,6 +31,23 @@ class RecordingError(ValueError):
     """A recording that cannot be calibrated, with the reason in words."""
 
 
+class CalibrationRefused(RecordingError):
+    """A calibration was computed but fails a plausibility gate, so it is not given out.
+
+    ``gate`` names the check (e.g. ``"gain_range"``), ``reason`` says what was
+    seen and ``fix`` the likely remedy; ``str()`` is the whole message, naming
+    the file.
+    """
+
+    def __init__(self, source: str, gate: str, reason: str, fix: str = "") -> None:
+        self.source = source
+        self.gate = gate
+        self.reason = reason
+        self.fix = fix
+        text = f"{source}: refused ({gate}): {reason}"
+        super().__init__(text + (f" — {fix}" if fix else ""))
+
+
 @dataclass(frozen=True)
 class SessionInfo:
     """Facts about a session that the data cannot tell (CONTRACT: ``wheelcal.session``)."""

@@ -41,6 +41,8 @@ class SessionRecord:
     rrd_path: str | None = None
     skipped: bool = False
     timings_s: dict[str, float] = field(default_factory=dict)
+    gate: str | None = None  # the plausibility gate that refused the session, if any
+    fix: str | None = None  # the likely fix for a refused session
 
     @property
     def ok(self) -> bool:
@@ -107,6 +109,8 @@ def _run_task(task: _Task) -> SessionRecord:
         calibration_path=outcome.calibration_path,
         rrd_path=outcome.rrd_path,
         timings_s=outcome.timings_s,
+        gate=outcome.gate,
+        fix=outcome.fix,
     )
 
 
@@ -258,7 +262,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
             if r.ok:
                 path = Path(r.calibration_path).with_name(f"{r.stem}.diagnosis.json")
                 diagnoses.append(json.loads(path.read_text(encoding="utf-8")))
-    failed = [{"file": r.source, "error": r.error} for r in records if not r.ok]
+    failed = [_failure(r) for r in records if not r.ok]
     report = build_report(
         calibrations, failed, skipped=sum(r.skipped for r in records), diagnoses=diagnoses
     )
@@ -277,6 +281,15 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     # report.json last: its key marks the whole report as complete.
     atomic_write_text(paths[0], json.dumps(report, indent=2, allow_nan=False) + "\n")
     return tuple(map(str, paths)), True
+
+
+def _failure(record: SessionRecord) -> dict:
+    """A ``report.json`` ``failed`` entry: file and error, plus gate and fix when refused."""
+    entry = {"file": record.source, "error": record.error}
+    if record.gate:
+        entry["gate"] = record.gate
+        entry["fix"] = record.fix or ""
+    return entry
 
 
 def _sync() -> None:

@@ -17,7 +17,12 @@ import numpy as np
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import FreeSpinWindow, find_free_spin
-from wheelcal.recording import SESSION_FACT_KEYS, Recording, RecordingError
+from wheelcal.recording import (
+    SESSION_FACT_KEYS,
+    CalibrationRefused,
+    Recording,
+    RecordingError,
+)
 
 #: The fit needs this many wheel turns in the window (paper: ~100 in 90 s).
 MIN_TURNS = 10.0
@@ -86,6 +91,9 @@ class SessionOutcome:
     timings_s: dict[str, float] = field(default_factory=dict)
     diagnosis: object | None = None  # wheelcal.diagnose.closed_loop.Diagnosis
     diagnosis_path: str | None = None
+    #: For a refused calibration: the gate that refused it and the likely fix.
+    gate: str | None = None
+    fix: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -213,7 +221,15 @@ def calibrate_session(
         message = str(exc)
         if source not in message:
             message = f"{source}: {message}"
-        return SessionOutcome(source=source, stem=stem, error=message, timings_s=timings)
+        refused = exc if isinstance(exc, CalibrationRefused) else None
+        return SessionOutcome(
+            source=source,
+            stem=stem,
+            error=message,
+            timings_s=timings,
+            gate=refused.gate if refused else None,
+            fix=refused.fix if refused else None,
+        )
     return SessionOutcome(
         source=source,
         stem=stem,
