@@ -59,6 +59,8 @@ class SessionInfo:
     gravity_mps2: float | None = None
     full_scale_g: float | None = None
     extra: tuple[tuple[str, str], ...] = ()
+    #: The user insists on a gravity outside Earth's range (``--force-gravity``).
+    gravity_forced: bool = False
 
     def __post_init__(self) -> None:
         if self.radius_m is not None and not (np.isfinite(self.radius_m) and self.radius_m > 0):
@@ -67,7 +69,10 @@ class SessionInfo:
             )
         if not (np.isfinite(self.radius_std_m) and self.radius_std_m >= 0):
             raise RecordingError(f"radius_std_m must be >= 0, got {self.radius_std_m}")
-        if self.gravity_mps2 is not None and not (9.7 < self.gravity_mps2 < 9.9):
+        if self.gravity_mps2 is not None and not (
+            9.7 <= self.gravity_mps2 <= 9.9
+            or (self.gravity_forced and np.isfinite(self.gravity_mps2) and self.gravity_mps2 > 0)
+        ):
             raise RecordingError(
                 f"gravity_mps2 = {self.gravity_mps2} is not a value of g on Earth (9.7–9.9 m/s²)"
             )

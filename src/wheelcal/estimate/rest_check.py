@@ -82,6 +82,8 @@ def check_rests(
         std = float(np.sqrt(max(var, 1e-30)))
         z = (norm - g) / std
         out.append(
-            RestCheck(rest.start_s, rest.end_s, norm, float(g), std, float(z), abs(z) > z_limit)
+            RestCheck(
+                rest.start_s, rest.end_s, norm, float(g), std, float(z), bool(abs(z) > z_limit)
+            )
         )
     return tuple(out)

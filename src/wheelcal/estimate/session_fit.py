@@ -85,6 +85,15 @@ def choose_window(
     return WindowChoice(recording.window(start, end), found, reason)
 
 
+@dataclass(frozen=True, eq=False)
+class SessionFitOutcome:
+    """A calibration that passed the gates, its window, and the rests it was judged by."""
+
+    result: CalibrationResult
+    window: WindowChoice
+    rests: tuple[RestSegment, ...]
+
+
 @dataclass(frozen=True)
 class SessionFit:
     """Window → joint fit → gates, for one recording (see the module docstring)."""
@@ -94,7 +103,7 @@ class SessionFit:
     start_s: float | None = None
     end_s: float | None = None
 
-    def run(self, recording: Recording) -> tuple[CalibrationResult, WindowChoice]:
+    def run(self, recording: Recording) -> SessionFitOutcome:
         """Calibrate ``recording`` (rests, push and stop included).
 
         Raises
@@ -148,7 +157,7 @@ class SessionFit:
         omega = result.params.spin.omega_at(result.centred_time_s[[0, -1]])
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
         refuse_few_turns(result)
-        return assess(result, rests, gates, motion), choice
+        return SessionFitOutcome(assess(result, rests, gates, motion), choice, rests)
 
 
 def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) -> None:
