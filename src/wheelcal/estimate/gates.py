@@ -19,9 +19,10 @@ driven rather than free.  Two bands (defaults justified in the README,
 * ``sampling`` — fewer than ``min_samples_per_turn`` samples per turn at the
   fastest rate: successive samples more than 90° of wheel angle apart leave
   the direction and count of turns to guesswork;
-* ``motion`` — the spin law cannot follow the wheel (phase errors drift from
-  turn to turn; :mod:`wheelcal.estimate.motion_check`) even on a shortened
-  window, and there is no gyroscope to follow the motion;
+* ``motion`` — the spin law cannot follow the wheel: freeing the motion (a
+  spline of ϑ) would move a gain or offset significantly and by more than its
+  σ (:mod:`wheelcal.estimate.motion_check`), even on a shortened window, and
+  there is no gyroscope to follow the motion;
 * ``turns`` — fewer than 10 turns in the window.
 
 **Warn** (exit 0, the warning names the cause and the fix): a gain or offset
@@ -60,8 +61,8 @@ class Gates:
     gain_range: tuple[float, float] = (0.5, 2.0)
     max_offset_g: float = 0.3
     min_samples_per_turn: float = 4.0
-    motion_z: float = 5.0
-    motion_fraction: float = 0.25
+    motion_z: float = 4.0
+    motion_shift_sigma: float = 1.0
     max_window_s: float = 300.0
     min_window_s: float = 20.0
     # warn
@@ -80,7 +81,7 @@ class Gates:
             "max_offset_g",
             "min_samples_per_turn",
             "motion_z",
-            "motion_fraction",
+            "motion_shift_sigma",
             "gain_tolerance",
             "offset_tolerance_g",
             "mean_gain_tolerance",

@@ -1,24 +1,28 @@
-"""Whether the fitted spin law describes the wheel's motion, asked turn by turn.
+"""Whether the fitted spin law describes the wheel's motion well enough to trust the sensor.
 
-Eq. (2) holds for a free spin: ω(t) is smooth and slowly decaying.  A driven
-wheel (a motor's speed changes, a second push, a very long spin) is followed
-by no cubic, and then the joint fit trades the misfit into the sensor
-parameters — a confident wrong answer.
+Eq. (2) holds for a free spin: ω(t) smooth and slowly decaying.  A driven
+wheel (a motor's speed changes, a second push), a very long spin, or any
+motion the cubic cannot follow leaves a misfit the joint fit trades into the
+sensor's parameters — a confident wrong answer.
 
-The residual tells: around the fit, a phase error δϑ changes the data by
-δϑ·∂v/∂ϑ, with ∂v/∂ϑ = g sinα·W(−sinϑ, cosϑ, 0) (W = ΓR).  Projecting the
-residual on that direction over each whole turn gives one phase error per
-turn, δϑ_j, with the once-per-turn terms (imbalance) averaged out.  Noise
-makes them independent from turn to turn; a motion the spin law cannot
-follow makes them *drift* slowly.  The von Neumann ratio
+The alternative is a smooth correction of the wheel angle,
+Δϑ(t) = Σ c_k B_k(t) (:class:`~wheelcal.model.effects.SpinSpline`, knots every
+few seconds).  At the fit, one Gauss–Newton step of the extended model gives
+what freeing the motion would change:
 
-    η = Σ (δϑ_{j+1} − δϑ_j)² / Σ (δϑ_j − δϑ̄)²
+* the score statistic of the spline coefficients (χ² with their rank as dof);
+* the shift Δ of every gain and offset, and — Hausman's test — its own σ,
+  √(σ²_flexible − σ²_cubic), since under a correct cubic the two estimates
+  differ only by noise.
 
-is ≈ 2 for independent errors (standard deviation 2/√J over J turns) and
-→ 0 for a slow drift, whatever the noise level — so the test needs no noise
-model.  Its size is judged too: the slow part, √(var δϑ − ½ var Δδϑ), times
-g sinα is the misfit in m/s² it leaves in the data, to be compared with the
-sensor's noise floor.
+The motion is *not described* when the shift is both significant
+(|Δ| > ``z_limit`` × its σ) and material (|Δ| > ``material_sigma`` × the
+cubic fit's σ): the sensor's numbers depend on the motion law.  A once-per-turn
+wobble (imbalance) is far faster than the knots and stays out of the test.
+
+The noise model is the fit's AR colour, rescaled per axis to the residual's
+*broadband* level (:mod:`wheelcal.estimate.noise_reference`): an AR model
+fitted to the whole residual absorbs the very misfit being tested for.
 """
 
 from __future__ import annotations
@@ -26,64 +30,109 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import stats
 
-from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
+from wheelcal.estimate.information import scaled_pinv
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.normal_equations import accumulate
+from wheelcal.estimate.result import CalibrationResult
+from wheelcal.model.effects import SpinSpline
+from wheelcal.model.forward import candidate_columns
+from wheelcal.model.parameters import AXES
+
+#: Knots of the alternative motion, and the fewest turns between two of them.
+KNOT_SPACING_S = 5.0
+MAX_KNOTS = 40
 
 
 @dataclass(frozen=True)
 class MotionCheck:
-    """Turn-by-turn phase errors of a fit, and whether they drift."""
+    """What freeing the motion (a spline of ϑ) would change in the sensor's parameters."""
 
-    turns: int
-    z_drift: float  # (2 − η)/(2/√J): ≫ 1 when the phase error drifts
-    slow_phase_rms_rad: float
-    slow_misfit_mps2: float  # g sinα × slow phase RMS
+    statistic: float  # score χ² of the spline coefficients
+    dof: int
+    p_value: float
+    shift_sigma: dict[str, float]  # |Δ| / σ of the cubic fit, per gain/offset
+    shift_z: dict[str, float]  # |Δ| / √(σ²_flexible − σ²_cubic)
+    spacing_s: float
 
-    def drifts(self, z_limit: float, floor_mps2: float, size_fraction: float) -> bool:
-        """True when the drift is significant and not small against the noise floor."""
-        return self.z_drift > z_limit and self.slow_misfit_mps2 > size_fraction * floor_mps2
+    def inadequate(self, z_limit: float, material_sigma: float) -> bool:
+        """True when some gain or offset moves significantly and materially."""
+        return any(
+            self.shift_z[n] > z_limit and self.shift_sigma[n] > material_sigma for n in self.shift_z
+        )
+
+    def worst(self) -> str:
+        """The gain/offset that moves most, as text."""
+        name = max(self.shift_sigma, key=self.shift_sigma.get)
+        return f"{name} by {self.shift_sigma[name]:.1f} σ (z = {self.shift_z[name]:.1f})"
+
+    def to_dict(self) -> dict:
+        """For the calibration JSON (``fit.motion_check``)."""
+        return {
+            "alternative": "cubic B-spline correction of the wheel angle",
+            "knot_spacing_s": self.spacing_s,
+            "statistic": self.statistic,
+            "dof": self.dof,
+            "p_value": self.p_value,
+            "shift_sigma": self.shift_sigma,
+            "shift_z": self.shift_z,
+        }
 
 
-def phase_errors(
-    params: CalibrationParams,
-    layout: ParameterLayout,
-    t_centred_s: np.ndarray,
-    residual_mps2: np.ndarray,
-    weights: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """δϑ per whole turn (rad) and its σ from ``weights`` (1/σ² per axis)."""
-    out = evaluate(params, t_centred_s, layout)
-    theta = out.kinematics.theta_rad
-    w_mat = params.sensor.gain[:, None] * params.bench.misalignment.matrix
-    g_sin = out.force.g_sin_tilt
-    d = g_sin * (
-        -np.outer(np.sin(theta), w_mat[:, 0]) + np.outer(np.cos(theta), w_mat[:, 1])
-    )  # ∂v/∂ϑ, (N, 3)
-    turn = np.floor(np.abs(theta - theta[0]) / (2 * np.pi)).astype(int)
-    full = turn < turn[-1]  # the last, partial turn is left out
-    num = np.bincount(turn[full], weights=(residual_mps2[full] * d[full]) @ weights)
-    den = np.bincount(turn[full], weights=(d[full] ** 2) @ weights)
-    ok = den > 0
-    return num[ok] / den[ok], 1.0 / np.sqrt(den[ok])
+def broadband_noise(noise: NoiseModel, broadband_mps2: np.ndarray) -> NoiseModel:
+    """``noise`` with its per-axis level set to ``broadband_mps2`` (colour kept)."""
+    scale = np.asarray(broadband_mps2, dtype=float) / np.maximum(noise.marginal_std_mps2, 1e-30)
+    scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+    return NoiseModel(noise.ar_polynomials, noise.innovation_cov * np.outer(scale, scale))
 
 
 def check_motion(
-    params: CalibrationParams,
-    layout: ParameterLayout,
-    t_centred_s: np.ndarray,
-    residual_mps2: np.ndarray,
-    floor_mps2: np.ndarray,
-) -> MotionCheck:
-    """Phase errors per turn of a fit and their drift statistics."""
-    weights = 1.0 / np.maximum(np.asarray(floor_mps2, dtype=float), 1e-9) ** 2
-    dtheta, _ = phase_errors(params, layout, t_centred_s, residual_mps2, weights)
-    turns = dtheta.size
-    if turns < 8:
-        return MotionCheck(turns, 0.0, 0.0, 0.0)
-    var = float(np.var(dtheta))
-    diff_var = float(np.mean(np.diff(dtheta) ** 2))
-    eta = diff_var / max(var, 1e-300)
-    z = (2.0 - eta) / (2.0 / np.sqrt(turns))
-    slow = float(np.sqrt(max(var - diff_var / 2, 0.0)))
-    g_sin = params.gravity_mps2 * np.sin(params.bench.tilt_rad)
-    return MotionCheck(turns, float(z), slow, float(g_sin * slow))
+    result: CalibrationResult,
+    accel_mps2: np.ndarray,
+    noise: NoiseModel,
+    spacing_s: float = KNOT_SPACING_S,
+) -> MotionCheck | None:
+    """Score and Hausman test of a spline motion at ``result`` (None: window too short)."""
+    tc = result.centred_time_s
+    span = float(tc[-1] - tc[0])
+    spacing = max(spacing_s, span / MAX_KNOTS)
+    if span < 2 * spacing:
+        return None
+    spline = SpinSpline(float(tc[0]), float(tc[-1]), spacing)
+    layout = result.layout
+
+    def extra(params, output, t_s):
+        return candidate_columns(params, t_s, layout, spline, output)
+
+    normal = accumulate(result.params, tc, accel_mps2, layout, noise, extra=extra)
+    h, g = normal.hessian, normal.gradient
+    size = layout.size
+    h_bb_inv = scaled_pinv(h[:size, :size])
+    h_inv = scaled_pinv(h)
+    # Score test of the spline coefficients (Schur complement of the base block).
+    h_eb = h[size:, :size]
+    schur = h[size:, size:] - h_eb @ h_bb_inv @ h_eb.T
+    u = g[size:] - h_eb @ h_bb_inv @ g[:size]
+    c_inv = scaled_pinv(schur)
+    statistic = float(u @ c_inv @ u)
+    dof = int(np.linalg.matrix_rank(schur / np.sqrt(np.outer(np.diag(schur), np.diag(schur)))))
+    p_value = float(stats.chi2.sf(statistic, max(dof, 1)))
+    # The sensor parameters' shift when the motion is freed (one Gauss–Newton step),
+    # net of the base model's own (tiny) step under this noise model.
+    shift = -(h_inv @ g)[:size] + h_bb_inv @ g[:size]
+    blocks = layout.blocks
+    index = list(range(blocks["gain"].start, blocks["offset"].stop))
+    names = [f"gain_{a}" for a in AXES] + [f"offset_{a}_mps2" for a in AXES]
+    var_cubic = np.diag(h_bb_inv)[index]
+    var_flexible = np.diag(h_inv)[index]
+    extra_std = np.sqrt(np.maximum(var_flexible - var_cubic, 1e-300))
+    delta = np.abs(shift[index])
+    return MotionCheck(
+        statistic=statistic,
+        dof=dof,
+        p_value=p_value,
+        shift_sigma=dict(zip(names, (delta / np.sqrt(var_cubic)).tolist(), strict=True)),
+        shift_z=dict(zip(names, (delta / extra_std).tolist(), strict=True)),
+        spacing_s=spacing,
+    )

@@ -42,7 +42,7 @@ from wheelcal.estimate.gates import (
 )
 from wheelcal.estimate.initial import InitialGuess
 from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.motion_check import MotionCheck, check_motion
+from wheelcal.estimate.motion_check import MotionCheck, broadband_noise, check_motion
 from wheelcal.estimate.noise_reference import noise_reference
 from wheelcal.estimate.rest_check import check_rests
 from wheelcal.estimate.rests import RestSegment, find_rests
@@ -127,37 +127,65 @@ class SessionFit:
             guess = self.fitter.start(window)
             _check_implied_radius(guess, window, gates)
             result = self.fitter.fit(window, guess=guess)
-            floor = noise_reference(result.residual_mps2, _theta(result), rests).floor_mps2
-            motion = check_motion(
-                result.params, result.layout, result.centred_time_s, result.residual_mps2, floor
-            )
-            if not motion.drifts(gates.motion_z, float(np.mean(floor)), gates.motion_fraction):
+            motion = _motion(result, window, rests)
+            if motion is None or not motion.inadequate(gates.motion_z, gates.motion_shift_sigma):
                 break
             if window.duration_s * SHRINK < gates.min_window_s:
                 raise CalibrationRefused(
                     recording.source,
                     "motion",
-                    f"the wheel's motion is not a free spin that eq. (2) can describe: its phase "
-                    f"drifts from the fitted spin law turn after turn (z = {motion.z_drift:.1f}, "
-                    f"{motion.slow_phase_rms_rad * 1e3:.1f} mrad rms, "
-                    f"{motion.slow_misfit_mps2:.2g} m/s² of misfit) — a driven wheel, a second "
-                    "push, or speed changes",
+                    "the wheel's motion is not a free spin that eq. (2) can describe: letting "
+                    f"the wheel angle follow a smooth spline would move {motion.worst()} "
+                    f"(score χ² = {motion.statistic:.0f} on {motion.dof} dof) — a driven "
+                    "wheel, a second push, or speed changes",
                     "record a free spin (push once, then let go), choose its window with "
                     "--start-s/--end-s, or record the gyroscope",
                 )
             t0 = float(window.time_s[0])
             shorter = window.duration_s * SHRINK
             note = (
-                f"the spin law could not follow the whole window (phase drift z = "
-                f"{motion.z_drift:.1f}); shortened to its first {shorter:.0f} s"
+                f"the spin law could not follow the whole window (freeing the motion moved "
+                f"{motion.worst()}); shortened to its first {shorter:.0f} s"
             )
             window = window.window(t0, t0 + shorter)
+        if window.clip_limits_mps2 is not None:
+            result, window, rail_note = _clear_of_rails(self.fitter, result, window)
+            note = "; ".join(x for x in (note, rail_note) if x)
         if note:
             choice = WindowChoice(window, choice.found, choice.reason + "; " + note)
         omega = result.params.spin.omega_at(result.centred_time_s[[0, -1]])
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
         refuse_few_turns(result)
         return SessionFitOutcome(assess(result, rests, gates, motion), choice, rests)
+
+
+#: Samples the model puts within this many noise σ of a rail are left out.
+RAIL_MARGIN_SIGMA = 4.0
+
+
+def _clear_of_rails(
+    fitter: JointFit, result: CalibrationResult, window: Recording
+) -> tuple[CalibrationResult, Recording, str]:
+    """Refit without the stretches the model predicts near a clipping rail.
+
+    The reader dropped the samples at the rails; keeping their neighbours
+    whose noise stayed just below would select on the noise and bias the
+    peaks.  Selecting on the *prediction* instead is free of that bias.
+    """
+    predicted = window.accel_mps2 - result.residual_mps2
+    margin = RAIL_MARGIN_SIGMA * result.noise.marginal_std_mps2
+    low, high = window.clip_limits_mps2[:, 0], window.clip_limits_mps2[:, 1]
+    with np.errstate(invalid="ignore"):
+        near = np.any((predicted >= high - margin) | (predicted <= low + margin), axis=1)
+    if not np.any(near):
+        return result, window, ""
+    kept = window.select(~near)
+    refit = fitter.fit(kept, initial=result.params)
+    note = (
+        f"left out {int(near.sum())} samples that the model puts within "
+        f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"
+    )
+    return refit, kept, note
 
 
 def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) -> None:
@@ -176,6 +204,15 @@ def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) 
         refuse_gain_scale(
             window.source, mean_gain, radius, f"the gains average ≈ {mean_gain:.4g}", gates
         )
+
+
+def _motion(
+    result: CalibrationResult, window: Recording, rests: tuple[RestSegment, ...]
+) -> MotionCheck | None:
+    """The motion check with the residual's broadband level as the noise."""
+    reference = noise_reference(result.residual_mps2, _theta(result), rests)
+    noise = broadband_noise(result.noise, reference.broadband_mps2)
+    return check_motion(result, window.accel_mps2, noise)
 
 
 def _theta(result: CalibrationResult) -> np.ndarray:

@@ -197,12 +197,7 @@ def _assessment(result: CalibrationResult) -> dict:
         out["unexplained_mps2"] = _vec(a.noise.unexplained_mps2)
         out["noise_reference"] = _clean(a.noise.to_dict())
     if a.motion is not None:
-        out["motion_check"] = {
-            "turns": a.motion.turns,
-            "z_drift": _num(a.motion.z_drift),
-            "slow_phase_rms_rad": _num(a.motion.slow_phase_rms_rad),
-            "slow_misfit_mps2": _num(a.motion.slow_misfit_mps2),
-        }
+        out["motion_check"] = _clean(a.motion.to_dict())
     out["rest_checks"] = [_clean(c.to_dict()) for c in a.rest_checks]
     out["gates"] = a.gates.to_dict()
     return out

@@ -265,4 +265,5 @@ def read_recording(
         source=scan.path,
         topic=chosen.topic,
         notes=tuple(notes) + clean.notes,
+        clip_limits_mps2=clean.clip_limits_mps2,
     )

@@ -20,7 +20,13 @@ import numpy as np
 
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
 from wheelcal.recording import Recording
-from wheelcal.simulate.motion import DragSpin, RateProfile, pushes_profile, steps_profile
+from wheelcal.simulate.motion import (
+    DragSpin,
+    RateProfile,
+    pushes_profile,
+    steps_profile,
+    wandering_profile,
+)
 from wheelcal.simulate.noise import NoiseSpec, Quantiser
 from wheelcal.simulate.presets import (
     TABLE2_EULER_DEG,
@@ -120,6 +126,11 @@ def motor_steps(rng: np.random.Generator):
 def three_pushes(rng: np.random.Generator):
     """A hand-spun wheel pushed again twice: three spin-downs in one recording."""
     return driven(rng, pushes_profile(rng, 90.0, pushes=3), "three pushes")
+
+
+def wandering(rng: np.random.Generator):
+    """A motor-driven wheel whose speed wanders smoothly by ±5 % around 10 rad/s."""
+    return driven(rng, wandering_profile(rng, 90.0), "wandering motor")
 
 
 def vibrating(rng: np.random.Generator, vibration_mps2: float = 0.5):

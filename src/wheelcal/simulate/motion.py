@@ -178,7 +178,9 @@ def pushes_profile(
         start = -duration_s / 2 + k * segment + (push_s if k else 0.0)
         w0 = omega_radps * rng.uniform(0.9, 1.1)
         drag = (1 / decay - 1) / (w0 * (segment - (push_s if k else 0.0)))
-        for tau in np.linspace(0.0, segment - (push_s if k else 0.0), 12):
+        # Knots every ~0.1 s: the spin-down between pushes is the drag law itself.
+        length = segment - (push_s if k else 0.0)
+        for tau in np.linspace(0.0, length, max(12, int(length / 0.1))):
             times.append(start + tau)
             rates.append(w0 / (1 + drag * w0 * tau))
     order = np.argsort(times)
@@ -187,3 +189,20 @@ def pushes_profile(
         tuple(np.asarray(rates)[order]),
         float(rng.uniform(-np.pi, np.pi)),
     )
+
+
+def wandering_profile(
+    rng: np.random.Generator,
+    duration_s: float,
+    omega_radps: float = 10.0,
+    wander_fraction: float = 0.05,
+    every_s: float = 6.0,
+) -> RateProfile:
+    """A motor whose speed wanders smoothly by ±``wander_fraction`` (a knot every ``every_s``).
+
+    Slow enough (|ω̇| ≪ a push) that it looks like a free spin to the window
+    finder, yet no cubic follows it over the whole recording.
+    """
+    times = np.arange(-duration_s / 2 - every_s, duration_s / 2 + 2 * every_s, every_s)
+    rates = omega_radps * (1 + wander_fraction * rng.uniform(-1.0, 1.0, times.size))
+    return RateProfile(tuple(times), tuple(rates), float(rng.uniform(-np.pi, np.pi)))

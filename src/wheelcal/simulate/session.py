@@ -30,8 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from wheelcal.model import CalibrationParams
-from wheelcal.model.bench import bench_force
+from wheelcal.model import CalibrationParams, evaluate
 from wheelcal.model.kinematics import Kinematics, spin_kinematics
 from wheelcal.recording import Recording
 from wheelcal.simulate.simulator import Scenario
@@ -179,19 +178,21 @@ def simulate_session(
     omega[free] = inside.omega_radps
     omega_dot[free] = inside.omega_dot_radps2
     bench = truth.bench
-    force = bench_force(
-        Kinematics(theta[outside], omega[outside], omega_dot[outside]),
-        bench.tilt_rad,
-        bench.radius_m,
-        truth.gravity_mps2,
-    ).accel_mps2
+    shake = np.zeros((int(outside.sum()), 3))
     for phase in (push, stop):
         rows = np.flatnonzero(phase[outside])
-        force[rows] += _hand_shake(rows.size, rate, plan, rng)
+        shake[rows] = _hand_shake(rows.size, rate, plan, rng)
     clean = np.empty((t.size, 3))
-    sensor = truth.sensor
-    # Eq. (4)–(5): s = R a, v = o + Γ s.
-    clean[outside] = sensor.offset_mps2 + sensor.gain * (force @ bench.misalignment.matrix.T)
+    # Eq. (4)–(5) with the phase's own ϑ, ω, ω̇; the sensor's effects (a warm-up, a
+    # nonlinearity …) act in every phase, the spin's only in the free spin.
+    sensor_effects = tuple(e for e in scenario.effects if e.stage == "sensor")
+    clean[outside] = evaluate(
+        truth,
+        t[outside] - centre,
+        effects=sensor_effects,
+        kinematics=Kinematics(theta[outside], omega[outside], omega_dot[outside]),
+    ).predicted_mps2
+    clean[outside] += truth.sensor.gain * (shake @ bench.misalignment.matrix.T)
     clean[free] = scenario.clean_signal(t[free] - centre)  # Phase 3: exactly the model
 
     # Bearings and road vibrate in proportion to the speed, fully above 2 rad/s.
