@@ -19,7 +19,7 @@ def test_the_readme_python_example_runs(tmp_path, monkeypatch, capsys):
     blocks = re.findall(r"```python\n(.*?)\n```", text, flags=re.S)
     (example,) = [b for b in blocks if "wheelcal.calibrate(" in b]
     monkeypatch.chdir(tmp_path)
-    exec(compile(example, "README.md", "exec"), {})  # noqa: S102 - the README's own code
+    exec(compile(example, "README.md", "exec"), {})  # the README's own code
     out = capsys.readouterr().out
     assert "gain_range" in out and "--radius 0.283" in out
     assert (tmp_path / "spin.calibration.json").exists()
