@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, NormalEquations
+from wheelcal.estimate.normal_equations import NormalEquations, add_gram, chunking
 from wheelcal.model import CalibrationParams, ParameterLayout
 from wheelcal.model.forward import wheel_kinematics
 
@@ -55,7 +55,7 @@ def accumulate_gyro(
     layout: ParameterLayout,
     noise: NoiseModel,
     jacobian: bool = True,
-    chunk: int = CHUNK_SAMPLES,
+    chunk: int | None = None,
 ) -> NormalEquations:
     """Cost, H and g of the whitened gyro residual (model − data) over ``layout``.
 
@@ -65,6 +65,7 @@ def accumulate_gyro(
     effect = gyro_effect(layout)
     block = layout.blocks[f"effect:{effect.name}"]
     n = t_s.size
+    chunk, sparse = chunking(layout, t_s, chunk)
     p = noise.order
     cost, entries = 0.0, 0
     hess = np.zeros((layout.size, layout.size)) if jacobian else None
@@ -96,8 +97,7 @@ def accumulate_gyro(
         rw, jw = noise.whiten(residual, jac)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)
-        hess += jt @ jt.T
-        grad += jt @ r_flat
+        add_gram(hess, grad, jt, r_flat, sparse)
         cost += float(r_flat @ r_flat)
         entries += r_flat.size
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
