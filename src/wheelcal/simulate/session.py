@@ -21,6 +21,11 @@ zero at the ends of each phase, so the free spin stays exactly the model.
 Sensor noise (the scenario's :class:`NoiseSpec`) covers the whole recording;
 the quantiser, if any, is applied last.  The bench-frame force of eq. (1)
 holds in every phase with the phase's own ϑ, ω, ω̇.
+
+A scenario's gyro (if any) reads the wheel's rate in every phase — zero at
+rest, the smooth step during push and stop — and the true specific force
+(hand shake included) for its g-sensitivity; the hand's shake is a
+translation, so the gyro sees no rotation from it.
 """
 
 from __future__ import annotations
@@ -175,7 +180,9 @@ def simulate_session(
 
     free = (t >= start) & (t <= end)
     outside = ~free
-    inside = motion(t[free] - centre)
+    # Phase 3 is exactly the model: its kinematics include the spin effects, if any.
+    inside_out = scenario.clean_output(t[free] - centre)
+    inside = inside_out.kinematics
     omega[free] = inside.omega_radps
     omega_dot[free] = inside.omega_dot_radps2
     bench = truth.bench
@@ -189,14 +196,19 @@ def simulate_session(
         rows = np.flatnonzero(phase[outside])
         force[rows] += _hand_shake(rows.size, rate, plan, rng)
     clean = np.empty((t.size, 3))
+    sensed = np.empty((t.size, 3))
     sensor = truth.sensor
     # Eq. (4)–(5): s = R a, v = o + Γ s.
-    clean[outside] = sensor.offset_mps2 + sensor.gain * (force @ bench.misalignment.matrix.T)
-    clean[free] = scenario.clean_signal(t[free] - centre)  # Phase 3: exactly the model
+    sensed[outside] = force @ bench.misalignment.matrix.T
+    clean[outside] = sensor.offset_mps2 + sensor.gain * sensed[outside]
+    sensed[free] = inside_out.sensed_mps2
+    clean[free] = inside_out.predicted_mps2  # Phase 3: exactly the model
 
     # Bearings and road vibrate in proportion to the speed, fully above 2 rad/s.
     envelope = np.minimum(1.0, np.abs(omega) / 2.0)
-    recording = scenario.record(t, clean, rng, epoch_unix_ns, source, envelope)
+    recording = scenario.record(
+        t, clean, rng, epoch_unix_ns, source, envelope, omega_radps=omega, sensed_mps2=sensed
+    )
     return SimulatedFullSession(
         recording=recording,
         truth=truth,
