@@ -216,11 +216,12 @@ def _clipped_rows(w, valid, full_scale_dps, policy) -> tuple[np.ndarray, str]:
     rails = []
     for k in range(3):
         x = w[rows, k]
-        for extreme in (float(x.max()), float(x.min())):
-            if abs(extreme) < policy.min_rail_dps * RADPS_PER_DPS:
+        floor = policy.min_rail_dps * RADPS_PER_DPS
+        for side, extreme in ((1, float(x.max())), (-1, float(x.min()))):
+            if side * extreme < floor:  # a rail is +full scale on top, −full scale below
                 continue
             tol = policy.rail_jitter_lsb * _count_size(x, extreme, policy)
-            at = x >= extreme - tol if extreme > 0 else x <= extreme + tol
+            at = x >= extreme - tol if side > 0 else x <= extreme + tol
             if at.sum() >= policy.clip_run_samples and _longest_run(at) >= policy.clip_run_samples:
                 clipped[rows[at]] = True
                 rails.append(f"{'xyz'[k]} = {extreme:+.4g}")
