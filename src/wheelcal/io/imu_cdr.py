@@ -108,8 +108,20 @@ class ImuLayoutError(ValueError):
 
 
 def _gather(arr: np.ndarray, at: np.ndarray, dtype: str, count: int = 1) -> np.ndarray:
-    """Values of ``dtype`` (count per message) starting at byte positions ``at``."""
-    size = np.dtype(dtype).itemsize * count
+    """Values of ``dtype`` (count per message) starting at byte positions ``at``.
+
+    Messages of one fixed-size type sit at a constant stride in a chunk; then a
+    strided view reads them without building a byte index (the general case).
+    """
+    item = np.dtype(dtype).itemsize
+    size = item * count
+    if at.size > 1:
+        step = int(at[1] - at[0])
+        if step >= size and np.all(np.diff(at) == step):
+            view = np.ndarray(
+                (at.size, count), dtype=dtype, buffer=arr, offset=int(at[0]), strides=(step, item)
+            )
+            return view.reshape(-1) if count == 1 else view.copy()
     raw = arr[at[:, None] + np.arange(size)]
     out = raw.view(dtype)
     return out.reshape(-1) if count == 1 else out.reshape(-1, count)
