@@ -240,6 +240,8 @@ def test_gyro_units_zero_channels_and_partial_nan(recording, tmp_path):
     write_channels(tmp_path / "rpm.mcap", [channel], {"wheelcal.session": session})
     with pytest.raises(InputError, match=r"rpm\.mcap.*gyro unit 'rpm'"):
         read_recording(tmp_path / "rpm.mcap")
+    with pytest.raises(InputError, match=r"deg\.mcap: gyro unit 'rpm'"):
+        read_recording(tmp_path / "deg.mcap", gyro_unit="rpm")
     # An accelerometer-only driver that publishes zeros: no gyro.
     for encoding in ("ros2", "json"):
         write_accel_mcap(

@@ -341,6 +341,8 @@ def read_recording(
         and the problem in the message.
     """
     policy = policy or InputPolicy()
+    if gyro_unit is not None and gyro_unit not in GYRO_UNITS:
+        raise InputError(path, f"gyro unit {gyro_unit!r} is not one of {list(GYRO_UNITS)}")
     scan = scan_mcap(path)
     chosen = choose_topic(scan, topic)
     where = f"topic {chosen.topic}"
