@@ -95,7 +95,7 @@ class GyroSpec:
     noise_density_dps_rthz: float = 0.01
     bias_radps: tuple[float, float, float] = (0.012, -0.021, 0.008)
     scale_error: tuple[float, float, float] = (0.008, -0.012, 0.015)
-    misalignment_deg: tuple[float, float, float] = (0.6, -0.9, 0.4)
+    misalignment_deg: tuple[float, float, float] = (1.0, -1.2, 0.5)
     g_sensitivity_dps_per_g: float | tuple = 0.1
     full_scale_dps: float | None = 2000.0
     bits: int | None = None
