@@ -45,6 +45,7 @@ def _options(radius_m, options: dict):
 
 def _checked(recording: Recording, options) -> Recording:
     """An in-memory recording through the reader's sample checks and the session facts."""
+    from wheelcal.io.gyro_checks import align_to_samples, check_gyro
     from wheelcal.io.sample_checks import InputPolicy, clean_samples
     from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 
@@ -61,6 +62,15 @@ def _checked(recording: Recording, options) -> Recording:
         full_scale_g=info.full_scale_g,
         policy=InputPolicy(),
     )
+    notes = recording.notes + clean.notes
+    gyro = None
+    if recording.gyro_radps is not None:  # the same rows, through the same repairs
+        aligned = align_to_samples(time_ns, accel, recording.gyro_radps, clean.time_ns)
+        gyro, gyro_notes = check_gyro(recording.source, aligned, info.gyro_full_scale_dps)
+        notes += gyro_notes
+    temperature = None
+    if recording.temperature_c is not None:
+        temperature = np.interp(clean.time_ns, time_ns, recording.temperature_c)
     epoch = int(clean.time_ns[0])
     return dataclasses.replace(
         recording,
@@ -68,8 +78,10 @@ def _checked(recording: Recording, options) -> Recording:
         accel_mps2=clean.accel_mps2,
         epoch_unix_ns=epoch,
         info=info,
-        notes=recording.notes + clean.notes,
+        notes=notes,
         clip_limits_mps2=clean.clip_limits_mps2,
+        gyro_radps=gyro,
+        temperature_c=temperature,
     )
 
 

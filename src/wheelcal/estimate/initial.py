@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.decimation import thinning_stride
+from wheelcal.estimate.rotating import revolution_mean, rotating_phase
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
 from wheelcal.model.effects import cubic_bspline_basis
 
@@ -57,6 +58,7 @@ def initial_guess(
     tilt_rad: float | None = None,
     spin_degree: int = 3,
     spline=None,
+    omega_radps: np.ndarray | None = None,
 ) -> InitialGuess:
     """Starting parameters from samples ``accel_mps2`` at centred times ``t_s``.
 
@@ -64,6 +66,9 @@ def initial_guess(
     ``spline`` (a :class:`~wheelcal.model.effects.SpinSpline`) lets the phase
     follow any motion: the unwrapped phase is fitted by the cubic plus the
     spline, whose coefficients are returned in ``params.effects``.
+    ``omega_radps`` (|ω| per sample, e.g. from a gyroscope) replaces the
+    phase's derivative in the regression of step 3: differentiating a noisy
+    phase over short knots would attenuate the centripetal term.
     """
     if (radius_m is None) == (tilt_rad is None):
         raise ValueError("give exactly one of radius_m and tilt_rad")
@@ -81,12 +86,19 @@ def initial_guess(
     tau = t / half
     notes: list[str] = []
 
-    # 1. Wheel plane: principal directions of the centred signal.
-    vc = v - v.mean(axis=0)
+    # 1. Wheel plane: principal directions of the centred signal.  For a free spin
+    #    the slow part (r ω², offsets) is a smooth trend; for any other motion (the
+    #    spline case: pushes, a motor's steps) it jumps, and only the mean over one
+    #    revolution removes it whatever ω(t) does.
+    if spline is None:
+        vc = v - v.mean(axis=0)
+    else:
+        vc = _rotating_part(v, rate_all / stride, 2 * np.pi * turn_hz_all)
     _, vecs = np.linalg.eigh(vc.T @ vc)
     plane = vecs[:, 1:]
     u = vc @ plane
-    u = u - _poly_trend(tau, u, _TREND_DEGREE)
+    if spline is None:
+        u = u - _poly_trend(tau, u, _TREND_DEGREE)
 
     # 2. Phase: smooth over ~1/8 turn, make the ellipse a circle, unwrap.
     rate_hz = 1.0 / np.median(np.diff(t))
@@ -99,6 +111,16 @@ def initial_guess(
     evals, evecs = np.linalg.eigh(cov2)
     circle = u @ evecs / np.sqrt(np.maximum(evals, 1e-30))
     phase = np.unwrap(np.arctan2(circle[:, 1], circle[:, 0]))
+    if omega_radps is not None:
+        # A measured rate gives the phase's shape exactly: ϑ ≈ a + b ∫ω dt, with the
+        # constant, the sign and the rate's scale from the accelerometer's phase.
+        measured = np.asarray(omega_radps, dtype=float)[::stride]
+        angle = np.concatenate(
+            [[0.0], np.cumsum(0.5 * (measured[1:] + measured[:-1]) * np.diff(t))]
+        )
+        (a, b), *_ = np.linalg.lstsq(np.column_stack([np.ones_like(t), angle]), phase, rcond=None)
+        phase = a + b * angle
+        omega_measured = b * measured
     phase_coef_tau = np.polynomial.polynomial.polyfit(tau, phase, spin_degree + 1)
     phase_coef = phase_coef_tau / half ** np.arange(spin_degree + 2)
     omega = np.arange(1, spin_degree + 2) * phase_coef[1:]  # ω_k = (k+1)·c_{k+1}
@@ -112,6 +134,8 @@ def initial_guess(
         theta = theta + spline_coef @ b
         omega_t = omega_t + spline_coef @ d1
 
+    if omega_radps is not None:
+        omega_t = omega_measured
     # 3. Linear regression on [1, ω², cosϑ', sinϑ'] (r ω̇ is left to the fit).
     design = np.column_stack([np.ones_like(t), omega_t**2, np.cos(theta), np.sin(theta)])
     coef, *_ = np.linalg.lstsq(design, v, rcond=None)
@@ -181,6 +205,19 @@ def initial_guess(
         notes=tuple(notes),
         implied_radius_m=implied_radius,
     )
+
+
+def _rotating_part(v: np.ndarray, rate_hz: float, omega_radps: float) -> np.ndarray:
+    """The samples minus their mean over one revolution (phase from the smoothed derivative)."""
+    width = max(1, int(rate_hz * 2 * np.pi / max(omega_radps, 1e-3) / 8))
+    smooth = v
+    if width > 1:
+        kernel = np.ones(width) / width
+        smooth = np.column_stack([np.convolve(v[:, k], kernel, mode="same") for k in range(3)])
+    rough, _ = rotating_phase(np.gradient(smooth, axis=0))
+    ramp = np.maximum.accumulate(rough)
+    max_half = int(np.pi / max(omega_radps / 8, 1e-3) * rate_hz)
+    return v - revolution_mean(v, ramp, max_half)
 
 
 def _plane_signal(v: np.ndarray) -> np.ndarray:

@@ -161,6 +161,11 @@ class JointFit:
         info = self._checked_info(recording)
         t = recording.time_s
         tc = t - 0.5 * (t[0] + t[-1])
+        gyro_t = gyro = rate = None
+        if self.use_gyro:
+            gyro_t, gyro = gyro_samples(recording, tc)
+            _, vecs = np.linalg.eigh(gyro.T @ gyro)
+            rate = np.interp(tc, gyro_t, gyro @ vecs[:, -1])  # ω up to sign, scale, bias
         guess = initial_guess(
             tc,
             recording.accel_mps2,
@@ -169,10 +174,10 @@ class JointFit:
             tilt_rad=self._fixed_tilt_rad(),
             spin_degree=self.spin_degree,
             spline=self._spline(tc),
+            omega_radps=rate,
         )
         if not self.use_gyro:
             return guess
-        gyro_t, gyro = gyro_samples(recording, tc)
         params = with_gyro_start(guess.params, self.layout_for(recording), gyro_t, gyro)
         return dataclasses.replace(guess, params=params)
 

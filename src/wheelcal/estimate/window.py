@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.rotating import revolution_mean, rotating_phase
 from wheelcal.recording import Recording, RecordingError
 
 
@@ -89,32 +90,6 @@ def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
 
 
-def _phase(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unwrapped angle (sign chosen so it mostly increases) and radius of h in its main plane."""
-    radius = np.linalg.norm(h, axis=1)
-    strong = radius > np.median(radius)
-    _, vectors = np.linalg.eigh(h[strong].T @ h[strong])
-    z = h @ vectors[:, 2] + 1j * (h @ vectors[:, 1])
-    phase = np.unwrap(np.angle(z))
-    if phase[-1] < phase[0]:
-        phase = -phase
-    return phase, np.abs(z)
-
-
-def _revolution_mean(v: np.ndarray, ramp: np.ndarray, max_half: int) -> np.ndarray:
-    """Mean of v over one revolution centred on each sample (phase within ±π).
-
-    ``ramp`` is a monotone phase, so each window is one index range; windows
-    are capped at ``max_half`` samples each side (at rest the phase does not
-    advance and a revolution would never end).
-    """
-    index = np.arange(ramp.size)
-    lo = np.maximum(np.searchsorted(ramp, ramp - np.pi, side="left"), index - max_half)
-    hi = np.minimum(np.searchsorted(ramp, ramp + np.pi, side="right"), index + max_half + 1)
-    total = np.vstack([np.zeros((1, 3)), np.cumsum(v, axis=0)])
-    return (total[hi] - total[lo]) / (hi - lo)[:, None]
-
-
 def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> FreeSpinWindow:
     """Find the free-spin window of a recording automatically.
 
@@ -157,12 +132,12 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
     # A rough phase from dv/dt: differentiation suppresses the slow part
     # (o, r ω², g cos α …) without the seconds-long ringing a high-pass filter
     # shows after the push's step in r ω².  It only sets the revolution windows.
-    rough, _ = _phase(np.gradient(v, axis=0) * rate)
+    rough, _ = rotating_phase(np.gradient(v, axis=0) * rate)
     ramp = np.maximum.accumulate(rough)
     max_half = int(np.pi / search.min_rate_radps * rate)
     # The rotating part: v minus its mean over one revolution (cancels the
     # rotation exactly, keeps the slow part out), and its phase.
-    phase, radius = _phase(v - _revolution_mean(v, ramp, max_half))
+    phase, radius = rotating_phase(v - revolution_mean(v, ramp, max_half))
     amplitude = _moving_average(radius, 2 * lag)
 
     # |ω| and |ω̇| from phase differences over the baseline 2·lag.

@@ -20,6 +20,7 @@ import numpy as np
 
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
 from wheelcal.recording import Recording
+from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.motion import (
     DragSpin,
     RateProfile,
@@ -53,15 +54,24 @@ def table2_truth(spin: SpinParams, rotation: Rotation | None = None) -> Calibrat
     )
 
 
-def _session(scenario: Scenario, rng: np.random.Generator, name: str) -> SimulatedFullSession:
+def _session(
+    scenario: Scenario, rng: np.random.Generator, name: str, gyro: GyroSpec | None = None
+) -> SimulatedFullSession:
+    if gyro is not None:
+        scenario = replace(scenario, gyro=gyro)
     return simulate_session(scenario, rng, source=f"<{name}>")
 
 
-def clean(rng: np.random.Generator, duration_s: float = 90.0, rate_hz: float = 200.0):
+def clean(
+    rng: np.random.Generator,
+    duration_s: float = 90.0,
+    rate_hz: float = 200.0,
+    gyro: GyroSpec | None = None,
+):
     """The reference: a clean Table II hand spin (nothing hostile)."""
     truth = table2_truth(hand_spin(rng, duration_s, direction=1))
     scenario = Scenario(truth=truth, duration_s=duration_s, rate_hz=rate_hz, noise=NoiseSpec(0.08))
-    return _session(scenario, rng, "clean")
+    return _session(scenario, rng, "clean", gyro)
 
 
 def sampled_at(rng: np.random.Generator, rate_hz: float, omega_radps: float = 10.0):
@@ -95,7 +105,13 @@ def long_spin(
     return _session(scenario, rng, f"{duration_s:g} s spin")
 
 
-def driven(rng: np.random.Generator, profile: RateProfile, name: str, duration_s: float = 90.0):
+def driven(
+    rng: np.random.Generator,
+    profile: RateProfile,
+    name: str,
+    duration_s: float = 90.0,
+    gyro: GyroSpec | None = None,
+):
     """A wheel moved along ``profile`` (centred times) for ``duration_s``."""
     spin = SpinParams(theta0_rad=0.0, omega_radps=(profile.knot_omega_radps[0],))
     scenario = Scenario(
@@ -105,7 +121,7 @@ def driven(rng: np.random.Generator, profile: RateProfile, name: str, duration_s
         noise=NoiseSpec(0.08),
         motion=profile,
     )
-    return _session(scenario, rng, name)
+    return _session(scenario, rng, name, gyro)
 
 
 def rising(rng: np.random.Generator):
@@ -118,22 +134,22 @@ def rising(rng: np.random.Generator):
     )
 
 
-def motor_steps(rng: np.random.Generator):
+def motor_steps(rng: np.random.Generator, gyro: GyroSpec | None = None):
     """A motor holding 10 rad/s with ±10 % steps every 15 s."""
-    return driven(rng, steps_profile(rng, 90.0, 10.0), "motor steps")
+    return driven(rng, steps_profile(rng, 90.0, 10.0), "motor steps", gyro=gyro)
 
 
-def three_pushes(rng: np.random.Generator):
+def three_pushes(rng: np.random.Generator, gyro: GyroSpec | None = None):
     """A hand-spun wheel pushed again twice: three spin-downs in one recording."""
-    return driven(rng, pushes_profile(rng, 90.0, pushes=3), "three pushes")
+    return driven(rng, pushes_profile(rng, 90.0, pushes=3), "three pushes", gyro=gyro)
 
 
-def wandering(rng: np.random.Generator):
+def wandering(rng: np.random.Generator, gyro: GyroSpec | None = None):
     """A motor-driven wheel whose speed wanders smoothly by ±5 % around 10 rad/s."""
-    return driven(rng, wandering_profile(rng, 90.0), "wandering motor")
+    return driven(rng, wandering_profile(rng, 90.0), "wandering motor", gyro=gyro)
 
 
-def vibrating(rng: np.random.Generator, vibration_mps2: float = 0.5):
+def vibrating(rng: np.random.Generator, vibration_mps2: float = 0.5, gyro: GyroSpec | None = None):
     """A clean spin on a bench that vibrates with broadband ``vibration_mps2`` RMS."""
     truth = table2_truth(hand_spin(rng, 90.0, direction=1))
     scenario = Scenario(
@@ -143,7 +159,7 @@ def vibrating(rng: np.random.Generator, vibration_mps2: float = 0.5):
         noise=NoiseSpec(0.08),
         vibration=NoiseSpec(vibration_mps2, bandwidth_hz=40.0),
     )
-    return _session(scenario, rng, "vibration")
+    return _session(scenario, rng, "vibration", gyro)
 
 
 def saturated(rng: np.random.Generator, full_scale_g: float = 2.0, jitter_lsb: float = 1.0):
