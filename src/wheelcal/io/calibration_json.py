@@ -22,6 +22,10 @@ from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.parameters import AXES
 
 FORMAT = "wheelcal.calibration/1"
+#: A sensor's calibration pooled from its sessions (:mod:`wheelcal.io.sensor_calibration_json`):
+#: same ``sensor``/``systematic``/``correction`` keys, so export and apply take either.
+SENSOR_CALIBRATION_FORMAT = "wheelcal.sensor_calibration/1"
+CORRECTION_FORMATS = (FORMAT, SENSOR_CALIBRATION_FORMAT)
 _SYSTEMATIC_NOTE = (
     "shared by every recording of the same bench and clock: repeating does not average it away"
 )
@@ -190,15 +194,21 @@ def write_calibration(
 
 
 def load_calibration(path: str | os.PathLike) -> dict:
-    """Read and check a calibration JSON (format tag, correction block)."""
+    """Read and check a calibration JSON (format tag, correction block).
+
+    Accepts a session's calibration and a sensor's pooled one (:data:`CORRECTION_FORMATS`).
+    """
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise CalibrationFileError(f"{path}: no such calibration file") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationFileError(f"{path}: not a calibration JSON ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise CalibrationFileError(f"{path}: not a {FORMAT} file (format tag missing or different)")
+    if not isinstance(data, dict) or data.get("format") not in CORRECTION_FORMATS:
+        raise CalibrationFileError(
+            f"{path}: not a {' or '.join(CORRECTION_FORMATS)} file "
+            "(format tag missing or different)"
+        )
     try:
         load_correction_from(data)
     except (KeyError, TypeError, ValueError) as exc:
