@@ -153,19 +153,21 @@ def calibrate_session(
     out_dir: str | Path,
     provenance: dict | None = None,
     durable: bool = True,
+    stem: str | None = None,
 ) -> SessionOutcome:
     """Calibrate one recording and write ``<out>/<stem>.calibration.json``.
 
     Never raises for bad input: the outcome carries the error instead.
     ``provenance`` is stored in the JSON (the batch runner's up-to-date check).
     ``durable=False`` skips the per-file fsyncs (the batch syncs once at the end);
-    the files are still written atomically.
+    the files are still written atomically.  ``stem`` names the outputs
+    (default :func:`session_stem`; a batch passes unique ones).
     """
     from wheelcal.io import read_recording
     from wheelcal.io.calibration_json import write_calibration
 
     source = str(path)
-    stem = session_stem(path)
+    stem = stem or session_stem(path)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     try:
