@@ -277,14 +277,16 @@ def test_pooled_sigma_covers_the_truth_with_between_session_jitter_short():
 
 @pytest.mark.slow
 def test_pooled_sigma_matches_the_spread_of_repeated_batches_full():
-    values, stds = _pooled_batches(seed=17, batches=200, sessions=10, jitter=0.0)
+    # Sessions that agree are pooled with σ ≥ 1/√Σw (the max(1, ·) and a τ² > 0 by chance
+    # both err on the safe side): the expected ratio is ≈ 0.92, known to ±4 % at 300 batches.
+    values, stds = _pooled_batches(seed=17, batches=300, sessions=10, jitter=0.0)
     ratio = _sigma_ratio(values, stds)
     print(
         "σ ratio (spread / reported) per parameter:",
         dict(zip(POOLED_PARAMETERS, ratio, strict=True)),
     )
     assert np.all((ratio >= 0.8) & (ratio <= 1.25)), ratio
-    bias = np.abs(values.mean(axis=0) - TRUTH) / (values.std(axis=0, ddof=1) / np.sqrt(200))
+    bias = np.abs(values.mean(axis=0) - TRUTH) / (values.std(axis=0, ddof=1) / np.sqrt(300))
     assert bias.max() < 4.0, bias
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from wheelcal import __version__
+from wheelcal.diagnose.harmonics import residual_by_wheel_angle
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.model import EULER_CONVENTION
@@ -89,7 +90,9 @@ def calibration_dict(
             "file": result.source,
             "topic": result.topic,
             "samples": int(result.time_s.size),
-            "window_s": list(result.window_s),
+            # sample times are whole nanoseconds: written at that precision (93.645, not
+            # 93.64500000000001 from the ns → s conversion)
+            "window_s": [round(t, 9) for t in result.window_s],
             "window_reason": window_reason,
             "sensor_id": result.info.sensor_id,
             "mounting_id": result.info.mounting_id,
@@ -122,6 +125,9 @@ def calibration_dict(
                 "ambiguous": bool(result.twin.ambiguous),
             },
             "poorly_determined": list(result.identifiability.poorly_determined),
+            "residual_by_wheel_angle": residual_by_wheel_angle(
+                result.params.spin.theta_at(result.centred_time_s), result.residual_mps2
+            ),
         },
         "systematic": {
             "gain_std": [_num(sys_std[f"gain_{a}"]) for a in AXES],
