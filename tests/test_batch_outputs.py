@@ -296,3 +296,15 @@ def test_progress_lines_carry_the_notes(tty):
     assert "[3/3] FAILED x.mcap: truncated" in text
     assert ("[1/3] ok r0.mcap" in text) is (not tty)  # a terminal shows the bar instead
     assert ("3/3 sessions, 1 failed" in text) is tty
+
+
+def test_a_sensor_file_of_an_earlier_run_without_sessions_now_is_marked_stale(bundled, tmp_path):
+    from wheelcal.batch.sensors import write_sensor_calibrations
+
+    _, _, sessions = bundled
+    old = tmp_path / "sensors" / "retired.calibration.json"
+    old.parent.mkdir()
+    old.write_text("{}")
+    (made,) = write_sensor_calibrations(tmp_path, sessions)
+    assert made.path == tmp_path / "sensors" / f"{SENSOR}.calibration.json"
+    assert not old.exists() and (tmp_path / "sensors" / "retired.calibration.stale.json").exists()

@@ -24,6 +24,7 @@ from wheelcal.io.sensor_calibration_json import (
 )
 
 SENSORS_FOLDER = "sensors"
+STALE_SUFFIX = ".calibration.stale.json"
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,7 +66,12 @@ def write_sensor_calibrations(
     closure: Mapping | None = None,
     durable: bool = False,
 ) -> list[SensorDeliverable]:
-    """Pool and write one calibration per sensor; returns them sorted by sensor id."""
+    """Pool and write one calibration per sensor; returns them sorted by sensor id.
+
+    A sensor file of an earlier run whose sensor has no calibrated session now
+    is renamed ``<stem>.calibration.stale.json``: nobody should apply it thinking
+    it is this batch's.
+    """
     by_sensor: dict[str, list[Mapping]] = defaultdict(list)
     for cal in calibrations:
         by_sensor[str(cal.get("source", {}).get("sensor_id") or "")].append(cal)
@@ -83,4 +89,8 @@ def write_sensor_calibrations(
         path.parent.mkdir(parents=True, exist_ok=True)
         write_sensor_calibration(path, doc, durable=durable)
         out.append(SensorDeliverable(sensor_id, path, doc))
+    written = {d.path.name for d in out}
+    for old in sorted((Path(out_dir) / SENSORS_FOLDER).glob("*.calibration.json")):
+        if old.name not in written:
+            old.replace(old.with_name(old.name.replace(".calibration.json", STALE_SUFFIX)))
     return out
