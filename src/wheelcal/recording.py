@@ -59,6 +59,8 @@ class SessionInfo:
     gravity_mps2: float | None = None
     full_scale_g: float | None = None
     extra: tuple[tuple[str, str], ...] = ()
+    #: The user insists on a gravity outside Earth's range (``--force-gravity``).
+    gravity_forced: bool = False
 
     def __post_init__(self) -> None:
         if self.radius_m is not None and not (np.isfinite(self.radius_m) and self.radius_m > 0):
@@ -67,7 +69,10 @@ class SessionInfo:
             )
         if not (np.isfinite(self.radius_std_m) and self.radius_std_m >= 0):
             raise RecordingError(f"radius_std_m must be >= 0, got {self.radius_std_m}")
-        if self.gravity_mps2 is not None and not (9.7 < self.gravity_mps2 < 9.9):
+        if self.gravity_mps2 is not None and not (
+            9.7 <= self.gravity_mps2 <= 9.9
+            or (self.gravity_forced and np.isfinite(self.gravity_mps2) and self.gravity_mps2 > 0)
+        ):
             raise RecordingError(
                 f"gravity_mps2 = {self.gravity_mps2} is not a value of g on Earth (9.7–9.9 m/s²)"
             )
@@ -93,8 +98,16 @@ class Recording:
     source: str = "<memory>"
     topic: str = ""
     notes: tuple[str, ...] = ()
+    #: Where the reader found the sensor clipping: (3, 2) low/high rail per axis in
+    #: m/s², NaN where none; None when nothing clipped.  Clipped samples are already
+    #: gone; the estimator also leaves out what the model predicts near a rail.
+    clip_limits_mps2: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        if self.clip_limits_mps2 is not None:
+            limits = np.array(self.clip_limits_mps2, dtype=float).reshape(3, 2)
+            limits.setflags(write=False)
+            object.__setattr__(self, "clip_limits_mps2", limits)
         t = np.array(self.time_s, dtype=float).reshape(-1)
         a = np.array(self.accel_mps2, dtype=float)
         if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] != t.size:
@@ -130,6 +143,13 @@ class Recording:
     def rate_hz(self) -> float:
         """Median sampling rate."""
         return float(1.0 / np.median(np.diff(self.time_s)))
+
+    def select(self, keep: np.ndarray) -> Recording:
+        """The samples where ``keep`` (bool per sample) is True."""
+        keep = np.asarray(keep, dtype=bool)
+        if keep.sum() < 2:
+            raise RecordingError(f"{self.source}: fewer than two samples left")
+        return replace(self, time_s=self.time_s[keep], accel_mps2=self.accel_mps2[keep])
 
     def window(self, start_s: float, end_s: float) -> Recording:
         """The samples with start_s <= t <= end_s (times keep their epoch)."""

@@ -25,11 +25,15 @@ Example (``pipelines/table2-repeatability.toml``)::
     kind = "processes"                      # or "dask" (with address = "tcp://…")
     workers = 2
 
+    [gates]                                 # optional: plausibility gates (README)
+    gain_tolerance = 0.03                   # e.g. the MPU-9250's ±3 % sensitivity
+
 Every key is checked: a typo is an error naming the file and the key, never silently ignored.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 import os
 import tomllib
@@ -37,6 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from wheelcal.batch.session import SessionOptions
+from wheelcal.estimate.gates import Gates
 from wheelcal.recording import SESSION_FACT_KEYS
 
 
@@ -73,6 +78,7 @@ _SECTIONS = {
         "tilt_std_deg",
     },
     "executor": {"kind", "workers", "address"},
+    "gates": {f.name for f in dataclasses.fields(Gates)},
 }
 
 
@@ -196,6 +202,13 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
     if executor.workers is not None and executor.workers < 1:
         raise PipelineError(f"{path}: [executor] workers must be >= 1")
     overrides = data.get("overrides", {})
+    gates_table = dict(data.get("gates", {}))
+    if "gain_range" in gates_table:
+        gates_table["gain_range"] = tuple(gates_table["gain_range"])
+    try:
+        gates = Gates(**gates_table)
+    except (TypeError, ValueError) as exc:
+        raise PipelineError(f"{path}: [gates]: {exc}") from None
     try:
         options = SessionOptions(
             topic=inputs.get("topic"),
@@ -206,6 +219,7 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
             diagnose=bool(run.get("diagnose", False)),
             alpha=float(run.get("alpha", 0.01)),
             defaults=tuple(sorted(data.get("defaults", {}).items())),
+            gates=gates,
             **overrides,
         )
     except (TypeError, ValueError) as exc:

@@ -1,22 +1,35 @@
-"""One session end to end: read → free-spin window → joint fit → calibration JSON (→ .rrd).
+"""One session end to end: read → gated calibration (→ closed loop) → files.
 
-Used by ``wheelcal calibrate`` and by the batch runner, so both behave the same.
-Bad input never escapes as a traceback: :func:`calibrate_session` returns a
-:class:`SessionOutcome` with the error text (naming the file) instead, and
-writes nothing for that session.
+Used by ``wheelcal calibrate``, ``diagnose`` and the batch runner, so all
+behave the same.  Computing and writing are separate:
+
+* :func:`compute_session` reads the recording and runs
+  :class:`~wheelcal.estimate.session_fit.SessionFit` (window, joint fit,
+  plausibility gates) and, if asked, the closed loop — no files;
+* :func:`write_session` writes the ``.rrd``, the diagnosis and, last, the
+  calibration JSON (it marks a complete session for the batch's up-to-date
+  check);
+* :func:`calibrate_session` does both and never raises for bad input: the
+  outcome carries the error (naming the file), the refusing gate and its fix.
+  A failed session leaves no calibration: one from an earlier successful run
+  of the same file is renamed ``<stem>.calibration.stale.json`` (likewise
+  its ``.diagnosis.json`` and ``.rrd``), and the error says so.
 """
 
 from __future__ import annotations
 
+import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from wheelcal.estimate.gates import Gates
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
-from wheelcal.estimate.window import FreeSpinWindow, find_free_spin
+from wheelcal.estimate.session_fit import SessionFit, WindowChoice
+from wheelcal.estimate.window import FreeSpinWindow
 from wheelcal.recording import (
     SESSION_FACT_KEYS,
     CalibrationRefused,
@@ -24,13 +37,20 @@ from wheelcal.recording import (
     RecordingError,
 )
 
-#: The fit needs this many wheel turns in the window (paper: ~100 in 90 s).
-MIN_TURNS = 10.0
+#: Outputs of a session, renamed ``<stem>.<kind>.stale.<ext>`` when a re-run fails.
+_OUTPUT_SUFFIXES = (".calibration.json", ".diagnosis.json", ".rrd")
+#: Local gravity on Earth lies in this range; outside it needs ``force_gravity``.
+EARTH_GRAVITY_RANGE_MPS2 = (9.7, 9.9)
 
 
 @dataclass(frozen=True)
 class SessionOptions:
-    """How to calibrate a session (command-line values; ``None`` = from the file)."""
+    """How to calibrate a session (command-line values; ``None`` = from the file).
+
+    Values are checked here, so a bad option is a usage error before any file
+    is read; values read from a recording's metadata are checked by
+    :class:`~wheelcal.recording.SessionInfo` and fail that session only.
+    """
 
     topic: str | None = None
     radius_m: float | None = None
@@ -52,12 +72,47 @@ class SessionOptions:
     #: Pipeline defaults: (key, value) pairs used where neither the file nor the
     #: command line gives a value (CONTRACT precedence: CLI > file > pipeline).
     defaults: tuple[tuple[str, object], ...] = ()
+    #: Plausibility gates (refusal and warning bands).
+    gates: Gates = field(default_factory=Gates)
+    #: Accept a gravity outside 9.7–9.9 m/s² (a centrifuge, another planet, a test).
+    force_gravity: bool = False
 
     def __post_init__(self) -> None:
         if (self.start_s is None) != (self.end_s is None):
             raise ValueError("give both --start-s and --end-s, or neither")
         if self.start_s is not None and not self.end_s > self.start_s:
             raise ValueError(f"--end-s ({self.end_s}) must be after --start-s ({self.start_s})")
+        if self.start_s is not None and self.start_s < 0:
+            raise ValueError(
+                f"--start-s must be >= 0 (s from the first sample), got {self.start_s}"
+            )
+        _positive("radius", self.radius_m, "m")
+        _positive("full scale", self.full_scale_g, "g")
+        if self.radius_std_m is not None and not (
+            np.isfinite(self.radius_std_m) and self.radius_std_m >= 0
+        ):
+            raise ValueError(f"--radius-std must be >= 0 m, got {self.radius_std_m}")
+        if self.gravity_mps2 is not None:
+            _positive("gravity", self.gravity_mps2, "m/s²")
+            lo, hi = EARTH_GRAVITY_RANGE_MPS2
+            if not (lo <= self.gravity_mps2 <= hi or self.force_gravity):
+                raise ValueError(
+                    f"--gravity {self.gravity_mps2:g} m/s² is not g on Earth ({lo}–{hi}); "
+                    "use --force-gravity if you mean it"
+                )
+        if self.known_tilt_deg is not None and not 0.0 <= self.known_tilt_deg <= 90.0:
+            raise ValueError(f"--tilt-deg must lie in [0, 90]°, got {self.known_tilt_deg}")
+        if not (np.isfinite(self.tilt_std_deg) and self.tilt_std_deg >= 0):
+            raise ValueError(f"--tilt-std-deg must be >= 0, got {self.tilt_std_deg}")
+        if not 0 < self.alpha < 1:
+            raise ValueError(f"--alpha must lie in (0, 1), got {self.alpha}")
+        if self.accel_unit not in (None, "m/s^2", "g"):
+            raise ValueError(f"--accel-unit must be 'm/s^2' or 'g', got {self.accel_unit!r}")
+        if self.geometry == "tilt" and self.known_tilt_deg is None:
+            raise ValueError("--geometry tilt needs --tilt-deg")
+        unknown = {k for k, _ in self.defaults} - set(SESSION_FACT_KEYS)
+        if unknown:
+            raise ValueError(f"unknown session fact(s) {sorted(unknown)} in the defaults")
 
     def info_overrides(self) -> dict[str, object]:
         """Session facts given on the command line (they override the file)."""
@@ -74,6 +129,17 @@ class SessionOptions:
             known_tilt_deg=self.known_tilt_deg,
             tilt_std_deg=self.tilt_std_deg,
         )
+
+    def session_fit(self) -> SessionFit:
+        """Window, joint fit and gates for these options."""
+        return SessionFit(
+            fitter=self.fitter(), gates=self.gates, start_s=self.start_s, end_s=self.end_s
+        )
+
+
+def _positive(what: str, value: float | None, unit: str) -> None:
+    if value is not None and not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{what} must be a positive number of {unit}, got {value}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,10 +160,12 @@ class SessionOutcome:
     #: For a refused calibration: the gate that refused it and the likely fix.
     gate: str | None = None
     fix: str | None = None
+    #: The whole recording (for the .rrd); None after a failure.
+    recording: Recording | None = None
 
     @property
     def ok(self) -> bool:
-        """True when the session was calibrated and written."""
+        """True when the session was calibrated (and, after writing, written)."""
         return self.error is None
 
 
@@ -107,30 +175,55 @@ def session_stem(path: str | Path) -> str:
     return name[: -len(".mcap")] if name.endswith(".mcap") else Path(path).stem
 
 
-def free_spin(
-    recording: Recording, options: SessionOptions
-) -> tuple[Recording, FreeSpinWindow | None, str]:
-    """Cut the recording to its free-spin window (automatic unless given)."""
-    if options.start_s is not None:
-        reason = f"window given on the command line: {options.start_s:g}–{options.end_s:g} s"
-        return recording.window(options.start_s, options.end_s), None, reason
-    found = find_free_spin(recording)
-    return recording.window(found.start_s, found.end_s), found, found.reason
+def compute_session(path: str | Path, options: SessionOptions) -> SessionOutcome:
+    """Read and calibrate one recording; no files are written.
 
+    Raises :class:`~wheelcal.recording.RecordingError` (including
+    :class:`~wheelcal.recording.CalibrationRefused`) and the reader's
+    ``InputError`` for bad input.
+    """
+    from wheelcal.io import read_recording
 
-def check_turns(result: CalibrationResult) -> float:
-    """Turns of the wheel in the fitted window; raises if too few to calibrate."""
-    t = result.centred_time_s
-    turns = abs(
-        float(result.params.spin.theta_at(t[-1:])[0] - result.params.spin.theta_at(t[:1])[0])
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    recording = read_recording(
+        path,
+        topic=options.topic,
+        info_overrides=options.info_overrides(),
+        info_defaults=options.info_defaults(),
+        accel_unit=options.accel_unit,
+        gravity_checked=not options.force_gravity,
     )
-    turns /= 2 * np.pi
-    if turns < MIN_TURNS:
-        raise RecordingError(
-            f"{result.source}: the wheel turned only {turns:.1f} times in the fitted window "
-            f"(need at least {MIN_TURNS:g}): spin it harder or record longer"
-        )
-    return turns
+    timings["read"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    fit = options.session_fit().run(recording)
+    timings["fit"] = time.perf_counter() - t1
+    result, choice = fit.result, fit.window
+    diagnosis = None
+    if options.diagnose:
+        from wheelcal.diagnose.closed_loop import ClosedLoop
+        from wheelcal.estimate.session_fit import assess
+
+        t1 = time.perf_counter()
+        loop = ClosedLoop(fit=options.fitter(), alpha=options.alpha)
+        diagnosis = loop.run(choice.recording, base=result)
+        if diagnosis.steps:
+            result = assess(diagnosis.final, fit.rests, options.gates)
+        timings["diagnose"] = time.perf_counter() - t1
+    return _outcome_of(str(path), result, choice, diagnosis, recording, timings)
+
+
+def _outcome_of(source, result, choice: WindowChoice, diagnosis, recording, timings):
+    return SessionOutcome(
+        source=source,
+        stem=session_stem(source),
+        result=result,
+        window=choice.found,
+        window_reason=choice.reason,
+        diagnosis=diagnosis,
+        recording=recording,
+        timings_s=timings,
+    )
 
 
 def _write_rrd(path: Path, result, recording, window, diagnosis, durable: bool = True) -> Path:
@@ -147,6 +240,61 @@ def _write_rrd(path: Path, result, recording, window, diagnosis, durable: bool =
     return path
 
 
+def write_session(
+    outcome: SessionOutcome,
+    options: SessionOptions,
+    out_dir: str | Path,
+    provenance: dict | None = None,
+    durable: bool = True,
+) -> SessionOutcome:
+    """Write a computed session's files; returns the outcome with their paths."""
+    from wheelcal.io.calibration_json import write_calibration
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    timings = dict(outcome.timings_s)
+    t1 = time.perf_counter()
+    stem = outcome.stem
+    # The .rrd first: the calibration JSON marks a complete session (the batch's
+    # up-to-date check), so it is written last.
+    rrd_path = diagnosis_path = None
+    if options.rrd:
+        rrd_path = str(
+            _write_rrd(
+                out / f"{stem}.rrd",
+                outcome.result,
+                outcome.recording,
+                outcome.window,
+                outcome.diagnosis,
+                durable,
+            )
+        )
+        timings["rrd"] = time.perf_counter() - t1
+        t1 = time.perf_counter()
+    if outcome.diagnosis is not None:
+        from wheelcal.io.diagnosis_json import write_diagnosis
+
+        diagnosis_path = str(
+            write_diagnosis(out / f"{stem}.diagnosis.json", outcome.diagnosis, durable=durable)
+        )
+    json_path = write_calibration(
+        out / f"{stem}.calibration.json",
+        outcome.result,
+        options.geometry,
+        provenance,
+        durable,
+        window_reason=outcome.window_reason,
+    )
+    timings["write"] = time.perf_counter() - t1
+    return replace(
+        outcome,
+        calibration_path=str(json_path),
+        diagnosis_path=diagnosis_path,
+        rrd_path=rrd_path,
+        timings_s=timings,
+    )
+
+
 def calibrate_session(
     path: str | Path,
     options: SessionOptions,
@@ -157,90 +305,48 @@ def calibrate_session(
 ) -> SessionOutcome:
     """Calibrate one recording and write ``<out>/<stem>.calibration.json``.
 
-    Never raises for bad input: the outcome carries the error instead.
-    ``provenance`` is stored in the JSON (the batch runner's up-to-date check).
-    ``durable=False`` skips the per-file fsyncs (the batch syncs once at the end);
-    the files are still written atomically.  ``stem`` names the outputs
-    (default :func:`session_stem`; a batch passes unique ones).
+    Never raises for bad input: the outcome carries the error instead, and no
+    calibration of this file is left in ``out_dir`` (an earlier one is renamed
+    ``.stale``).  ``provenance`` is stored in the JSON (the batch runner's
+    up-to-date check).  ``durable=False`` skips the per-file fsyncs (the batch
+    syncs once at the end); the files are still written atomically.  ``stem``
+    names the outputs (default :func:`session_stem`; a batch passes unique ones).
     """
-    from wheelcal.io import read_recording
-    from wheelcal.io.calibration_json import write_calibration
-
     source = str(path)
     stem = stem or session_stem(path)
-    timings: dict[str, float] = {}
-    t0 = time.perf_counter()
     try:
-        recording = read_recording(
-            path, topic=options.topic, info_overrides=options.info_overrides()
-        )
-        timings["read"] = time.perf_counter() - t0
-        t1 = time.perf_counter()
-        windowed, window, reason = free_spin(recording, options)
-        timings["window"] = time.perf_counter() - t1
-        t1 = time.perf_counter()
-        result = options.fitter().fit(windowed)
-        check_turns(result)
-        timings["fit"] = time.perf_counter() - t1
-        t1 = time.perf_counter()
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        # The .rrd first: the calibration JSON marks a complete session (the batch's
-        # up-to-date check), so it is written last.
-        diagnosis = diagnosis_path = None
-        if options.diagnose:
-            from wheelcal.diagnose.closed_loop import ClosedLoop
-            from wheelcal.io.diagnosis_json import write_diagnosis
-
-            loop = ClosedLoop(fit=options.fitter(), alpha=options.alpha)
-            diagnosis = loop.run(windowed, base=result)
-            timings["diagnose"] = time.perf_counter() - t1
-            t1 = time.perf_counter()
-            result = diagnosis.final
-        # The .rrd first: the calibration JSON marks a complete session (the batch's
-        # up-to-date check), so it is written last.
-        rrd_path = None
-        if options.rrd:
-            rrd_path = _write_rrd(
-                out / f"{stem}.rrd", result, recording, window, diagnosis, durable
-            )
-            timings["rrd"] = time.perf_counter() - t1
-            t1 = time.perf_counter()
-        if diagnosis is not None:
-            diagnosis_path = str(
-                write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis, durable=durable)
-            )
-        json_path = write_calibration(
-            out / f"{stem}.calibration.json",
-            result,
-            options.geometry,
-            provenance,
-            durable,
-            window_reason=reason,
-        )
-        timings["write"] = time.perf_counter() - t1
+        outcome = replace(compute_session(path, options), stem=stem)
+        return write_session(outcome, options, out_dir, provenance, durable)
     except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:
         message = str(exc)
         if source not in message:
             message = f"{source}: {message}"
+        stale = _keep_as_stale(Path(out_dir), stem)
+        if stale:
+            message += f" (an earlier calibration of this file was kept as {stale})"
         refused = exc if isinstance(exc, CalibrationRefused) else None
         return SessionOutcome(
             source=source,
             stem=stem,
             error=message,
-            timings_s=timings,
             gate=refused.gate if refused else None,
             fix=refused.fix if refused else None,
         )
-    return SessionOutcome(
-        source=source,
-        stem=stem,
-        result=result,
-        window=window,
-        window_reason=reason,
-        calibration_path=str(json_path),
-        diagnosis=diagnosis,
-        diagnosis_path=diagnosis_path,
-        rrd_path=None if rrd_path is None else str(rrd_path),
-        timings_s=timings,
-    )
+
+
+def _keep_as_stale(out: Path, stem: str) -> str | None:
+    """Rename a failed session's earlier outputs to ``.stale``; the calibration's new name."""
+    kept = None
+    for suffix in _OUTPUT_SUFFIXES:
+        old = out / f"{stem}{suffix}"
+        if not old.exists():
+            continue
+        kind, _, ext = suffix.rpartition(".")
+        new = out / f"{stem}{kind}.stale.{ext}"
+        try:
+            os.replace(old, new)
+        except OSError:
+            continue
+        if suffix == ".calibration.json":
+            kept = new.name
+    return kept

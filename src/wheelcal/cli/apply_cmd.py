@@ -21,6 +21,11 @@ def register(sub) -> None:
     p.add_argument("--topic", help="accelerometer topic to correct (default: the calibration's)")
     p.add_argument("--out-topic", help="name of the calibrated topic (default <topic>/calibrated)")
     p.add_argument("--format", choices=("ros2", "json"), help="encoding of the calibrated topic")
+    p.add_argument(
+        "--allow-partial",
+        action="store_true",
+        help="apply a calibration with undetermined parameters (those axes pass unchanged)",
+    )
     p.set_defaults(handler=run)
 
 
@@ -29,7 +34,13 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.io.apply_calibration import apply_calibration
 
     topic, samples = apply_calibration(
-        args.calibration, args.source, args.destination, args.topic, args.out_topic, args.format
+        args.calibration,
+        args.source,
+        args.destination,
+        args.topic,
+        args.out_topic,
+        args.format,
+        allow_partial=args.allow_partial,
     )
     print(f"wrote {args.destination}: {samples} calibrated samples on {topic}")
     return 0

@@ -17,6 +17,12 @@ def register(sub) -> None:
     p.add_argument("--format", choices=("yaml", "c"), required=True)
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
     p.add_argument("--prefix", default="WHEELCAL", help="C identifier prefix")
+    p.add_argument(
+        "--allow-partial",
+        action="store_true",
+        help="export a calibration with undetermined parameters: those axes get identity rows "
+        "(gain 1, offset 0), marked in comments",
+    )
     p.set_defaults(handler=run)
 
 
@@ -27,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.io.calibration_json import load_calibration
     from wheelcal.io.export_formats import to_c_header, to_yaml
 
-    calibration = load_calibration(args.calibration)
+    calibration = load_calibration(args.calibration, allow_partial=args.allow_partial)
     try:
         text = (
             to_yaml(calibration) if args.format == "yaml" else to_c_header(calibration, args.prefix)

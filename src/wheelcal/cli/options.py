@@ -53,6 +53,51 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     )
     m.add_argument("--tilt-deg", type=float, help="measured tilt for --geometry tilt")
     m.add_argument("--tilt-std-deg", type=float, default=0.5, help="uncertainty of the known tilt")
+    g.add_argument(
+        "--force-gravity",
+        action="store_true",
+        help="accept a --gravity outside Earth's 9.7–9.9 m/s²",
+    )
+    add_gate_arguments(parser)
+
+
+#: Command-line flag → Gates field, for the plausibility gates (README "When wheelcal refuses").
+GATE_FLAGS = {
+    "max_offset_g": "refuse offsets above this many g (default 0.3)",
+    "min_samples_per_turn": "refuse fewer samples per wheel turn at the fastest rate (default 4)",
+    "max_window_s": "longest free-spin window fitted, s (default 300)",
+    "gain_tolerance": "warn when a gain is further than this from 1 (default 0.05)",
+    "offset_tolerance_g": "warn when an offset exceeds this many g (default 0.1)",
+    "mean_gain_tolerance": "warn when the mean gain is further than this from 1 (default 0.05)",
+    "unexplained_ratio": "warn when the residual exceeds this × the noise floor (default 1.5)",
+}
+
+
+def add_gate_arguments(parser: argparse.ArgumentParser) -> None:
+    """Overrides of the plausibility gates (refusal and warning bands)."""
+    g = parser.add_argument_group("plausibility gates (README: When wheelcal refuses)")
+    g.add_argument(
+        "--gain-range",
+        nargs=2,
+        type=positive_float,
+        metavar=("LOW", "HIGH"),
+        help="refuse gains outside [LOW, HIGH] (default 0.5 2)",
+    )
+    for name, text in GATE_FLAGS.items():
+        g.add_argument("--" + name.replace("_", "-"), type=positive_float, help=text)
+
+
+def gates_from_args(args: argparse.Namespace):
+    """The Gates given by the command line (defaults where not given)."""
+    from wheelcal.estimate.gates import Gates
+
+    given = {name: getattr(args, name, None) for name in GATE_FLAGS}
+    if getattr(args, "gain_range", None) is not None:
+        given["gain_range"] = tuple(args.gain_range)
+    try:
+        return Gates(**{k: v for k, v in given.items() if v is not None})
+    except ValueError as exc:
+        raise UsageError(f"plausibility gates: {exc}") from None
 
 
 def session_options(args: argparse.Namespace, rrd: bool = False):
@@ -61,6 +106,7 @@ def session_options(args: argparse.Namespace, rrd: bool = False):
 
     if args.geometry == "tilt" and args.tilt_deg is None:
         raise UsageError("--geometry tilt needs --tilt-deg")
+    gates = gates_from_args(args)
     try:
         return SessionOptions(
             topic=args.topic,
@@ -77,6 +123,8 @@ def session_options(args: argparse.Namespace, rrd: bool = False):
             tilt_std_deg=args.tilt_std_deg,
             rrd=rrd,
             accel_unit=args.accel_unit,
+            gates=gates,
+            force_gravity=args.force_gravity,
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from None

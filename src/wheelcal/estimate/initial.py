@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.decimation import thinning_stride
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
 
 _TREND_DEGREE = 6
@@ -42,6 +43,9 @@ class InitialGuess:
     params: CalibrationParams
     spin_down_resolved: bool  # whether c₁ (centripetal) was measurable
     notes: tuple[str, ...]
+    #: Radius mode: the radius for which the gains would average 1 (their geometric
+    #: mean), from c₁ = r·We_X and the rotating part G·We_X; None if not measurable.
+    implied_radius_m: float | None = None
 
 
 def initial_guess(
@@ -58,10 +62,16 @@ def initial_guess(
     """
     if (radius_m is None) == (tilt_rad is None):
         raise ValueError("give exactly one of radius_m and tilt_rad")
-    # A few thousand samples pin the starting point down; more only cost time.
-    stride = max(1, np.asarray(t_s).size // _MAX_SAMPLES)
-    t = np.asarray(t_s, dtype=float)[::stride]
-    v = np.asarray(accel_mps2, dtype=float)[::stride]
+    # A few thousand samples pin the starting point down; more only cost time.  The
+    # thinning keeps ≥ 16 samples per turn at twice the dominant turn rate, so a long
+    # recording is never aliased (estimate/decimation.py).
+    t_all = np.asarray(t_s, dtype=float)
+    v_all = np.asarray(accel_mps2, dtype=float)
+    rate_all = 1.0 / np.median(np.diff(t_all))
+    turn_hz_all = _dominant_frequency(_plane_signal(v_all), rate_all)
+    stride = thinning_stride(t_all.size, _MAX_SAMPLES, rate_all, 2 * 2 * np.pi * turn_hz_all)
+    t = t_all[::stride]
+    v = v_all[::stride]
     half = max(np.abs(t).max(), 1e-9)
     tau = t / half
     notes: list[str] = []
@@ -119,11 +129,15 @@ def initial_guess(
         notes.append("gain ratios not resolvable from the rotating signal; started from unit gains")
         amp = 0.5 * (np.linalg.norm(gw_x) + np.linalg.norm(gw_y))
         scaled_gain = np.full(3, amp)
+    implied_radius = None
     if tilt_rad is not None:
         g_sin = gravity_mps2 * np.sin(tilt_rad)
     elif resolved:
         # c₁ = r Γ Rₓ and gw_x = G Γ Rₓ, so G = r (gw_x·c₁)/|c₁|².
-        g_sin = radius_m * (gw_x @ c1) / (c1 @ c1)
+        g_per_r = (gw_x @ c1) / (c1 @ c1)
+        g_sin = radius_m * g_per_r
+        if g_per_r > 0:  # gains averaging 1 means G = their (scaled) geometric mean
+            implied_radius = float(np.exp(np.mean(np.log(scaled_gain))) / g_per_r)
         if not g_sin > 0:
             g_sin = float(np.exp(np.mean(np.log(scaled_gain))))
     else:
@@ -149,7 +163,20 @@ def initial_guess(
         sensor=SensorParams(offset_mps2=offset, gain=np.clip(gain, 0.2, 5.0)),
         gravity_mps2=gravity_mps2,
     )
-    return InitialGuess(params=params, spin_down_resolved=resolved, notes=tuple(notes))
+    return InitialGuess(
+        params=params,
+        spin_down_resolved=resolved,
+        notes=tuple(notes),
+        implied_radius_m=implied_radius,
+    )
+
+
+def _plane_signal(v: np.ndarray) -> np.ndarray:
+    """V projected on its two principal directions of largest variance (the wheel plane)."""
+    sub = v[:: max(1, v.shape[0] // 20000)]  # second moments need no anti-aliasing
+    mean = sub.mean(axis=0)
+    _, vecs = np.linalg.eigh((sub - mean).T @ (sub - mean))
+    return (v - mean) @ vecs[:, 1:]
 
 
 def _poly_trend(tau: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:

@@ -27,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.decimation import thinning_stride
 from wheelcal.estimate.identifiability import check_identifiability
 from wheelcal.estimate.information import covariance_from_fisher
-from wheelcal.estimate.initial import initial_guess
+from wheelcal.estimate.initial import InitialGuess, initial_guess
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.normal_equations import accumulate
@@ -116,16 +117,40 @@ class JointFit:
             return float(np.deg2rad(self.known_tilt_deg))
         return None
 
-    def fit(
-        self, recording: Recording, initial: CalibrationParams | None = None
-    ) -> CalibrationResult:
-        """Calibrate one recording (already cut to its free-spin window)."""
+    def _checked_info(self, recording: Recording):
         info = recording.info
         if self.geometry == "radius" and info.radius_m is None:
             raise RecordingError(
                 f"{recording.source}: the radius (sensor distance from the axle) is needed: "
                 "give --radius or radius_m in the wheelcal.session metadata"
             )
+        return info
+
+    def start(self, recording: Recording) -> InitialGuess:
+        """The closed-form starting point (:mod:`wheelcal.estimate.initial`) for a window."""
+        info = self._checked_info(recording)
+        t = recording.time_s
+        return initial_guess(
+            t - 0.5 * (t[0] + t[-1]),
+            recording.accel_mps2,
+            info.gravity_or_standard_mps2,
+            radius_m=info.radius_m if self.geometry == "radius" else None,
+            tilt_rad=self._fixed_tilt_rad(),
+            spin_degree=self.spin_degree,
+        )
+
+    def fit(
+        self,
+        recording: Recording,
+        initial: CalibrationParams | None = None,
+        guess: InitialGuess | None = None,
+    ) -> CalibrationResult:
+        """Calibrate one recording (already cut to its free-spin window).
+
+        ``initial`` starts from given parameters; ``guess`` reuses a
+        :meth:`start` already computed for this window.
+        """
+        info = self._checked_info(recording)
         t = recording.time_s
         centre = 0.5 * (t[0] + t[-1])
         tc = t - centre
@@ -135,22 +160,17 @@ class JointFit:
         notes: list[str] = []
         if initial is None and self.effects:
             # Settle the twin on the paper's model, then free the effects from zero.
-            initial = dataclasses.replace(self, effects=()).fit(recording).params
+            initial = dataclasses.replace(self, effects=()).fit(recording, guess=guess).params
         if initial is None:
-            guess = initial_guess(
-                tc,
-                v,
-                gravity,
-                radius_m=info.radius_m if self.geometry == "radius" else None,
-                tilt_rad=self._fixed_tilt_rad(),
-                spin_degree=self.spin_degree,
-            )
+            guess = guess or self.start(recording)
             initial = guess.params
             notes += guess.notes
 
         # Stage 1: least squares on a decimated copy (it only needs to get close),
         # per-axis weights from first differences.
-        stride = max(1, t.size // _STAGE1_SAMPLES)
+        # (never below 16 samples per turn at the fastest rate: no aliasing)
+        omega_max = float(np.max(np.abs(initial.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
+        stride = thinning_stride(t.size, _STAGE1_SAMPLES, recording.rate_hz, omega_max)
         std0 = np.maximum(np.std(np.diff(v, axis=0), axis=0) / np.sqrt(2), 1e-6)
         out = levenberg_marquardt(
             _residual_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),

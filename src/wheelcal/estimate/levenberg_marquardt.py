@@ -106,9 +106,21 @@ def levenberg_marquardt(
     return LMOutcome(params, normal, iteration, converged, message)
 
 
+#: Scaled-Hessian eigenvalues below this fraction of the largest mark directions the data
+#: do not determine (σ along them > 10⁴ × the parameters' own scale).  Clean recordings
+#: stay above 1e-5; an axis along the wheel axis or a radial axis gives 1e-10.
+UNDETERMINED_EIGEN_FRACTION = 1e-8
+
+
 def _gauss_newton_decrease(a_s: np.ndarray, g_s: np.ndarray) -> float:
-    """gᵀA⁻¹g using a pseudo-inverse (A may be singular in unidentifiable directions)."""
+    """gᵀA⁻¹g over the directions the data determine.
+
+    A step along a direction the data do not determine (an exact or near null
+    space, e.g. a rotation about a radial sensor axis traded against two gains)
+    has no σ to be small against: such directions would keep the decrease
+    above any tolerance while the cost stays flat, so they do not count.
+    """
     w, v = np.linalg.eigh(a_s)
-    keep = w > w.max() * 1e-13
+    keep = w > w.max() * UNDETERMINED_EIGEN_FRACTION
     proj = v[:, keep].T @ g_s
     return float(np.sum(proj**2 / w[keep]))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,6 +13,9 @@ from wheelcal.estimate.systematic import SystematicBudget
 from wheelcal.estimate.twins import TwinChoice
 from wheelcal.model import CalibrationParams, ParameterLayout
 from wheelcal.recording import SessionInfo
+
+if TYPE_CHECKING:
+    from wheelcal.estimate.gates import Assessment
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,6 +54,13 @@ class CalibrationResult:
     source: str
     topic: str
     notes: tuple[str, ...] = ()
+    #: What the plausibility gates made of it (None until assessed).
+    assessment: Assessment | None = None
+
+    @property
+    def undetermined(self) -> tuple[str, ...]:
+        """Parameters this recording cannot determine (reported as null)."""
+        return () if self.assessment is None else self.assessment.undetermined_names
 
     @property
     def std(self) -> np.ndarray:

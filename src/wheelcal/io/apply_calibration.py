@@ -21,15 +21,17 @@ def apply_calibration(
     topic: str | None = None,
     out_topic: str | None = None,
     encoding: str | None = None,
+    allow_partial: bool = False,
 ) -> tuple[str, int]:
     """Add ``<topic>/calibrated`` (corrected samples, same stamps) to a copy of ``source``.
 
     The calibration JSON is also stored as an MCAP metadata record named
     ``wheelcal.calibration``.  Returns the new topic and the number of samples.
     Samples the reader repaired or dropped (NaNs, duplicates, clipping) are
-    handled as in calibration and listed in the recording's notes.
+    handled as in calibration and listed in the recording's notes.  A
+    calibration with undetermined parameters needs ``allow_partial``.
     """
-    calibration = load_calibration(calibration_path)
+    calibration = load_calibration(calibration_path, allow_partial=allow_partial)
     correction = load_correction_from(calibration)
     topic = topic or calibration.get("source", {}).get("topic") or None
     try:

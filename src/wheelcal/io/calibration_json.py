@@ -58,11 +58,15 @@ def calibration_dict(
     output is up to date.
     """
     params = result.params
+    undetermined = set(result.undetermined)
     std = dict(zip(result.names, result.std, strict=True))
+    values = dict(zip(result.names, result.values, strict=True))
+    for name in undetermined:  # never a usable-looking number
+        std[name] = values[name] = float("nan")
     budget = result.systematic
     sys_std = dict(zip(budget.names, budget.total_std, strict=True))
     spin = params.spin
-    correction = SensorCorrection.from_offset_gain(params.sensor.offset_mps2, params.sensor.gain)
+    correction, identity_axes = _correction(result, undetermined)
     motion = {"model": f"polynomial{spin.degree}", "t0_unix_ns": int(result.t0_unix_ns)}
     for name, value in spin.to_dict().items():
         motion[name] = _num(value)
@@ -99,24 +103,22 @@ def calibration_dict(
             "notes": list(result.notes),
         },
         "sensor": {
-            "offset_mps2": _vec(params.sensor.offset_mps2),
-            "gain": _vec(params.sensor.gain),
+            "offset_mps2": [_num(values[f"offset_{a}_mps2"]) for a in AXES],
+            "gain": [_num(values[f"gain_{a}"]) for a in AXES],
             "offset_std_mps2": [_num(std[f"offset_{a}_mps2"]) for a in AXES],
             "gain_std": [_num(std[f"gain_{a}"]) for a in AXES],
+            "undetermined": _undetermined(result),
         },
         "bench": bench,
         "motion": motion,
         "effects": effects_dict(result),
-        "parameters": {
-            n: {"value": _num(v), "std": _num(s)}
-            for n, v, s in zip(result.names, result.values, result.std, strict=True)
-        },
+        "parameters": {n: {"value": _num(values[n]), "std": _num(std[n])} for n in result.names},
         "fit": {
             "residual_rms_mps2": _vec(result.residual_rms_mps2),
             "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
             "converged": bool(result.converged),
             "iterations": int(result.iterations),
-            "covariance": [[_num(c) for c in row] for row in result.covariance],
+            "covariance": _covariance(result, undetermined),
             "covariance_names": list(result.names),
             "warnings": list(result.warnings),
             "noise_model": result.noise.to_dict(),
@@ -128,6 +130,7 @@ def calibration_dict(
             "residual_by_wheel_angle": residual_by_wheel_angle(
                 result.params.spin.theta_at(result.centred_time_s), result.residual_mps2
             ),
+            **_assessment(result),
         },
         "systematic": {
             "gain_std": [_num(sys_std[f"gain_{a}"]) for a in AXES],
@@ -153,8 +156,76 @@ def calibration_dict(
             "bias_mps2": _vec(correction.bias_mps2),
             "matrix": correction.matrix.tolist(),
             "equation": "a = matrix @ (v - bias)",
+            **(
+                {
+                    "identity_axes": identity_axes,
+                    "note": "these axes are left unchanged (gain 1, offset 0): the recording "
+                    "cannot determine their gain or offset (see sensor.undetermined)",
+                }
+                if identity_axes
+                else {}
+            ),
         },
     }
+
+
+def _correction(result: CalibrationResult, undetermined: set[str]):
+    """The correction, with gain 1 / offset 0 on every axis with an undetermined parameter."""
+    gain = np.array(result.params.sensor.gain, dtype=float)
+    offset = np.array(result.params.sensor.offset_mps2, dtype=float)
+    identity = [
+        a for a in AXES if f"gain_{a}" in undetermined or f"offset_{a}_mps2" in undetermined
+    ]
+    for a in identity:
+        i = AXES.index(a)
+        gain[i], offset[i] = 1.0, 0.0
+    return SensorCorrection.from_offset_gain(offset, gain), identity
+
+
+def _undetermined(result: CalibrationResult) -> list[dict]:
+    if result.assessment is None:
+        return []
+    return [{"parameter": n, "reason": r} for n, r in result.assessment.undetermined]
+
+
+def _covariance(result: CalibrationResult, undetermined: set[str]) -> list:
+    cov = np.array(result.covariance, dtype=float)
+    for name in undetermined:
+        i = result.names.index(name)
+        cov[i, :] = cov[:, i] = np.nan
+    return [[_num(c) for c in row] for row in cov]
+
+
+def _assessment(result: CalibrationResult) -> dict:
+    """``fit`` keys from the gates: noise floor, unexplained residual, rest checks, thresholds."""
+    a = result.assessment
+    if a is None:
+        return {}
+    out = {}
+    if a.noise is not None:
+        out["noise_floor_mps2"] = _vec(a.noise.floor_mps2)
+        out["unexplained_mps2"] = _vec(a.noise.unexplained_mps2)
+        out["noise_reference"] = _clean(a.noise.to_dict())
+    if a.motion is not None:
+        out["motion_check"] = _clean(a.motion.to_dict())
+    out["rest_checks"] = [_clean(c.to_dict()) for c in a.rest_checks]
+    out["gates"] = a.gates.to_dict()
+    return out
+
+
+def _clean(value):
+    """Floats made JSON-safe through nested lists and dicts."""
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return _num(value)
+    return value
 
 
 def effects_dict(result: CalibrationResult) -> dict:
@@ -199,10 +270,13 @@ def write_calibration(
     return Path(path)
 
 
-def load_calibration(path: str | os.PathLike) -> dict:
+def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> dict:
     """Read and check a calibration JSON (format tag, correction block).
 
     Accepts a session's calibration and a sensor's pooled one (:data:`CORRECTION_FORMATS`).
+    A calibration with undetermined parameters (``sensor.undetermined``) is
+    refused unless ``allow_partial``: its correction leaves those axes
+    unchanged, which a user must choose knowingly.
     """
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
@@ -219,7 +293,19 @@ def load_calibration(path: str | os.PathLike) -> dict:
         load_correction_from(data)
     except (KeyError, TypeError, ValueError) as exc:
         raise CalibrationFileError(f"{path}: unusable correction block ({exc})") from None
+    missing = [u.get("parameter", "?") for u in data.get("sensor", {}).get("undetermined", [])]
+    if missing and not allow_partial:
+        raise CalibrationFileError(
+            f"{path}: the recording could not determine {', '.join(missing)}; the correction "
+            "leaves those axes unchanged (gain 1, offset 0). Use --allow-partial to export or "
+            "apply it anyway"
+        )
     return data
+
+
+def partial_axes(data: dict) -> list[str]:
+    """Axes the correction leaves unchanged because a parameter was undetermined."""
+    return list(data.get("correction", {}).get("identity_axes", []))
 
 
 def load_correction_from(data: dict) -> SensorCorrection:

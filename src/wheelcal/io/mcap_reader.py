@@ -185,6 +185,7 @@ def read_recording(
     info_defaults: Mapping[str, object] | None = None,
     accel_unit: str | None = None,
     policy: InputPolicy | None = None,
+    gravity_checked: bool = True,
 ) -> Recording:
     """Read the accelerometer samples and session facts of an MCAP recording.
 
@@ -207,6 +208,9 @@ def read_recording(
     policy:
         Thresholds for repairing versus refusing defects
         (:class:`~wheelcal.io.sample_checks.InputPolicy`).
+    gravity_checked:
+        Refuse a ``gravity_mps2`` outside Earth's 9.7–9.9 m/s² (False: the
+        user forced it).
 
     Returns
     -------
@@ -228,7 +232,9 @@ def read_recording(
     chosen = choose_topic(scan, topic)
     where = f"topic {chosen.topic}"
     records = [dict(values) for name, values in scan.metadata if name == SESSION_METADATA_NAME]
-    info = session_info(scan.path, records, info_overrides, info_defaults)
+    info = session_info(
+        scan.path, records, info_overrides, info_defaults, gravity_forced=not gravity_checked
+    )
 
     unit = accel_unit or chosen.unit
     if unit not in UNITS:
@@ -259,4 +265,5 @@ def read_recording(
         source=scan.path,
         topic=chosen.topic,
         notes=tuple(notes) + clean.notes,
+        clip_limits_mps2=clean.clip_limits_mps2,
     )

@@ -22,9 +22,10 @@ too short                   —                                   < 10 s or < 10
 
 Clipping is found from ``full_scale_g`` when the session gives it (any axis
 at ≥ 99.5 % of ±full scale), else as *runs at the extreme value*: a saturated
-axis repeats its rail value exactly, which noisy unsaturated data never does
-for ``clip_run_samples`` samples in a row at the maximum (only extremes
-beyond 1.5 g are considered, so a quantised signal at rest is not flagged).
+axis repeats its rail value — exactly, or toggling by a count or two — for
+``clip_run_samples`` samples in a row, turn after turn, which noisy
+unsaturated data never does at its maximum (only extremes beyond 1.5 g are
+considered, so a quantised signal at rest is not flagged).
 
 The unit check is scale-invariant: "quiet" stretches (per-axis spread below
 2 % of |a|; a turning wheel spreads its axes by g sin α, far more) can only
@@ -54,6 +55,7 @@ class InputPolicy:
     gap_factor: float = 3.0
     max_clipped_fraction: float = 0.20
     clip_run_samples: int = 3
+    rail_jitter_counts: float = 2.0
     clip_margin: float = 0.995
     min_duration_s: float = 10.0
     min_samples: int = 100
@@ -67,6 +69,8 @@ class CleanSamples:
     time_ns: np.ndarray
     accel_mps2: np.ndarray
     notes: tuple[str, ...]
+    #: (3, 2) low/high rail per axis where clipping was found, NaN elsewhere.
+    clip_limits_mps2: np.ndarray | None = None
 
 
 def _pct(part: int, whole: int) -> str:
@@ -114,7 +118,7 @@ def clean_samples(
     t, a = _order(path, t, a, policy, notes)
     t, a = _merge_duplicates(path, t, a, policy, notes)
     _report_gaps(t, policy, notes)
-    t, a = _drop_clipped(path, t, a, full_scale_g, policy, notes)
+    t, a, rails = _drop_clipped(path, t, a, full_scale_g, policy, notes)
     if policy.check_units:
         _check_units(path, a, unit)
     duration_s = (t[-1] - t[0]) * 1e-9 if t.size else 0.0
@@ -125,7 +129,7 @@ def clean_samples(
             f"a calibration needs at least {policy.min_samples} samples and "
             f"{policy.min_duration_s:g} s of free spin",
         )
-    return CleanSamples(t, a, tuple(notes))
+    return CleanSamples(t, a, tuple(notes), rails)
 
 
 def _drop_nonfinite(path, t, a, policy, notes):
@@ -226,24 +230,34 @@ def _report_gaps(t, policy, notes):
 
 
 def _drop_clipped(path, t, a, full_scale_g, policy, notes):
+    """Drop clipped samples; also return the rails (3, 2: low, high; NaN = none found).
+
+    The rails travel with the recording: dropping only the samples *at* a rail
+    keeps their neighbours whose noise happened to stay below it, a selection
+    that biases the peaks low; the estimator therefore also leaves out the
+    stretches the model predicts near a rail (estimate/session_fit.py).
+    """
+    limits = np.full((3, 2), np.nan)
     if full_scale_g is not None:
         limit = policy.clip_margin * full_scale_g * STANDARD_GRAVITY_MPS2
         clipped = np.any(np.abs(a) >= limit, axis=1)
         how = f"at the sensor range ±{full_scale_g:g} g"
+        limits[:] = [-limit, limit]
     else:
         clipped = np.zeros(t.size, dtype=bool)
         rails = []
-        extremes = np.stack([a.max(axis=0), a.min(axis=0)], axis=1)  # (3 axes, max/min)
+        extremes = np.stack([a.min(axis=0), a.max(axis=0)], axis=1)  # (3 axes, min/max)
         for k, side in np.argwhere(np.abs(extremes) >= 1.5 * STANDARD_GRAVITY_MPS2):
             value = float(extremes[k, side])
-            at = a[:, k] == value
-            if at.sum() >= policy.clip_run_samples and _longest_run(at) >= policy.clip_run_samples:
+            at = _at_rail(a[:, k], value, policy)
+            if at is not None:
                 clipped |= at
+                limits[k, side] = value
                 rails.append(f"{'xyz'[k]} = {value:+.4g}")
         how = "at the rails " + ", ".join(rails) + " m/s² (runs at the extreme value)"
     count = int(clipped.sum())
     if count == 0:
-        return t, a
+        return t, a, None
     if count > policy.max_clipped_fraction * t.size:
         raise SampleError(
             path,
@@ -251,15 +265,37 @@ def _drop_clipped(path, t, a, full_scale_g, policy, notes):
             "the sensor range is too small for this spin (use a larger range or spin slower)",
         )
     notes.append(f"dropped {count} clipped samples ({_pct(count, t.size)}) {how}")
-    return t[~clipped], a[~clipped]
+    return t[~clipped], a[~clipped], limits
 
 
-def _longest_run(mask: np.ndarray) -> int:
-    if not np.any(mask):
-        return 0
+def _run_lengths(mask: np.ndarray) -> np.ndarray:
     edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    return int(np.max(stops - starts))
+    return np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+
+
+def _at_rail(axis: np.ndarray, value: float, policy: InputPolicy) -> np.ndarray | None:
+    """Samples of one axis sitting at its rail ``value`` (None when it is no rail).
+
+    A saturated ADC repeats its rail value — or toggles by a count or two
+    around it.  The rail band is ``rail_jitter_counts`` counts wide (one count
+    = the data's smallest step near the rail); an axis is at a rail when runs
+    of ``clip_run_samples`` samples sit in that band, repeatedly (a wheel
+    saturates once per turn; noise reaches its maximum once).
+    """
+    near = np.unique(axis[np.abs(axis - value) <= 0.05 * abs(value)])
+    steps = np.diff(near)
+    count = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+    band = policy.rail_jitter_counts * count + 1e-12 * abs(value)
+    at = np.abs(axis - value) <= band
+    runs = _run_lengths(at)
+    long_runs = runs[runs >= policy.clip_run_samples]
+    exact = axis == value
+    exact_runs = _run_lengths(exact)
+    if np.any(exact_runs >= policy.clip_run_samples):
+        return at  # the rail repeats exactly (the original signature)
+    if long_runs.size >= 2:
+        return at
+    return None
 
 
 def rest_level(accel: np.ndarray, block: int = 50) -> float | None:

@@ -39,6 +39,7 @@ def session_info(
     records: list[Mapping[str, str]],
     overrides: Mapping[str, object] | None = None,
     defaults: Mapping[str, object] | None = None,
+    gravity_forced: bool = False,
 ) -> SessionInfo:
     """Build :class:`SessionInfo` from ``wheelcal.session`` records and overrides.
 
@@ -55,6 +56,8 @@ def session_info(
     defaults:
         Values used where neither the file nor an override gives one (e.g. a
         pipeline file's defaults, CONTRACT input item 3); same keys.
+    gravity_forced:
+        Accept a gravity outside Earth's 9.7–9.9 m/s² (``--force-gravity``).
 
     Raises
     ------
@@ -101,7 +104,11 @@ def session_info(
     if full_scale is not None and full_scale <= 0:  # type: ignore[operator]
         raise SessionInfoError(name, f"full_scale_g = {full_scale} must be positive")
     try:
-        return SessionInfo(**values, extra=tuple(sorted(extra)))  # type: ignore[arg-type]
+        return SessionInfo(
+            **values,  # type: ignore[arg-type]
+            extra=tuple(sorted(extra)),
+            gravity_forced=gravity_forced,
+        )
     except RecordingError as exc:
         raise SessionInfoError(name, f"wheelcal.session: {exc}") from None
 

@@ -221,6 +221,72 @@ class Imbalance(_SpinEffect):
         )
 
 
+def cubic_bspline_basis(
+    t_s: np.ndarray, start_s: float, spacing_s: float, count: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Uniform cubic B-splines B_k(t) and their first two derivatives, each (count, N).
+
+    B_k(t) = B((t − start)/Δ − k + 3), with B the cardinal cubic B-spline on
+    [0, 4): u³/6, (−3u³ + 12u² − 12u + 4)/6, (3u³ − 24u² + 60u − 44)/6, (4 − u)³/6.
+    The ``count`` functions sum to 1 on [start, start + (count − 3)Δ].
+    """
+    t = np.asarray(t_s, dtype=float)
+    u = (t[None, :] - start_s) / spacing_s - np.arange(count)[:, None] + 3.0
+    b = np.zeros_like(u)
+    d1 = np.zeros_like(u)
+    d2 = np.zeros_like(u)
+    pieces = (
+        (0, lambda x: x**3 / 6, lambda x: x**2 / 2, lambda x: x),
+        (1, lambda x: (-3 * x**3 + 12 * x**2 - 12 * x + 4) / 6,
+         lambda x: -1.5 * x**2 + 4 * x - 2, lambda x: -3 * x + 4),
+        (2, lambda x: (3 * x**3 - 24 * x**2 + 60 * x - 44) / 6,
+         lambda x: 1.5 * x**2 - 8 * x + 10, lambda x: 3 * x - 8),
+        (3, lambda x: (4 - x) ** 3 / 6, lambda x: -((4 - x) ** 2) / 2, lambda x: 4 - x),
+    )  # fmt: skip
+    for lo, f, f1, f2 in pieces:
+        m = (u >= lo) & (u < lo + 1)
+        x = u[m]
+        b[m], d1[m], d2[m] = f(x), f1(x), f2(x)
+    return b, d1 / spacing_s, d2 / spacing_s**2
+
+
+class SpinSpline(_SpinEffect):
+    """A smooth correction of the wheel angle: Δϑ(t) = Σ c_k B_k(t) (rad).
+
+    Uniform cubic B-splines with knots every ``spacing_s`` over the window
+    [``start_s``, ``end_s``] (centred times) let ϑ(t) follow any motion slower
+    than the knot spacing — a driven wheel, a long spin, a second push — where
+    eq. (2)'s cubic cannot.  Δω = Σ c_k B_k′, Δω̇ = Σ c_k B_k″.  A once-per-turn
+    wobble (imbalance) is far faster and stays out of it.
+    """
+
+    name = "spin_spline"
+    description = "smooth correction of the wheel angle (cubic B-spline)"
+
+    def __init__(self, start_s: float, end_s: float, spacing_s: float = 5.0) -> None:
+        if not (end_s > start_s and spacing_s > 0):
+            raise ValueError("need end_s > start_s and spacing_s > 0")
+        intervals = max(1, int(np.ceil((end_s - start_s) / spacing_s - 1e-9)))
+        self.start_s, self.end_s = float(start_s), float(end_s)
+        self.spacing_s = (end_s - start_s) / intervals
+        self.param_names = tuple(f"c{k}_rad" for k in range(intervals + 3))
+
+    def settings(self) -> dict:
+        return {"start_s": self.start_s, "end_s": self.end_s, "spacing_s": self.spacing_s}
+
+    def spin_delta(self, values, t_s, kin, jacobian):
+        b, d1, d2 = cubic_bspline_basis(t_s, self.start_s, self.spacing_s, self.size)
+        values = np.asarray(values, dtype=float)
+        return SpinDelta(
+            theta=values @ b,
+            omega=values @ d1,
+            omega_dot=values @ d2,
+            d_own_theta=b,
+            d_own_omega=d1,
+            d_own_omega_dot=d2,
+        )
+
+
 class QuadraticNonlinearity(_SensorEffect):
     """Per-axis quadratic response: v_i += γ_i k_i s_i² (k in 1/(m/s²))."""
 
@@ -453,6 +519,10 @@ def make_effect(name: str, settings: dict | None = None) -> Effect:
         return OffsetWarmup(float(settings.get("tau_s", 25.0)))
     if name == "spin_extension":
         return SpinPolynomialExtension(int(settings.get("extra_degrees", 2)))
+    if name == "spin_spline":
+        return SpinSpline(
+            float(settings["start_s"]), float(settings["end_s"]), float(settings["spacing_s"])
+        )
     simple = {
         "imbalance": Imbalance,
         "offset_drift": OffsetDrift,

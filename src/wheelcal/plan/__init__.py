@@ -8,10 +8,11 @@ Layers: :mod:`~wheelcal.plan.bench_plan` (the planned truth) →
 :mod:`~wheelcal.plan.text` (the terminal table).
 """
 
+from wheelcal.estimate.decimation import decimation_stride
 from wheelcal.plan.absorb import AssumedErrors, absorbed_fit, reported_shift
 from wheelcal.plan.bench_plan import PAPER_MOUNTING_EULER_DEG, PlannedSetup, drag_spin
 from wheelcal.plan.budget import PlanBudget, SourceEffect, plan_budget
-from wheelcal.plan.fisher import bound_from_fisher, decimation_stride, fisher_information
+from wheelcal.plan.fisher import bound_from_fisher, fisher_information
 from wheelcal.plan.mounting import MountingChoice, MountingResult, MountingSearch
 from wheelcal.plan.planner import PlanReport, plan_report
 from wheelcal.plan.tradeoff import TradeoffRow, geometry_tradeoffs

@@ -43,20 +43,8 @@ from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.estimate.systematic import nuisance_extra
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate, nuisance_sensitivity
 
-#: Samples per wheel turn kept by the decimated grid (module docstring).
-SAMPLES_PER_TURN = 16.0
 #: Bound on the retained instants per chunk (memory: (P + Q) × 3 × chunk × (p + 1)).
 _CHUNK_INSTANTS = 8192
-
-
-def decimation_stride(
-    rate_hz: float, omega_max_radps: float, samples_per_turn: float = SAMPLES_PER_TURN
-) -> int:
-    """Largest stride that keeps ≥ ``samples_per_turn`` samples per turn at ω_max."""
-    turn_hz = abs(omega_max_radps) / (2 * np.pi)
-    if turn_hz <= 0:
-        return 1
-    return max(1, int(np.floor(rate_hz / (samples_per_turn * turn_hz))))
 
 
 def fisher_information(

@@ -34,11 +34,12 @@ import numpy as np
 from scipy import optimize
 from threadpoolctl import threadpool_limits
 
+from wheelcal.estimate.decimation import SAMPLES_PER_TURN, decimation_stride
 from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.systematic import nuisance_columns
 from wheelcal.model import BenchParams, Rotation
 from wheelcal.plan.bench_plan import PlannedSetup
-from wheelcal.plan.fisher import SAMPLES_PER_TURN, decimation_stride, fisher_information
+from wheelcal.plan.fisher import fisher_information
 from wheelcal.simulate.presets import random_rotation
 
 OBJECTIVES = ("statistical", "total")

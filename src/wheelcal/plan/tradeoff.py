@@ -24,11 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from wheelcal.estimate.decimation import decimation_stride
 from wheelcal.estimate.systematic import nuisance_columns
 from wheelcal.model.parameters import AXES
 from wheelcal.plan.bench_plan import VERTICAL_TILT_DEG, PlannedSetup
 from wheelcal.plan.budget import plan_budget
-from wheelcal.plan.fisher import bound_from_fisher, decimation_stride, fisher_information
+from wheelcal.plan.fisher import bound_from_fisher, fisher_information
 
 #: Tilts of the trade-off table (the vertical wheel is added as its own row).
 DEFAULT_TILTS_DEG = (15.0, 30.0, 45.0, 60.0, 75.0, 85.0)

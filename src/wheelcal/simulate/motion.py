@@ -89,3 +89,120 @@ class ImbalancedSpin:
             np.polynomial.polynomial.polyval(t, dot_coef) + a * np.sin(theta) + b * np.cos(theta)
         )
         return Kinematics(theta, omega, omega_dot)
+
+
+@dataclass(frozen=True)
+class RateProfile:
+    """A wheel driven along any rate law: ω(t) through knots, joined smoothly.
+
+    ω(t) is the shape-preserving cubic (PCHIP) through ``(knot_times_s,
+    knot_omega_radps)`` (centred times), constant beyond the end knots; ω̇ is
+    its derivative and ϑ its exact antiderivative with ϑ(0) = ``theta0_rad``.
+    Two knots a fraction of a second apart make a motor's speed step; a slow
+    rise, a hand push or a stop are a few knots each.  This is the motion of a
+    *driven* wheel, which eq. (2)'s cubic describes only when it is smooth.
+    """
+
+    knot_times_s: tuple[float, ...]
+    knot_omega_radps: tuple[float, ...]
+    theta0_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.knot_times_s, float)
+        w = np.asarray(self.knot_omega_radps, float)
+        if t.ndim != 1 or t.size < 2 or t.size != w.size:
+            raise ValueError("need at least two knots, as many rates as times")
+        if not np.all(np.diff(t) > 0):
+            raise ValueError("knot times must increase")
+        object.__setattr__(self, "knot_times_s", tuple(float(x) for x in t))
+        object.__setattr__(self, "knot_omega_radps", tuple(float(x) for x in w))
+
+    def kinematics(self, t_s: np.ndarray) -> Kinematics:
+        """ϑ, ω, ω̇ at centred times."""
+        from scipy.interpolate import PchipInterpolator
+
+        knots = np.asarray(self.knot_times_s)
+        rates = np.asarray(self.knot_omega_radps)
+        # Flat extensions make ω constant outside the knots (PCHIP would extrapolate).
+        pad = 1e6
+        rate = PchipInterpolator(
+            np.concatenate([[knots[0] - pad], knots, [knots[-1] + pad]]),
+            np.concatenate([[rates[0]], rates, [rates[-1]]]),
+        )
+        angle = rate.antiderivative()
+        t = np.asarray(t_s, float)
+        theta = self.theta0_rad + angle(t) - angle(0.0)
+        return Kinematics(theta, rate(t), rate.derivative()(t))
+
+
+def steps_profile(
+    rng: np.random.Generator,
+    duration_s: float,
+    omega_radps: float,
+    step_fraction: float = 0.1,
+    every_s: float = 15.0,
+    ramp_s: float = 0.4,
+) -> RateProfile:
+    """A motor holding the speed, with steps of ±``step_fraction`` every ``every_s``."""
+    times, rates = [-duration_s], [omega_radps]
+    level = omega_radps
+    t = -duration_s / 2 + every_s
+    while t < duration_s / 2:
+        times.append(t)
+        rates.append(level)
+        level = omega_radps * (1 + step_fraction * rng.choice([-1.0, 1.0]))
+        times.append(t + ramp_s)
+        rates.append(level)
+        t += every_s
+    times.append(duration_s)
+    rates.append(level)
+    return RateProfile(tuple(times), tuple(rates), float(rng.uniform(-np.pi, np.pi)))
+
+
+def pushes_profile(
+    rng: np.random.Generator,
+    duration_s: float,
+    pushes: int = 3,
+    omega_radps: float = 11.0,
+    decay: float = 0.7,
+    push_s: float = 0.8,
+) -> RateProfile:
+    """A hand-spun wheel pushed again ``pushes`` times: spin-downs joined by quick pushes.
+
+    Between pushes the wheel slows by quadratic drag to ``decay`` × its rate;
+    each push brings it back to about ``omega_radps`` within ``push_s``.
+    """
+    segment = duration_s / pushes
+    times, rates = [], []
+    for k in range(pushes):
+        start = -duration_s / 2 + k * segment + (push_s if k else 0.0)
+        w0 = omega_radps * rng.uniform(0.9, 1.1)
+        drag = (1 / decay - 1) / (w0 * (segment - (push_s if k else 0.0)))
+        # Knots every ~0.1 s: the spin-down between pushes is the drag law itself.
+        length = segment - (push_s if k else 0.0)
+        for tau in np.linspace(0.0, length, max(12, int(length / 0.1))):
+            times.append(start + tau)
+            rates.append(w0 / (1 + drag * w0 * tau))
+    order = np.argsort(times)
+    return RateProfile(
+        tuple(np.asarray(times)[order]),
+        tuple(np.asarray(rates)[order]),
+        float(rng.uniform(-np.pi, np.pi)),
+    )
+
+
+def wandering_profile(
+    rng: np.random.Generator,
+    duration_s: float,
+    omega_radps: float = 10.0,
+    wander_fraction: float = 0.05,
+    every_s: float = 6.0,
+) -> RateProfile:
+    """A motor whose speed wanders smoothly by ±``wander_fraction`` (a knot every ``every_s``).
+
+    Slow enough (|ω̇| ≪ a push) that it looks like a free spin to the window
+    finder, yet no cubic follows it over the whole recording.
+    """
+    times = np.arange(-duration_s / 2 - every_s, duration_s / 2 + 2 * every_s, every_s)
+    rates = omega_radps * (1 + wander_fraction * rng.uniform(-1.0, 1.0, times.size))
+    return RateProfile(tuple(times), tuple(rates), float(rng.uniform(-np.pi, np.pi)))

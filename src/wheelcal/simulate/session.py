@@ -30,9 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from wheelcal.model import CalibrationParams
-from wheelcal.model.bench import bench_force
-from wheelcal.model.kinematics import Kinematics
+from wheelcal.model import CalibrationParams, evaluate
+from wheelcal.model.kinematics import Kinematics, spin_kinematics
 from wheelcal.recording import Recording
 from wheelcal.simulate.simulator import Scenario
 
@@ -137,11 +136,17 @@ def simulate_session(
     total = end + plan.stop_s + plan.rest_after_s
     t = np.arange(round(total * rate) + 1) / rate
 
-    spin = truth.spin
-    omega_s = float(spin.omega_at(-duration / 2))
-    theta_s = float(spin.theta_at(-duration / 2))
-    omega_e = float(spin.omega_at(duration / 2))
-    theta_e = float(spin.theta_at(duration / 2))
+    # The free spin's motion: the truth's polynomial, or the scenario's physical motion.
+    if scenario.motion is not None:
+        motion = scenario.motion.kinematics
+    else:
+
+        def motion(tc: np.ndarray) -> Kinematics:
+            return spin_kinematics(truth.spin, tc)
+
+    edges = motion(np.array([-duration / 2, duration / 2]))
+    omega_s, omega_e = (float(x) for x in edges.omega_radps)
+    theta_s, theta_e = (float(x) for x in edges.theta_rad)
 
     theta = np.zeros_like(t)
     omega = np.zeros_like(t)
@@ -169,28 +174,30 @@ def simulate_session(
 
     free = (t >= start) & (t <= end)
     outside = ~free
-    omega[free] = spin.omega_at(t[free] - centre)
-    if spin.degree >= 1:  # ω̇ = Σ k ω_k t^(k−1), eq. (2)
-        omega_dot[free] = np.polynomial.polynomial.polyval(
-            t[free] - centre, spin.omega_radps[1:] * np.arange(1, spin.degree + 1)
-        )
+    inside = motion(t[free] - centre)
+    omega[free] = inside.omega_radps
+    omega_dot[free] = inside.omega_dot_radps2
     bench = truth.bench
-    force = bench_force(
-        Kinematics(theta[outside], omega[outside], omega_dot[outside]),
-        bench.tilt_rad,
-        bench.radius_m,
-        truth.gravity_mps2,
-    ).accel_mps2
+    shake = np.zeros((int(outside.sum()), 3))
     for phase in (push, stop):
         rows = np.flatnonzero(phase[outside])
-        force[rows] += _hand_shake(rows.size, rate, plan, rng)
+        shake[rows] = _hand_shake(rows.size, rate, plan, rng)
     clean = np.empty((t.size, 3))
-    sensor = truth.sensor
-    # Eq. (4)–(5): s = R a, v = o + Γ s.
-    clean[outside] = sensor.offset_mps2 + sensor.gain * (force @ bench.misalignment.matrix.T)
+    # Eq. (4)–(5) with the phase's own ϑ, ω, ω̇; the sensor's effects (a warm-up, a
+    # nonlinearity …) act in every phase, the spin's only in the free spin.
+    sensor_effects = tuple(e for e in scenario.effects if e.stage == "sensor")
+    clean[outside] = evaluate(
+        truth,
+        t[outside] - centre,
+        effects=sensor_effects,
+        kinematics=Kinematics(theta[outside], omega[outside], omega_dot[outside]),
+    ).predicted_mps2
+    clean[outside] += truth.sensor.gain * (shake @ bench.misalignment.matrix.T)
     clean[free] = scenario.clean_signal(t[free] - centre)  # Phase 3: exactly the model
 
-    recording = scenario.record(t, clean, rng, epoch_unix_ns, source)
+    # Bearings and road vibrate in proportion to the speed, fully above 2 rad/s.
+    envelope = np.minimum(1.0, np.abs(omega) / 2.0)
+    recording = scenario.record(t, clean, rng, epoch_unix_ns, source, envelope)
     return SimulatedFullSession(
         recording=recording,
         truth=truth,

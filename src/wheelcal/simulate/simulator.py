@@ -37,6 +37,9 @@ class Scenario:
     effects: tuple = ()
     #: A physical motion (see :mod:`wheelcal.simulate.motion`) instead of ``truth.spin``.
     motion: object | None = None
+    #: Vibration of the bench (bearings, road) while the wheel turns: broadband
+    #: acceleration of this RMS (m/s², per axis), on top of the sensor noise.
+    vibration: NoiseSpec | None = None
 
     def __post_init__(self) -> None:
         if not (self.duration_s > 0 and self.rate_hz > 0):
@@ -61,9 +64,19 @@ class Scenario:
         rng: np.random.Generator,
         epoch_unix_ns: int,
         source: str,
+        vibration_envelope: np.ndarray | None = None,
     ) -> Recording:
-        """The sensor's output stage: noise, optional quantisation, a typed recording."""
+        """The sensor's output stage: noise, optional quantisation, a typed recording.
+
+        ``vibration_envelope`` (0–1 per sample) scales the bench's vibration
+        (``vibration``) with the wheel's speed; ``None`` means full throughout.
+        """
         noisy = clean_mps2 + self.noise.sample(time_s.size, self.rate_hz, rng)
+        if self.vibration is not None:
+            shake = self.vibration.sample(time_s.size, self.rate_hz, rng)
+            if vibration_envelope is not None:
+                shake *= np.asarray(vibration_envelope)[:, None]
+            noisy += shake
         if self.quantiser is not None:
             noisy = self.quantiser.apply(noisy)
         return Recording(

@@ -1,0 +1,124 @@
+"""Rest segments: where the wheel stands still, before the push and after the stop.
+
+They are evidence the fit never saw, so they can judge it:
+
+* their scatter is the sensor's own **noise floor** — independent of the
+  model, unlike an AR noise model fitted to the residual, which absorbs
+  whatever the model misses (:mod:`wheelcal.estimate.noise_reference`);
+* their mean is a static reading of gravity, which a calibration must turn
+  into |a| = g (:mod:`wheelcal.estimate.rest_check`).
+
+Detection needs no unit or mounting: the signal is cut into blocks of
+~0.1 s; a block is *still* when its mean differs from the previous block's
+by no more than the noise explains (a turning wheel moves its rotating
+gravity component by g sinα·ω·0.1 s ≫ the noise between blocks, even at
+1.5 rad/s).  Runs of still blocks lasting ``min_duration_s`` outside the
+free-spin window, trimmed by one block at each end, are rests.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.recording import Recording
+
+#: Block length for the stillness test.
+BLOCK_S = 0.1
+#: A block is still when |Δmean| < this × the noise expected of a difference of means.
+STILL_FACTOR = 5.0
+
+
+@dataclass(frozen=True, eq=False)
+class RestSegment:
+    """One stretch of stillness (recording times, samples in m/s²)."""
+
+    start_s: float
+    end_s: float
+    samples: int
+    mean_mps2: np.ndarray  # (3,)
+    mean_std_mps2: np.ndarray  # (3,) σ of the mean (coloured noise included)
+    noise_std_mps2: np.ndarray  # (3,) marginal noise std
+    noise_dof: float  # effective samples behind noise_std (for its uncertainty)
+
+    @property
+    def mid_s(self) -> float:
+        """Centre of the segment."""
+        return 0.5 * (self.start_s + self.end_s)
+
+
+def find_rests(
+    recording: Recording,
+    exclude_s: tuple[float, float] | None = None,
+    min_duration_s: float = 1.0,
+    margin_s: float = 0.5,
+) -> tuple[RestSegment, ...]:
+    """The rest segments of ``recording`` outside ``exclude_s`` (the free-spin window)."""
+    t = recording.time_s
+    v = recording.accel_mps2
+    rate = recording.rate_hz
+    block = max(10, round(BLOCK_S * rate))
+    n_blocks = t.size // block
+    if n_blocks < 3:
+        return ()
+    blocks = v[: n_blocks * block].reshape(n_blocks, block, 3)
+    means = blocks.mean(axis=1)
+    stds = blocks.std(axis=1, ddof=1)
+    # A difference of two block means has σ ≈ √(2/n)·σ_block for white noise;
+    # low-pass noise makes block means noisier, which STILL_FACTOR allows for.
+    limit = STILL_FACTOR * np.sqrt(2.0 / block) * np.maximum(stds[1:], stds[:-1])
+    step_ok = np.all(np.abs(np.diff(means, axis=0)) <= limit + 1e-12, axis=1)
+    still = np.concatenate([step_ok[:1], step_ok])  # block b vs block b − 1
+    # Times of blocks; remove anything near the free spin.
+    block_t0 = t[: n_blocks * block : block]
+    block_t1 = t[block - 1 : n_blocks * block : block]
+    if exclude_s is not None:
+        lo, hi = exclude_s[0] - margin_s, exclude_s[1] + margin_s
+        still &= (block_t1 < lo) | (block_t0 > hi)
+    segments = []
+    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    for first, stop in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        first, last = first + 1, stop - 2  # trim one block at each end
+        if last < first:
+            continue
+        # A rest is homogeneous: drop end blocks noisier than the segment's typical
+        # block (a wheel coming to rest still vibrates).
+        typical = np.median(stds[first : last + 1], axis=0)
+        while first <= last and np.any(stds[first] > 1.5 * typical):
+            first += 1
+        while last >= first and np.any(stds[last] > 1.5 * typical):
+            last -= 1
+        i0, i1 = first * block, (last + 1) * block
+        if t[i1 - 1] - t[i0] < min_duration_s:
+            continue
+        segments.append(_segment(t[i0:i1], v[i0:i1]))
+    return tuple(segments)
+
+
+def _segment(t: np.ndarray, v: np.ndarray) -> RestSegment:
+    mean = v.mean(axis=0)
+    noise = NoiseModel.estimate(v - mean, max_order=6)
+    n = t.size
+    # σ of a mean of n correlated samples: long-run std / √n.
+    mean_std = noise.long_run_std_mps2 / np.sqrt(n)
+    return RestSegment(
+        start_s=float(t[0]),
+        end_s=float(t[-1]),
+        samples=int(n),
+        mean_mps2=mean,
+        mean_std_mps2=mean_std,
+        noise_std_mps2=np.std(v - mean, axis=0, ddof=1),
+        noise_dof=float(n * np.min(noise.effective_sample_fraction)),
+    )
+
+
+def pooled_noise_std(rests: tuple[RestSegment, ...]) -> tuple[np.ndarray, float] | None:
+    """Noise std per axis pooled over the rests (weighted by samples), and its dof."""
+    if not rests:
+        return None
+    weights = np.array([r.samples - 1 for r in rests], dtype=float)
+    var = np.array([r.noise_std_mps2**2 for r in rests])
+    pooled = np.sqrt(weights @ var / weights.sum())
+    return pooled, float(sum(r.noise_dof for r in rests))

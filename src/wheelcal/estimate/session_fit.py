@@ -1,0 +1,253 @@
+"""A whole recording → a calibration that passed the gates, or a refusal.
+
+The joint fit (:mod:`wheelcal.estimate.joint`) answers "what parameters
+explain this window best"; a calibration also needs "does this window fit the
+model at all, and is the answer plausible".  :class:`SessionFit` does both:
+
+1. the free-spin window (found, or given), capped at ``max_window_s``;
+2. the ``sampling`` gate on the window finder's fastest rate;
+3. the joint fit, then the independent noise reference (rests, else the
+   residual's spectrum) and the turn-by-turn motion check.  If the phase
+   errors drift — the spin law cannot follow the wheel (a very long spin, a
+   driven wheel) — the window is shortened (its start kept: the fastest,
+   most informative part) and fitted again, down to ``min_window_s``; then
+   the ``motion`` gate refuses;
+4. the post-fit gates (:mod:`wheelcal.estimate.gates`): sampling at the
+   fitted rate, turns, undetermined parameters, gain/offset ranges, units,
+   convergence;
+5. the warning band, and the rests' |a| = g check.
+
+The result carries an :class:`~wheelcal.estimate.gates.Assessment`; its
+warnings are appended to the result's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from wheelcal.estimate.gates import (
+    Assessment,
+    Gates,
+    noise_warnings,
+    refuse_few_turns,
+    refuse_gain_scale,
+    refuse_implausible,
+    refuse_undersampled,
+    rest_warnings,
+    tolerance_warnings,
+    undetermined_parameters,
+)
+from wheelcal.estimate.initial import InitialGuess
+from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.motion_check import MotionCheck, broadband_noise, check_motion
+from wheelcal.estimate.noise_reference import noise_reference
+from wheelcal.estimate.rest_check import check_rests
+from wheelcal.estimate.rests import RestSegment, find_rests
+from wheelcal.estimate.result import CalibrationResult
+from wheelcal.estimate.window import FreeSpinWindow, find_free_spin
+from wheelcal.model import evaluate
+from wheelcal.recording import CalibrationRefused, Recording
+
+#: Each retry keeps this fraction of the window (its start).
+SHRINK = 0.6
+
+
+@dataclass(frozen=True, eq=False)
+class WindowChoice:
+    """The window a calibration used, and how it was chosen."""
+
+    recording: Recording  # cut to the window
+    found: FreeSpinWindow | None
+    reason: str
+
+
+def choose_window(
+    recording: Recording,
+    start_s: float | None = None,
+    end_s: float | None = None,
+    max_window_s: float | None = None,
+) -> WindowChoice:
+    """The free-spin window: given (``start_s``/``end_s``) or found, capped in length."""
+    if start_s is not None:
+        reason = f"window given on the command line: {start_s:g}–{end_s:g} s"
+        return WindowChoice(recording.window(start_s, end_s), None, reason)
+    found = find_free_spin(recording)
+    start, end, reason = found.start_s, found.end_s, found.reason
+    if max_window_s is not None and end - start > max_window_s:
+        end = start + max_window_s
+        reason += (
+            f"; capped to its first {max_window_s:g} s (eq. (2)'s cubic describes a spin-down "
+            "for minutes, not for the whole of a long spin)"
+        )
+    return WindowChoice(recording.window(start, end), found, reason)
+
+
+@dataclass(frozen=True, eq=False)
+class SessionFitOutcome:
+    """A calibration that passed the gates, its window, and the rests it was judged by."""
+
+    result: CalibrationResult
+    window: WindowChoice
+    rests: tuple[RestSegment, ...]
+
+
+@dataclass(frozen=True)
+class SessionFit:
+    """Window → joint fit → gates, for one recording (see the module docstring)."""
+
+    fitter: JointFit = field(default_factory=JointFit)
+    gates: Gates = field(default_factory=Gates)
+    start_s: float | None = None
+    end_s: float | None = None
+
+    def run(self, recording: Recording) -> SessionFitOutcome:
+        """Calibrate ``recording`` (rests, push and stop included).
+
+        Raises
+        ------
+        CalibrationRefused
+            When a gate refuses (the exception names the gate, the reason and the fix).
+        RecordingError
+            When the recording cannot be used at all (no free spin, no radius …).
+        """
+        gates = self.gates
+        choice = choose_window(recording, self.start_s, self.end_s, gates.max_window_s)
+        if choice.found is not None:
+            fastest = max(abs(choice.found.omega_start_radps), abs(choice.found.omega_end_radps))
+            refuse_undersampled(recording.source, recording.rate_hz, fastest, gates)
+        spin_s = choice.recording.time_s[[0, -1]]
+        exclude = (choice.found.start_s, choice.found.end_s) if choice.found else tuple(spin_s)
+        rests = find_rests(recording, exclude)
+        window = choice.recording
+        note = ""
+        while True:
+            guess = self.fitter.start(window)
+            _check_implied_radius(guess, window, gates)
+            result = self.fitter.fit(window, guess=guess)
+            motion = _motion(result, window, rests)
+            if motion is None or not motion.inadequate(gates.motion_z, gates.motion_shift_sigma):
+                break
+            if window.duration_s * SHRINK < gates.min_window_s:
+                raise CalibrationRefused(
+                    recording.source,
+                    "motion",
+                    "the wheel's motion is not a free spin that eq. (2) can describe: letting "
+                    f"the wheel angle follow a smooth spline would move {motion.worst()} "
+                    f"(score χ² = {motion.statistic:.0f} on {motion.dof} dof) — a driven "
+                    "wheel, a second push, or speed changes",
+                    "record a free spin (push once, then let go), choose its window with "
+                    "--start-s/--end-s, or record the gyroscope",
+                )
+            t0 = float(window.time_s[0])
+            shorter = window.duration_s * SHRINK
+            note = (
+                f"the spin law could not follow the whole window (freeing the motion moved "
+                f"{motion.worst()}); shortened to its first {shorter:.0f} s"
+            )
+            window = window.window(t0, t0 + shorter)
+        if window.clip_limits_mps2 is not None:
+            result, window, rail_note = _clear_of_rails(self.fitter, result, window)
+            note = "; ".join(x for x in (note, rail_note) if x)
+        if note:
+            choice = WindowChoice(window, choice.found, choice.reason + "; " + note)
+        omega = result.params.spin.omega_at(result.centred_time_s[[0, -1]])
+        refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
+        refuse_few_turns(result)
+        return SessionFitOutcome(assess(result, rests, gates, motion), choice, rests)
+
+
+#: Samples the model puts within this many noise σ of a rail are left out.
+RAIL_MARGIN_SIGMA = 4.0
+
+
+def _clear_of_rails(
+    fitter: JointFit, result: CalibrationResult, window: Recording
+) -> tuple[CalibrationResult, Recording, str]:
+    """Refit without the stretches the model predicts near a clipping rail.
+
+    The reader dropped the samples at the rails; keeping their neighbours
+    whose noise stayed just below would select on the noise and bias the
+    peaks.  Selecting on the *prediction* instead is free of that bias.
+    """
+    predicted = window.accel_mps2 - result.residual_mps2
+    margin = RAIL_MARGIN_SIGMA * result.noise.marginal_std_mps2
+    low, high = window.clip_limits_mps2[:, 0], window.clip_limits_mps2[:, 1]
+    with np.errstate(invalid="ignore"):
+        near = np.any((predicted >= high - margin) | (predicted <= low + margin), axis=1)
+    if not np.any(near):
+        return result, window, ""
+    kept = window.select(~near)
+    refit = fitter.fit(kept, initial=result.params)
+    note = (
+        f"left out {int(near.sum())} samples that the model puts within "
+        f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"
+    )
+    return refit, kept, note
+
+
+def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) -> None:
+    """Refuse before fitting when the start already puts the gains far from 1.
+
+    With a radius off by ×1000 (mm typed as m) the fit itself wanders off and
+    fails for reasons that hide the cause; the closed-form start already
+    shows it: gains average r_implied / r.
+    """
+    radius = window.info.radius_m
+    if guess.implied_radius_m is None or radius is None:
+        return
+    mean_gain = guess.implied_radius_m / radius
+    lo, hi = gates.gain_range
+    if not lo <= mean_gain <= hi:
+        refuse_gain_scale(
+            window.source, mean_gain, radius, f"the gains average ≈ {mean_gain:.4g}", gates
+        )
+
+
+def _motion(
+    result: CalibrationResult, window: Recording, rests: tuple[RestSegment, ...]
+) -> MotionCheck | None:
+    """The motion check with the residual's broadband level as the noise."""
+    reference = noise_reference(result.residual_mps2, _theta(result), rests)
+    noise = broadband_noise(result.noise, reference.broadband_mps2)
+    return check_motion(result, window.accel_mps2, noise)
+
+
+def _theta(result: CalibrationResult) -> np.ndarray:
+    return evaluate(result.params, result.centred_time_s, result.layout).kinematics.theta_rad
+
+
+def assess(
+    result: CalibrationResult,
+    rests: tuple[RestSegment, ...],
+    gates: Gates,
+    motion: MotionCheck | None = None,
+) -> CalibrationResult:
+    """Apply the post-fit gates to ``result``; return it with its :class:`Assessment`.
+
+    Raises :class:`CalibrationRefused` when the refusal band is hit.
+    """
+    undetermined = undetermined_parameters(result, gates)
+    refuse_implausible(result, gates, undetermined)
+    bad = {name for name, _ in undetermined}
+    noise = noise_reference(result.residual_mps2, _theta(result), rests)
+    checks = () if bad else check_rests(result, rests, gates.rest_alpha)
+    warnings = (
+        tolerance_warnings(result, gates, bad)
+        + noise_warnings(noise, gates)
+        + rest_warnings(checks, gates)
+        + [f"{name} is undetermined: {reason}" for name, reason in undetermined]
+    )
+    assessment = Assessment(
+        gates=gates,
+        noise=noise,
+        motion=motion,
+        rest_checks=checks,
+        undetermined=tuple(undetermined),
+        warnings=tuple(warnings),
+    )
+    return dataclasses.replace(
+        result, assessment=assessment, warnings=result.warnings + tuple(warnings)
+    )
