@@ -308,3 +308,25 @@ def test_a_sensor_file_of_an_earlier_run_without_sessions_now_is_marked_stale(bu
     (made,) = write_sensor_calibrations(tmp_path, sessions)
     assert made.path == tmp_path / "sensors" / f"{SENSOR}.calibration.json"
     assert not old.exists() and (tmp_path / "sensors" / "retired.calibration.stale.json").exists()
+
+
+def test_a_sensor_nobody_could_determine_an_axis_of_is_exported_only_as_partial(
+    bundled, tmp_path, capsys
+):
+    from wheelcal.batch.sensors import write_sensor_calibrations
+
+    _, _, sessions = bundled
+    cals = json.loads(json.dumps(sessions[:3]))
+    for c in cals:  # gain_z undetermined in every session (as the trust gates write it)
+        c["sensor"]["gain"][2] = c["sensor"]["gain_std"][2] = None
+        c["sensor"]["undetermined"] = [{"parameter": "gain_z", "reason": "z along the axis"}]
+    (made,) = write_sensor_calibrations(tmp_path, cals)
+    doc = made.doc
+    assert doc["sensor"]["gain"][2] is None and doc["sensor"]["gain_std"][2] is None
+    assert doc["sensor"]["undetermined"][0]["parameter"] == "gain_z"
+    assert doc["correction"]["identity_axes"] == ["z"]
+    assert doc["correction"]["matrix"][2] == [0.0, 0.0, 1.0]
+    assert main(["export", str(made.path), "--format", "yaml"]) != 0
+    assert "allow-partial" in capsys.readouterr().err
+    assert main(["export", str(made.path), "--format", "yaml", "--allow-partial"]) == 0
+    assert "PARTIAL: axis z" in capsys.readouterr().out

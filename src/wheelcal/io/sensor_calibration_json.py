@@ -11,7 +11,8 @@ for the sensor, so ``export`` and ``apply`` read it the same way::
       "sensor":  {"offset_mps2": [3], "gain": [3], "offset_std_mps2": [3], "gain_std": [3],
                   "undetermined": [{"parameter", "reason"}]},     # statistical σ
       "systematic": {"gain_std": [3], "offset_std_mps2": [3], "note"},  # shared, not ÷√n
-      "correction": {"bias_mps2": [3], "matrix": [[3],[3],[3]], "equation"},
+      "correction": {"bias_mps2": [3], "matrix": [[3],[3],[3]], "equation",
+                     "identity_axes": [...], "note"},   # only when an axis is undetermined
       "pooling": {"method", "description", "sessions", "spread": {name: {"chi2_red", "dof",
                   "between_session_std", "scale", "sessions_used"}}},
       "sessions": [{"file", "mounting_id", "calibration", "skipped": [{"parameter", "reason"}]}],
@@ -44,6 +45,7 @@ from wheelcal.diagnose.pooling import (
 )
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.calibration_json import SENSOR_CALIBRATION_FORMAT as FORMAT
+from wheelcal.model.parameters import AXES
 
 _DESCRIPTION = {
     JOINT_FIT: (
@@ -207,6 +209,7 @@ def sensor_calibration_dict(
             "bias_mps2": _list(correction.bias_mps2),
             "matrix": [_list(row) for row in correction.matrix],
             "equation": "a = matrix @ (v - bias)",
+            **_identity_axes(pooled),
         },
         "pooling": {
             "method": pooled.method,
@@ -248,6 +251,19 @@ def sensor_calibration_dict(
             "covariance_names": list(pooled.names),
             "warnings": list(pooled.warnings),
         },
+    }
+
+
+def _identity_axes(pooled: PooledSensor) -> dict:
+    """``identity_axes`` and a note when an undetermined parameter leaves an axis unchanged."""
+    names = {p for p, _ in pooled.undetermined}
+    axes = [a for a in AXES if f"gain_{a}" in names or f"offset_{a}_mps2" in names]
+    if not axes:
+        return {}
+    return {
+        "identity_axes": axes,
+        "note": "these axes are left unchanged (gain 1, offset 0): no session of this sensor "
+        "determines their gain or offset (see sensor.undetermined)",
     }
 
 
