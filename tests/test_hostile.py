@@ -18,8 +18,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from truth_bound import sigmas_off
 
+from truth_bound import sigmas_off
 from wheelcal.estimate.session_fit import SessionFit
 from wheelcal.recording import CalibrationRefused
 from wheelcal.simulate import hostile as H

@@ -195,6 +195,14 @@ def compute_session(path: str | Path, options: SessionOptions) -> SessionOutcome
         gravity_checked=not options.force_gravity,
     )
     timings["read"] = time.perf_counter() - t0
+    return compute_recording(recording, options, timings)
+
+
+def compute_recording(
+    recording: Recording, options: SessionOptions, timings: dict[str, float] | None = None
+) -> SessionOutcome:
+    """Calibrate a recording already read and checked (see :func:`compute_session`)."""
+    timings = dict(timings or {})
     t1 = time.perf_counter()
     fit = options.session_fit().run(recording)
     timings["fit"] = time.perf_counter() - t1
@@ -210,7 +218,7 @@ def compute_session(path: str | Path, options: SessionOptions) -> SessionOutcome
         if diagnosis.steps:
             result = assess(diagnosis.final, fit.rests, options.gates)
         timings["diagnose"] = time.perf_counter() - t1
-    return _outcome_of(str(path), result, choice, diagnosis, recording, timings)
+    return _outcome_of(recording.source, result, choice, diagnosis, recording, timings)
 
 
 def _outcome_of(source, result, choice: WindowChoice, diagnosis, recording, timings):

@@ -27,12 +27,16 @@ def session_summary(outcome: SessionOutcome) -> str:
         f"ω {omega[0]:+.2f} → {omega[1]:+.2f} rad/s"
         + (f"  [{outcome.window_reason}]" if outcome.window_reason else ""),
     ]
+    undetermined = set(r.undetermined)
+
+    def show(name: str, digits: int) -> str:
+        if name in undetermined:
+            return "undetermined (null)"
+        return _pm(r.value_of(name), r.std_of(name), sys[name], digits)
+
     for axis in AXES:
         g, o = f"gain_{axis}", f"offset_{axis}_mps2"
-        lines.append(
-            f"  {axis}: gain {_pm(r.value_of(g), r.std_of(g), sys[g], 5)}"
-            f"   offset {_pm(r.value_of(o), r.std_of(o), sys[o], 4)} m/s²"
-        )
+        lines.append(f"  {axis}: gain {show(g, 5)}   offset {show(o, 4)} m/s²")
     if "tilt_deg" in r.names:
         lines.append(
             f"  tilt {_pm(r.value_of('tilt_deg'), r.std_of('tilt_deg'), sys['tilt_deg'], 3)}°"
@@ -56,6 +60,9 @@ def session_summary(outcome: SessionOutcome) -> str:
         + " ".join(f"{x:.4f}" for x in noise.marginal_std_mps2)
         + f" ({colour}, effective samples {100 * np.mean(noise.effective_sample_fraction):.0f} %)"
     )
+    verdict = noise_verdict(r)
+    if verdict:
+        lines.append("  " + verdict)
     for warning in r.warnings:
         lines.append(f"  warning: {warning}")
     for note in r.notes:
@@ -64,6 +71,27 @@ def session_summary(outcome: SessionOutcome) -> str:
         f"  → {outcome.calibration_path}" + (f", {outcome.rrd_path}" if outcome.rrd_path else "")
     )
     return "\n".join(lines)
+
+
+def noise_verdict(result) -> str:
+    """One line: the residual against the independent noise floor (empty if not assessed)."""
+    a = result.assessment
+    if a is None or a.noise is None:
+        return ""
+    noise = a.noise
+    where = "the rests" if noise.source == "rests" else "the spectrum between the wheel harmonics"
+    floor = " ".join(f"{x:.4f}" for x in noise.floor_mps2)
+    ratio = float(max(noise.ratio))
+    if ratio <= a.gates.unexplained_ratio:
+        return (
+            f"verdict: the residual is at the sensor's noise floor ({floor} m/s², from {where}; "
+            f"at most {ratio:.2f}×)"
+        )
+    unexplained = " ".join(f"{x:.4f}" for x in noise.unexplained_mps2)
+    return (
+        f"verdict: the residual is {ratio:.1f}× the sensor's noise floor ({floor} m/s², from "
+        f"{where}): {unexplained} m/s² unexplained"
+    )
 
 
 def diagnosis_summary(outcome: SessionOutcome) -> str:
@@ -90,4 +118,7 @@ def diagnosis_summary(outcome: SessionOutcome) -> str:
     final_rms = " ".join(f"{x:.4f}" for x in d.final.residual_rms_mps2)
     lines.append(f"  residual rms: paper's model {base_rms} → final {final_rms} m/s²")
     lines.append(f"  → {outcome.diagnosis_path}, {outcome.calibration_path}")
+    verdict = noise_verdict(outcome.result)
+    if verdict:
+        lines.append("  " + verdict)
     return "\n".join(lines)

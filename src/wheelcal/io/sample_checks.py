@@ -319,7 +319,11 @@ def rest_level(accel: np.ndarray, block: int = 50) -> float | None:
 def _check_units(path, a, unit):
     g = STANDARD_GRAVITY_MPS2
     rest = rest_level(a)
-    fix = "state the unit correctly (JSON: channel metadata unit 'g' or 'm/s^2')"
+    other = "m/s^2" if unit == "g" else "g"
+    fix = (
+        f"state the unit: --accel-unit {other} on the command line, or the channel's "
+        "metadata unit ('g' or 'm/s^2') in the file"
+    )
     if rest is not None:
         ratio = rest / g
         if unit == "m/s^2" and 0.06 < ratio < 0.16:
