@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from wheelcal import __version__
-from wheelcal.diagnose.harmonics import residual_by_wheel_angle
+from wheelcal.estimate.residual_profile import residual_by_wheel_angle
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.model import EULER_CONVENTION

@@ -22,8 +22,14 @@ from wheelcal.io.calibration_json import (
 )
 
 
+def _shortest(value: float) -> str:
+    """The shortest decimal that reads back as the same double (``1`` for 1.0, as before)."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
+
+
 def _floats(values) -> str:
-    return ", ".join(repr(float(v)) for v in np.asarray(values, dtype=float).reshape(-1))
+    return ", ".join(_shortest(v) for v in np.asarray(values, dtype=float).reshape(-1))
 
 
 def _c_float(value: float) -> str:
@@ -35,7 +41,7 @@ def _c_float(value: float) -> str:
 
 
 def _stds(values) -> str:
-    return ", ".join("null" if v is None else repr(float(v)) for v in values)
+    return ", ".join("null" if v is None else _shortest(v) for v in values)
 
 
 def origin(calibration: dict) -> str:
@@ -49,7 +55,7 @@ def origin(calibration: dict) -> str:
 
 
 def _values(values) -> str:
-    return ", ".join("null" if v is None else repr(float(v)) for v in values)
+    return ", ".join("null" if v is None else _shortest(v) for v in values)
 
 
 def _partial_note(calibration: dict) -> list[str]:

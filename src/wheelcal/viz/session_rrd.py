@@ -81,7 +81,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from wheelcal.diagnose.harmonics import binned_mean_by_angle
+from wheelcal.estimate.residual_profile import binned_mean_by_angle
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import FreeSpinWindow
 from wheelcal.model import predict
