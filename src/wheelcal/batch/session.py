@@ -76,6 +76,8 @@ class SessionOptions:
     gates: Gates = field(default_factory=Gates)
     #: Accept a gravity outside 9.7–9.9 m/s² (a centrifuge, another planet, a test).
     force_gravity: bool = False
+    #: Use of the gyroscope: "auto" (when only it can follow the motion), "on", "off".
+    gyro: str = "auto"
 
     def __post_init__(self) -> None:
         if (self.start_s is None) != (self.end_s is None):
@@ -110,6 +112,8 @@ class SessionOptions:
             raise ValueError(f"--accel-unit must be 'm/s^2' or 'g', got {self.accel_unit!r}")
         if self.geometry == "tilt" and self.known_tilt_deg is None:
             raise ValueError("--geometry tilt needs --tilt-deg")
+        if self.gyro not in ("auto", "on", "off"):
+            raise ValueError(f"--gyro must be auto, on or off, got {self.gyro!r}")
         unknown = {k for k, _ in self.defaults} - set(SESSION_FACT_KEYS)
         if unknown:
             raise ValueError(f"unknown session fact(s) {sorted(unknown)} in the defaults")
@@ -133,7 +137,11 @@ class SessionOptions:
     def session_fit(self) -> SessionFit:
         """Window, joint fit and gates for these options."""
         return SessionFit(
-            fitter=self.fitter(), gates=self.gates, start_s=self.start_s, end_s=self.end_s
+            fitter=self.fitter(),
+            gates=self.gates,
+            start_s=self.start_s,
+            end_s=self.end_s,
+            gyro=self.gyro,
         )
 
 

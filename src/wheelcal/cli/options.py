@@ -44,6 +44,13 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
         "--start-s", type=float, help="start of the free-spin window (s from the first sample)"
     )
     w.add_argument("--end-s", type=float, help="end of the free-spin window")
+    w.add_argument(
+        "--gyro",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="use the gyroscope: auto (default: only when the free spin's cubic cannot follow "
+        "the motion), on (always, with a flexible wheel angle), off",
+    )
     m = parser.add_argument_group("geometry")
     m.add_argument(
         "--geometry",
@@ -125,6 +132,7 @@ def session_options(args: argparse.Namespace, rrd: bool = False):
             accel_unit=args.accel_unit,
             gates=gates,
             force_gravity=args.force_gravity,
+            gyro=args.gyro,
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from None

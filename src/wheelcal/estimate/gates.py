@@ -115,6 +115,8 @@ class Assessment:
     warnings: tuple[str, ...]
     window_note: str = ""
     extra: dict = field(default_factory=dict)
+    #: The gyroscope's calibration (wheelcal.estimate.gyro_block), when there is one.
+    gyro: object | None = None
 
     @property
     def undetermined_names(self) -> tuple[str, ...]:

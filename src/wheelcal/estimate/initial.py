@@ -30,6 +30,7 @@ import numpy as np
 
 from wheelcal.estimate.decimation import thinning_stride
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
+from wheelcal.model.effects import cubic_bspline_basis
 
 _TREND_DEGREE = 6
 _MAX_SAMPLES = 4000
@@ -55,10 +56,14 @@ def initial_guess(
     radius_m: float | None = None,
     tilt_rad: float | None = None,
     spin_degree: int = 3,
+    spline=None,
 ) -> InitialGuess:
     """Starting parameters from samples ``accel_mps2`` at centred times ``t_s``.
 
     Give ``radius_m`` (radius mode) or ``tilt_rad`` (tilt / vertical modes).
+    ``spline`` (a :class:`~wheelcal.model.effects.SpinSpline`) lets the phase
+    follow any motion: the unwrapped phase is fitted by the cubic plus the
+    spline, whose coefficients are returned in ``params.effects``.
     """
     if (radius_m is None) == (tilt_rad is None):
         raise ValueError("give exactly one of radius_m and tilt_rad")
@@ -100,6 +105,12 @@ def initial_guess(
     spin = SpinParams(theta0_rad=phase_coef[0], omega_radps=omega)
     theta = spin.theta_at(t)
     omega_t = spin.omega_at(t)
+    spline_coef = None
+    if spline is not None:  # the rest of the phase, on the spline basis
+        b, d1, _ = cubic_bspline_basis(t, spline.start_s, spline.spacing_s, spline.size)
+        spline_coef, *_ = np.linalg.lstsq(b.T, phase - theta, rcond=None)
+        theta = theta + spline_coef @ b
+        omega_t = omega_t + spline_coef @ d1
 
     # 3. Linear regression on [1, ω², cosϑ', sinϑ'] (r ω̇ is left to the fit).
     design = np.column_stack([np.ones_like(t), omega_t**2, np.cos(theta), np.sin(theta)])
@@ -162,6 +173,7 @@ def initial_guess(
         bench=BenchParams(tilt_rad=tilt, radius_m=radius, misalignment=rot),
         sensor=SensorParams(offset_mps2=offset, gain=np.clip(gain, 0.2, 5.0)),
         gravity_mps2=gravity_mps2,
+        effects={} if spline_coef is None else {spline.name: spline_coef},
     )
     return InitialGuess(
         params=params,

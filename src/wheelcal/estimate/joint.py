@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.decimation import thinning_stride
+from wheelcal.estimate.gyro_equations import accumulate_gyro, combined, gyro_prediction
 from wheelcal.estimate.identifiability import check_identifiability
 from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.initial import InitialGuess, initial_guess
@@ -46,6 +47,8 @@ from wheelcal.estimate.systematic import (
 )
 from wheelcal.estimate.twins import TwinChoice, choose_twin, twin_of
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
+from wheelcal.model.effects import GyroReading, SpinSpline
+from wheelcal.model.forward import wheel_kinematics
 from wheelcal.recording import Recording, RecordingError
 
 GEOMETRY_MODES = ("radius", "tilt", "vertical")
@@ -78,6 +81,13 @@ class JointFit:
         Model extensions to fit (:mod:`wheelcal.model.effects`).  The discrete
         twin is chosen on the paper's model first (effects such as a nonlinearity
         break the twin symmetry), then the effects are fitted from zero.
+    use_gyro:
+        Fit the recording's gyroscope too (:class:`~wheelcal.model.effects.GyroReading`:
+        ω_meas = w ω + b), as a second, independent stream of the likelihood.
+    spline_spacing_s:
+        Let the wheel angle follow any motion: the cubic plus a cubic B-spline
+        correction with knots this far apart (:class:`~wheelcal.model.effects.SpinSpline`).
+        ``None`` keeps the paper's cubic.
     """
 
     spin_degree: int = 3
@@ -90,8 +100,12 @@ class JointFit:
     clock_std_ppm: float = DEFAULT_CLOCK_STD_PPM
     gravity_std_mps2: float | None = None
     effects: tuple = ()
+    use_gyro: bool = False
+    spline_spacing_s: float | None = None
 
     def __post_init__(self) -> None:
+        if self.spline_spacing_s is not None and not self.spline_spacing_s > 0:
+            raise ValueError("spline_spacing_s must be positive")
         if self.geometry not in GEOMETRY_MODES:
             raise ValueError(f"geometry must be one of {GEOMETRY_MODES}, got {self.geometry!r}")
         if self.geometry == "tilt" and self.known_tilt_deg is None:
@@ -101,7 +115,7 @@ class JointFit:
 
     @property
     def layout(self) -> ParameterLayout:
-        """Free parameters for this configuration."""
+        """Free parameters for this configuration (without the window's motion effects)."""
         radius_known = self.geometry == "radius"
         return ParameterLayout(
             spin_degree=self.spin_degree,
@@ -109,6 +123,22 @@ class JointFit:
             fit_radius=not radius_known,
             effects=tuple(self.effects),
         )
+
+    def _spline(self, tc: np.ndarray) -> SpinSpline | None:
+        if self.spline_spacing_s is None:
+            return None
+        return SpinSpline(float(tc[0]), float(tc[-1]), self.spline_spacing_s)
+
+    def layout_for(self, recording: Recording) -> ParameterLayout:
+        """Free parameters for this configuration and window (spline, gyro included)."""
+        t = recording.time_s
+        motion = []
+        spline = self._spline(t - 0.5 * (t[0] + t[-1]))
+        if spline is not None:
+            motion.append(spline)
+        if self.use_gyro:
+            motion.append(GyroReading())
+        return dataclasses.replace(self.layout, effects=tuple(self.effects) + tuple(motion))
 
     def _fixed_tilt_rad(self) -> float | None:
         if self.geometry == "vertical":
@@ -130,14 +160,21 @@ class JointFit:
         """The closed-form starting point (:mod:`wheelcal.estimate.initial`) for a window."""
         info = self._checked_info(recording)
         t = recording.time_s
-        return initial_guess(
-            t - 0.5 * (t[0] + t[-1]),
+        tc = t - 0.5 * (t[0] + t[-1])
+        guess = initial_guess(
+            tc,
             recording.accel_mps2,
             info.gravity_or_standard_mps2,
             radius_m=info.radius_m if self.geometry == "radius" else None,
             tilt_rad=self._fixed_tilt_rad(),
             spin_degree=self.spin_degree,
+            spline=self._spline(tc),
         )
+        if not self.use_gyro:
+            return guess
+        gyro_t, gyro = gyro_samples(recording, tc)
+        params = with_gyro_start(guess.params, self.layout_for(recording), gyro_t, gyro)
+        return dataclasses.replace(guess, params=params)
 
     def fit(
         self,
@@ -156,7 +193,8 @@ class JointFit:
         tc = t - centre
         v = recording.accel_mps2
         gravity = info.gravity_or_standard_mps2
-        layout = self.layout
+        layout = self.layout_for(recording)
+        gyro_t, gyro = gyro_samples(recording, tc) if self.use_gyro else (None, None)
         notes: list[str] = []
         if initial is None and self.effects:
             # Settle the twin on the paper's model, then free the effects from zero.
@@ -172,8 +210,12 @@ class JointFit:
         omega_max = float(np.max(np.abs(initial.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
         stride = thinning_stride(t.size, _STAGE1_SAMPLES, recording.rate_hz, omega_max)
         std0 = np.maximum(np.std(np.diff(v, axis=0), axis=0) / np.sqrt(2), 1e-6)
+        gyro1 = None
+        if gyro is not None:
+            gyro_std0 = np.maximum(np.std(np.diff(gyro, axis=0), axis=0) / np.sqrt(2), 1e-9)
+            gyro1 = (gyro_t[::stride], gyro[::stride], NoiseModel.white(gyro_std0))
         out = levenberg_marquardt(
-            _residual_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
+            _residual_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0), gyro=gyro1),
             initial,
             layout,
             self.max_iterations,
@@ -183,8 +225,12 @@ class JointFit:
         # The accumulations carry the sensitivities to the fixed quantities as
         # extra columns, so the last one also gives the systematic budget.
         noise = self._noise_model(v - _predict(out.params, tc, layout))
+        gyro2 = gyro_noise = None
+        if gyro is not None:
+            gyro_noise = self._noise_model(gyro - gyro_prediction(out.params, gyro_t, layout))
+            gyro2 = (gyro_t, gyro, gyro_noise)
         out = levenberg_marquardt(
-            _residual_fn(tc, v, layout, noise, nuisance_columns(layout)),
+            _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2),
             out.params,
             layout,
             self.max_iterations,
@@ -203,7 +249,7 @@ class JointFit:
         nuisances = nuisance_columns(layout)
         normal = out.normal
         if not _same_point(params, out.params):  # the other twin: new Jacobian
-            normal = accumulate(params, tc, v, layout, noise, extra=nuisance_extra(nuisances))
+            normal = _residual_fn(tc, v, layout, noise, nuisances, gyro=gyro2)(params, True)
         size = layout.size
         cov_x = covariance_from_fisher(normal.hessian[:size, :size])
         names, values, g = report_transform(params, layout)
@@ -266,6 +312,7 @@ class JointFit:
             source=recording.source,
             topic=recording.topic,
             notes=tuple(notes) + recording.notes,
+            gyro_noise=gyro_noise,
         )
 
     def _noise_model(self, residual: np.ndarray) -> NoiseModel:
@@ -294,11 +341,45 @@ def _residual_fn(
     layout: ParameterLayout,
     noise: NoiseModel,
     nuisances: list[str] | None = None,
+    gyro: tuple | None = None,
 ):
-    """Whitened normal equations of (model − data), for the LM (nuisances as extra columns)."""
+    """Whitened normal equations of (model − data), for the LM (nuisances as extra columns).
+
+    ``gyro`` = (times, samples, noise model) adds the gyroscope's stream.
+    """
     extra = nuisance_extra(nuisances) if nuisances else None
 
     def normal(params: CalibrationParams, want_jacobian: bool):
-        return accumulate(params, tc, v, layout, noise, jacobian=want_jacobian, extra=extra)
+        acc = accumulate(params, tc, v, layout, noise, jacobian=want_jacobian, extra=extra)
+        if gyro is None:
+            return acc
+        gyro_t, gyro_v, gyro_noise = gyro
+        rate = accumulate_gyro(params, gyro_t, gyro_v, layout, gyro_noise, want_jacobian)
+        return combined(acc, rate)
 
     return normal
+
+
+def gyro_samples(recording: Recording, tc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centred times and samples of the recording's usable gyro rows."""
+    gyro = getattr(recording, "gyro_radps", None)
+    if gyro is None:
+        raise RecordingError(f"{recording.source}: the recording has no gyroscope")
+    valid = np.all(np.isfinite(gyro), axis=1)
+    if valid.sum() < 100:
+        raise RecordingError(
+            f"{recording.source}: only {int(valid.sum())} usable gyro samples in the window"
+        )
+    return tc[valid], np.asarray(gyro)[valid]
+
+
+def with_gyro_start(
+    params: CalibrationParams, layout: ParameterLayout, gyro_t: np.ndarray, gyro: np.ndarray
+) -> CalibrationParams:
+    """``params`` with the gyro reading's w and b from a regression of the gyro on ω(t)."""
+    omega = wheel_kinematics(params, gyro_t, layout.effects).omega_radps
+    design = np.column_stack([omega, np.ones_like(omega)])
+    coef, *_ = np.linalg.lstsq(design, gyro, rcond=None)  # rows: w, b
+    effects = dict(params.effects)
+    effects[GyroReading.name] = np.concatenate([coef[0], coef[1]])
+    return params.with_changes(effects=effects)

@@ -44,6 +44,15 @@ class NormalEquations:
     entries: int  # number of whitened residual entries
 
 
+def chunking(layout: ParameterLayout, t_s: np.ndarray, chunk: int | None) -> tuple[int, bool]:
+    """Samples per chunk, and whether the rows are sparse (a spline: two knot intervals)."""
+    spline = next((e for e in layout.effects if e.name == "spin_spline"), None)
+    if spline is None or spline.size < 8 or t_s.size < 2:
+        return chunk or CHUNK_SAMPLES, False
+    rate = (t_s.size - 1) / max(float(t_s[-1] - t_s[0]), 1e-12)
+    return chunk or max(256, int(2 * spline.spacing_s * rate)), True
+
+
 def accumulate(
     params: CalibrationParams,
     t_s: np.ndarray,
@@ -52,10 +61,15 @@ def accumulate(
     noise: NoiseModel,
     jacobian: bool = True,
     extra: ExtraColumns | None = None,
-    chunk: int = CHUNK_SAMPLES,
+    chunk: int | None = None,
 ) -> NormalEquations:
-    """Accumulate cost, J̃ᵀJ̃ and J̃ᵀr̃ of the whitened residual (model − data)."""
+    """Accumulate cost, J̃ᵀJ̃ and J̃ᵀr̃ of the whitened residual (model − data).
+
+    With a local basis in the layout (a wheel-angle spline), chunks follow its
+    knots and the Gram products skip the rows that are zero over a chunk.
+    """
     n = t_s.size
+    chunk, sparse = chunking(layout, t_s, chunk)
     p = noise.order
     cost = 0.0
     entries = 0
@@ -85,13 +99,29 @@ def accumulate(
         rw, jw = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop], buf)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)
-        h_chunk = jt @ jt.T
-        g_chunk = jt @ r_flat
         if hess is None:
-            hess, grad = h_chunk, g_chunk
-        else:
-            hess += h_chunk
-            grad += g_chunk
+            hess = np.zeros((jt.shape[0], jt.shape[0]))
+            grad = np.zeros(jt.shape[0])
+        add_gram(hess, grad, jt, r_flat, sparse)
         cost += float(r_flat @ r_flat)
         entries += r_flat.size
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
+
+
+def add_gram(
+    hess: np.ndarray, grad: np.ndarray, jt: np.ndarray, r: np.ndarray, sparse: bool
+) -> None:
+    """Add J Jᵀ to ``hess`` and J r to ``grad`` (only J's non-zero rows when ``sparse``).
+
+    A spline of the wheel angle has columns that live on a few knot intervals:
+    over a short chunk most of its rows are zero, and the Gram product of the
+    others is all that costs.
+    """
+    if not sparse:
+        hess += jt @ jt.T
+        grad += jt @ r
+        return
+    active = np.flatnonzero(np.any(jt != 0.0, axis=1))
+    sub = jt[active]
+    hess[np.ix_(active, active)] += sub @ sub.T
+    grad[active] += sub @ r

@@ -56,6 +56,8 @@ class CalibrationResult:
     notes: tuple[str, ...] = ()
     #: What the plausibility gates made of it (None until assessed).
     assessment: Assessment | None = None
+    #: The gyroscope's noise model when the gyro was fitted (None otherwise).
+    gyro_noise: NoiseModel | None = None
 
     @property
     def undetermined(self) -> tuple[str, ...]:

@@ -40,19 +40,24 @@ from wheelcal.estimate.gates import (
     tolerance_warnings,
     undetermined_parameters,
 )
+from wheelcal.estimate.gyro_block import gyro_by_product, gyro_from_fit
 from wheelcal.estimate.initial import InitialGuess
-from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.joint import JointFit, gyro_samples
+from wheelcal.estimate.knots import choose_knot_spacing
 from wheelcal.estimate.motion_check import MotionCheck, broadband_noise, check_motion
 from wheelcal.estimate.noise_reference import noise_reference
 from wheelcal.estimate.rest_check import check_rests
 from wheelcal.estimate.rests import RestSegment, find_rests
 from wheelcal.estimate.result import CalibrationResult
-from wheelcal.estimate.window import FreeSpinWindow, find_free_spin
+from wheelcal.estimate.window import FreeSpinWindow, find_free_spin, find_motion_window
 from wheelcal.model import evaluate
-from wheelcal.recording import CalibrationRefused, Recording
+from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 
 #: Each retry keeps this fraction of the window (its start).
 SHRINK = 0.6
+GYRO_MODES = ("auto", "on", "off")
+#: Refusals of the accelerometer-only fit that a gyroscope can overcome (``--gyro auto``).
+GYRO_CAN_HELP = ("motion", "undetermined", "turns")
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +107,13 @@ class SessionFit:
     gates: Gates = field(default_factory=Gates)
     start_s: float | None = None
     end_s: float | None = None
+    #: "auto": the free spin's cubic unless only the gyro can follow the motion;
+    #: "on": always fit the gyro with a flexible wheel angle; "off": ignore it.
+    gyro: str = "auto"
+
+    def __post_init__(self) -> None:
+        if self.gyro not in GYRO_MODES:
+            raise ValueError(f"gyro must be one of {GYRO_MODES}, got {self.gyro!r}")
 
     def run(self, recording: Recording) -> SessionFitOutcome:
         """Calibrate ``recording`` (rests, push and stop included).
@@ -113,6 +125,72 @@ class SessionFit:
         RecordingError
             When the recording cannot be used at all (no free spin, no radius …).
         """
+        has_gyro = _usable_gyro(recording)
+        if self.gyro == "on" and not has_gyro:
+            raise RecordingError(
+                f"{recording.source}: --gyro on, but the recording has no usable gyroscope"
+            )
+        if has_gyro and self.gyro == "on":
+            return self._run_with_gyro(recording, "--gyro on")
+        try:
+            outcome = self._run_free_spin(recording)
+        except CalibrationRefused as exc:
+            if not (has_gyro and self.gyro == "auto" and exc.gate in GYRO_CAN_HELP):
+                raise
+            why = f"the accelerometer alone was refused ({exc.gate}: {exc.reason})"
+            return self._run_with_gyro(recording, why)
+        except RecordingError as exc:
+            if not (has_gyro and self.gyro == "auto"):
+                raise
+            return self._run_with_gyro(recording, f"no free spin ({exc})")
+        if has_gyro and self.gyro == "auto":
+            window = outcome.window.recording
+            gyro_t, gyro = gyro_samples(window, window.time_s - outcome.result.centre_s)
+            block = gyro_by_product(outcome.result, gyro_t, gyro)
+            assessment = dataclasses.replace(outcome.result.assessment, gyro=block)
+            result = dataclasses.replace(outcome.result, assessment=assessment)
+            return dataclasses.replace(outcome, result=result)
+        return outcome
+
+    def _run_with_gyro(self, recording: Recording, why: str) -> SessionFitOutcome:
+        """The gyro-aided fit: the whole motion, a spline wheel angle, both streams."""
+        gates = self.gates
+        if self.start_s is not None:
+            found = None
+            window = recording.window(self.start_s, self.end_s)
+            reason = f"window given on the command line: {self.start_s:g}–{self.end_s:g} s"
+        else:
+            found = find_motion_window(recording)
+            start, end = found.start_s, min(found.end_s, found.start_s + gates.max_window_s)
+            window = recording.window(start, end)
+            reason = found.reason + (
+                f"; capped to its first {gates.max_window_s:g} s" if end < found.end_s else ""
+            )
+        rests = find_rests(recording, (float(window.time_s[0]), float(window.time_s[-1])))
+        tc = window.time_s - 0.5 * (window.time_s[0] + window.time_s[-1])
+        gyro_t, gyro = gyro_samples(window, tc)
+        knots = choose_knot_spacing(gyro_t, gyro)
+        fitter = dataclasses.replace(self.fitter, use_gyro=True, spline_spacing_s=knots.spacing_s)
+        guess = fitter.start(window)
+        _check_implied_radius(guess, window, gates)
+        result = fitter.fit(window, guess=guess)
+        notes = [
+            f"gyro-aided ({why}): wheel angle = cubic + spline with knots every "
+            f"{knots.spacing_s:g} s (chosen by BIC on the gyro's rate)"
+        ]
+        if window.clip_limits_mps2 is not None:
+            result, window, rail_note = _clear_of_rails(fitter, result, window)
+            notes.append(rail_note)
+        fastest = float(np.max(np.abs(gyro @ result.params.effect("gyro", 6)[:3])))
+        fastest /= max(float(np.sum(result.params.effect("gyro", 6)[:3] ** 2)), 1e-12)
+        refuse_undersampled(recording.source, window.rate_hz, fastest, gates)
+        refuse_few_turns(result)
+        block = gyro_from_fit(result, gyro_t, gyro)
+        choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
+        return SessionFitOutcome(assess(result, rests, gates, None, block), choice, rests)
+
+    def _run_free_spin(self, recording: Recording) -> SessionFitOutcome:
+        """The accelerometer-only fit of the free spin (the paper's cubic)."""
         gates = self.gates
         choice = choose_window(recording, self.start_s, self.end_s, gates.max_window_s)
         if choice.found is not None:
@@ -219,11 +297,17 @@ def _theta(result: CalibrationResult) -> np.ndarray:
     return evaluate(result.params, result.centred_time_s, result.layout).kinematics.theta_rad
 
 
+def _usable_gyro(recording: Recording) -> bool:
+    gyro = getattr(recording, "gyro_radps", None)
+    return gyro is not None and int(np.sum(np.all(np.isfinite(gyro), axis=1))) >= 100
+
+
 def assess(
     result: CalibrationResult,
     rests: tuple[RestSegment, ...],
     gates: Gates,
     motion: MotionCheck | None = None,
+    gyro=None,
 ) -> CalibrationResult:
     """Apply the post-fit gates to ``result``; return it with its :class:`Assessment`.
 
@@ -247,6 +331,7 @@ def assess(
         rest_checks=checks,
         undetermined=tuple(undetermined),
         warnings=tuple(warnings),
+        gyro=gyro,
     )
     return dataclasses.replace(
         result, assessment=assessment, warnings=result.warnings + tuple(warnings)

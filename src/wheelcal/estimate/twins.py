@@ -57,12 +57,37 @@ def _negated_spin(spin: SpinParams) -> SpinParams:
     return SpinParams(theta0_rad=-spin.theta0_rad, omega_radps=-spin.omega_radps)
 
 
+def _mirrored_effects(effects, negate: bool = False, half_turn: bool = False) -> dict:
+    """Effect values of the same model after ϑ → −ϑ (``negate``) or ϑ → ϑ + π.
+
+    Spin effects follow the phase: a spline correction Δϑ and the higher spin
+    coefficients change sign with ϑ; an imbalance a sinϑ + b cosϑ becomes
+    (a, −b) under ϑ → −ϑ and (−a, −b) under ϑ → ϑ + π; the gyro's w·ω keeps its
+    reading when w changes sign with ω.  Sensor effects do not see ϑ.
+    """
+    out = dict(effects)
+    for name, values in effects.items():
+        v = np.array(values, dtype=float)
+        if name in ("spin_spline", "spin_extension") and negate:
+            v = -v
+        elif name == "imbalance":
+            if negate:
+                v = v * np.array([1.0, -1.0])
+            if half_turn:
+                v = -v
+        elif name == "gyro" and negate:
+            v[:3] = -v[:3]
+        out[name] = v
+    return out
+
+
 def _with(
-    params: CalibrationParams, spin=None, tilt=None, rot=None, offset=None
+    params: CalibrationParams, spin=None, tilt=None, rot=None, offset=None, effects=None
 ) -> CalibrationParams:
     bench = params.bench
     return params.with_changes(
         spin=spin or params.spin,
+        effects=params.effects if effects is None else effects,
         bench=BenchParams(
             tilt_rad=bench.tilt_rad if tilt is None else tilt,
             radius_m=bench.radius_m,
@@ -84,16 +109,19 @@ def to_contract_frame(params: CalibrationParams) -> CalibrationParams:
         return params
     alpha = wrap_angle(params.bench.tilt_rad)
     spin = params.spin
+    effects = dict(params.effects)
     if alpha < 0:  # sin(−α)cosϑ = sin(α)cos(ϑ+π): move the sign into the phase
         alpha = -alpha
         spin = SpinParams(theta0_rad=spin.theta0_rad + np.pi, omega_radps=spin.omega_radps)
+        effects = _mirrored_effects(effects, half_turn=True)
     rot = params.bench.misalignment
     if alpha > np.pi / 2:  # Z points down: turn the frame 180° about X
         alpha = np.pi - alpha
         rot = Rotation(rot.matrix @ _FLIP)
         spin = _negated_spin(spin)
+        effects = _mirrored_effects(effects, negate=True)
     spin = SpinParams(theta0_rad=wrap_angle(spin.theta0_rad), omega_radps=spin.omega_radps)
-    return _with(params, spin=spin, tilt=alpha, rot=rot)
+    return _with(params, spin=spin, tilt=alpha, rot=rot, effects=effects)
 
 
 def twin_of(params: CalibrationParams) -> CalibrationParams:
@@ -106,6 +134,7 @@ def twin_of(params: CalibrationParams) -> CalibrationParams:
         spin=_negated_spin(params.spin),
         rot=Rotation(rot @ _FLIP),
         offset=params.sensor.offset_mps2 + shift,
+        effects=_mirrored_effects(params.effects, negate=True),
     )
 
 

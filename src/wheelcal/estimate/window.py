@@ -216,3 +216,65 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
         omega_end_radps=w_end,
         max_spin_accel_radps2=max_acc,
     )
+
+
+@dataclass(frozen=True)
+class MotionSearch:
+    """Settings of :func:`find_motion_window` (a window for gyro-aided fits)."""
+
+    min_rate_radps: float = 1.5
+    max_spin_accel_radps2: float = 8.0
+    smooth_s: float = 0.25
+    margin_s: float = 0.5
+    min_duration_s: float = 5.0
+
+
+def find_motion_window(recording: Recording, search: MotionSearch | None = None) -> FreeSpinWindow:
+    """The longest stretch where the wheel turns, found from the gyroscope.
+
+    With a gyro the motion no longer has to be a free spin: the spline of the
+    wheel angle follows a motor's steps or a second push, so the window is the
+    longest stretch where |ω| > ``min_rate_radps`` — cut only where the rate
+    changes faster than ``max_spin_accel_radps2`` (a hand starting or braking the
+    wheel, whose forces are not in the model), shrunk by ``margin_s``.
+    """
+    search = search or MotionSearch()
+    gyro = getattr(recording, "gyro_radps", None)
+    if gyro is None:
+        raise RecordingError(f"{recording.source}: no gyroscope to find the wheel's motion")
+    t = recording.time_s
+    valid = np.all(np.isfinite(gyro), axis=1)
+    rate = np.interp(t, t[valid], np.linalg.norm(gyro[valid], axis=1))
+    n = max(1, round(search.smooth_s * recording.rate_hz))
+    rate = _moving_average(rate, n)
+    accel = np.gradient(rate, t)
+    turning = (rate > search.min_rate_radps) & (np.abs(accel) < search.max_spin_accel_radps2)
+    starts, stops = _runs(turning)
+    if starts.size == 0:
+        raise RecordingError(
+            f"{recording.source}: the gyroscope shows no stretch where the wheel turns faster "
+            f"than {search.min_rate_radps} rad/s"
+        )
+    best = int(np.argmax(stops - starts))
+    first, last = int(starts[best]), int(stops[best]) - 1
+    start_s = t[first] + (search.margin_s if first > 0 else 0.0)
+    end_s = t[last] - (search.margin_s if last < t.size - 1 else 0.0)
+    if end_s - start_s < search.min_duration_s:
+        raise RecordingError(
+            f"{recording.source}: the wheel turns for {max(end_s - start_s, 0):.1f} s at most "
+            f"(need {search.min_duration_s:g} s)"
+        )
+    inside = (t >= start_s) & (t <= end_s)
+    reason = (
+        f"motion {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s) from the gyroscope: "
+        f"|ω| {rate[inside][0]:.2f} → {rate[inside][-1]:.2f} rad/s, speed changes up to "
+        f"{np.max(np.abs(accel[inside])):.2f} rad/s² followed by the wheel-angle spline"
+    )
+    return FreeSpinWindow(
+        start_s=float(start_s),
+        end_s=float(end_s),
+        reason=reason,
+        omega_start_radps=float(rate[inside][0]),
+        omega_end_radps=float(rate[inside][-1]),
+        max_spin_accel_radps2=float(np.max(np.abs(accel[inside]))),
+    )

@@ -67,7 +67,15 @@ def calibration_dict(
     sys_std = dict(zip(budget.names, budget.total_std, strict=True))
     spin = params.spin
     correction, identity_axes = _correction(result, undetermined)
+    spline = next((e for e in result.layout.effects if e.name == "spin_spline"), None)
     motion = {"model": f"polynomial{spin.degree}", "t0_unix_ns": int(result.t0_unix_ns)}
+    if spline is not None:
+        motion["model"] += "+spline"
+        motion["spline"] = {
+            **spline.settings(),
+            "coefficients_rad": _vec(params.effect(spline.name, spline.size)),
+            "description": spline.description,
+        }
     for name, value in spin.to_dict().items():
         motion[name] = _num(value)
         motion[name.replace("_rad", "_std_rad", 1) if name == "theta0_rad" else _std_key(name)] = (
@@ -112,14 +120,16 @@ def calibration_dict(
         "bench": bench,
         "motion": motion,
         "effects": effects_dict(result),
-        "parameters": {n: {"value": _num(values[n]), "std": _num(std[n])} for n in result.names},
+        "parameters": {
+            n: {"value": _num(values[n]), "std": _num(std[n])} for n in _reported(result)
+        },
         "fit": {
             "residual_rms_mps2": _vec(result.residual_rms_mps2),
             "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
             "converged": bool(result.converged),
             "iterations": int(result.iterations),
             "covariance": _covariance(result, undetermined),
-            "covariance_names": list(result.names),
+            "covariance_names": list(_reported(result)),
             "warnings": list(result.warnings),
             "noise_model": result.noise.to_dict(),
             "twin": {
@@ -188,10 +198,20 @@ def _undetermined(result: CalibrationResult) -> list[dict]:
     return [{"parameter": n, "reason": r} for n, r in result.assessment.undetermined]
 
 
+#: Nuisance parameters kept out of ``parameters`` and ``covariance`` (in ``motion.spline``).
+_NUISANCE_PREFIXES = ("spin_spline.",)
+
+
+def _reported(result: CalibrationResult) -> tuple[str, ...]:
+    return tuple(n for n in result.names if not n.startswith(_NUISANCE_PREFIXES))
+
+
 def _covariance(result: CalibrationResult, undetermined: set[str]) -> list:
-    cov = np.array(result.covariance, dtype=float)
+    keep = [result.names.index(n) for n in _reported(result)]
+    cov = np.array(result.covariance, dtype=float)[np.ix_(keep, keep)]
+    names = _reported(result)
     for name in undetermined:
-        i = result.names.index(name)
+        i = names.index(name)
         cov[i, :] = cov[:, i] = np.nan
     return [[_num(c) for c in row] for row in cov]
 
@@ -208,6 +228,8 @@ def _assessment(result: CalibrationResult) -> dict:
         out["noise_reference"] = _clean(a.noise.to_dict())
     if a.motion is not None:
         out["motion_check"] = _clean(a.motion.to_dict())
+    if a.gyro is not None:
+        out["gyro"] = _clean(a.gyro.to_dict())
     out["rest_checks"] = [_clean(c.to_dict()) for c in a.rest_checks]
     out["gates"] = a.gates.to_dict()
     return out
@@ -233,6 +255,8 @@ def effects_dict(result: CalibrationResult) -> dict:
     std = dict(zip(result.names, result.std, strict=True))
     out = {}
     for effect in result.layout.effects:
+        if effect.stage == "gyro" or effect.name == "spin_spline":
+            continue  # a measurement and a motion model: see ``gyro`` and ``motion``
         values = result.params.effect(effect.name, effect.size)
         entry = {
             p: {"value": _num(v), "std": _num(std.get(f"{effect.name}.{p}", float("nan")))}

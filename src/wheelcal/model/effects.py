@@ -221,6 +221,37 @@ class Imbalance(_SpinEffect):
         )
 
 
+class GyroReading(Effect):
+    """The gyroscope on the wheel: ω_meas(t) = w·ω(t) + b (rad/s, gyro axes).
+
+    On a fixed bench the gyro sees only the wheel's rotation, about the wheel
+    axis: an ideal gyro reads −ω R e_Z (the wheel's angular velocity is −ω e_Z in
+    the bench frame, README "Conventions").  A real one reads w ω + b with
+    w = k u: scale k along the axis and a unit direction u that per-axis scale
+    errors and the gyro-to-accelerometer misalignment tilt by 1–2° from −R e_Z —
+    so u is free here and never constrains R.  Only the scale along the wheel
+    axis (|w|), the axis u and the three biases are calibrated.  Zero values
+    are not "absent" for this effect: it is a measurement, not an extension.
+    """
+
+    name = "gyro"
+    param_names = (
+        "w_x",
+        "w_y",
+        "w_z",
+        "bias_x_radps",
+        "bias_y_radps",
+        "bias_z_radps",
+    )
+    stage = "gyro"
+    description = "gyroscope reading w·ω + b (w = scale × axis)"
+
+    def reading(self, values: np.ndarray, omega_radps: np.ndarray) -> np.ndarray:
+        """Predicted gyro samples (N, 3) for the wheel rate ω(t)."""
+        values = np.asarray(values, dtype=float)
+        return np.outer(omega_radps, values[:3]) + values[3:]
+
+
 def cubic_bspline_basis(
     t_s: np.ndarray, start_s: float, spacing_s: float, count: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -519,6 +550,8 @@ def make_effect(name: str, settings: dict | None = None) -> Effect:
         return OffsetWarmup(float(settings.get("tau_s", 25.0)))
     if name == "spin_extension":
         return SpinPolynomialExtension(int(settings.get("extra_degrees", 2)))
+    if name == "gyro":
+        return GyroReading()
     if name == "spin_spline":
         return SpinSpline(
             float(settings["start_s"]), float(settings["end_s"]), float(settings["spacing_s"])

@@ -125,11 +125,15 @@ def candidate_columns(
 
 
 def blocks_needing_zeros(layout: ParameterLayout) -> np.ndarray:
-    """Rows of the Jacobian that evaluate() fills only partly (gain, offset, sensor effects)."""
+    """Rows of the Jacobian that evaluate() fills only partly or not at all.
+
+    Gain, offset and sensor effects are filled per axis; a measurement of
+    another stream (the gyro) does not act on the accelerometer at all.
+    """
     b = layout.blocks
     rows = list(range(b["gain"].start, b["offset"].stop))
     for effect in layout.effects:
-        if effect.stage == "sensor":
+        if effect.stage in ("sensor", "gyro"):
             block = b[f"effect:{effect.name}"]
             rows += list(range(block.start, block.stop))
     return np.array(rows, dtype=int)
@@ -140,6 +144,27 @@ def _through_w(w3: np.ndarray, da: np.ndarray) -> np.ndarray:
     if w3.shape[2] == 1:
         return w3[:, :, 0] @ da.T
     return np.einsum("ijn,nj->in", w3, da)
+
+
+def wheel_kinematics(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    effects: tuple = (),
+    jacobian: bool = False,
+    kinematics: Kinematics | None = None,
+) -> Kinematics:
+    """ϑ, ω, ω̇ of the spin (eq. 2, or a given motion) with its spin-stage effects.
+
+    With ``jacobian`` the derivative rows are the spin coefficients, then each
+    spin effect's parameters in the order of ``effects``.
+    """
+    t = np.asarray(t_s, dtype=float)
+    kin = kinematics if kinematics is not None else spin_kinematics(params.spin, t, jacobian)
+    for effect in effects:
+        if effect.stage == "spin":
+            values = params.effect(effect.name, effect.size)
+            kin = _apply_spin_effect(effect, values, t, kin, jacobian)
+    return kin
 
 
 def evaluate(
@@ -165,11 +190,7 @@ def evaluate(
         raise ValueError("a Jacobian needs a ParameterLayout and the model's own spin")
     effects = layout.effects if layout is not None else tuple(effects)
     t = np.asarray(t_s, dtype=float)
-    kin = kinematics if kinematics is not None else spin_kinematics(params.spin, t, jacobian)
-    for effect in effects:
-        if effect.stage == "spin":
-            values = params.effect(effect.name, effect.size)
-            kin = _apply_spin_effect(effect, values, t, kin, jacobian)
+    kin = wheel_kinematics(params, t, effects, jacobian, kinematics)
     force = bench_force(kin, params.bench.tilt_rad, params.bench.radius_m, params.gravity_mps2)
     rot = params.bench.misalignment.matrix
     gain = params.sensor.gain

@@ -1,0 +1,127 @@
+"""The gyroscope's calibration, a by-product of the wheel: scale and axis along it, biases.
+
+The gyro reads ω_meas = w ω(t) + b (:class:`~wheelcal.model.effects.GyroReading`)
+with w = k u.  Reported: the scale k = |w| along the wheel axis, the axis u in
+the gyro's own frame, the biases b, each with σ (k and u by the delta
+method: ∂k/∂w = u, ∂u/∂w = (I − u uᵀ)/k), and the angle between u and the
+ideal −R e_Z — a diagnostic of the gyro-to-accelerometer misalignment and
+per-axis scale errors, never a constraint on R.  Only one gyro axis (the
+wheel's) is excited, so the gyro's other scales and its misalignment are
+*not* calibrated.
+
+Two sources: the joint fit itself when the gyro was fitted with the
+accelerometer (driven motion, ``--gyro on``), or — when ``--gyro auto`` kept
+the free spin's cubic — a regression of the gyro on the fitted ω(t), with the
+gyro's own AR noise model (σ conditional on the fitted spin, whose own
+uncertainty is far smaller).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.estimate.gyro_equations import accumulate_gyro, gyro_prediction
+from wheelcal.estimate.information import scaled_pinv
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.result import CalibrationResult
+from wheelcal.model import ParameterLayout
+from wheelcal.model.effects import GyroReading
+
+_NAMES = GyroReading.param_names
+
+
+@dataclass(frozen=True, eq=False)
+class GyroCalibration:
+    """Scale, axis and biases of the gyroscope, with σ."""
+
+    scale: float
+    scale_std: float
+    axis: np.ndarray
+    axis_std: np.ndarray
+    bias_radps: np.ndarray
+    bias_std_radps: np.ndarray
+    axis_angle_deg: float
+    residual_rms_radps: np.ndarray
+    source: str
+
+    def to_dict(self) -> dict:
+        """The calibration JSON's ``gyro`` block."""
+        return {
+            "scale": self.scale,
+            "scale_std": self.scale_std,
+            "axis": self.axis.tolist(),
+            "axis_std": self.axis_std.tolist(),
+            "bias_radps": self.bias_radps.tolist(),
+            "bias_std_radps": self.bias_std_radps.tolist(),
+            "axis_angle_to_wheel_axis_deg": self.axis_angle_deg,
+            "residual_rms_radps": self.residual_rms_radps.tolist(),
+            "source": self.source,
+            "calibrated": "scale along the wheel axis, the axis direction, the three biases",
+            "note": "u is free: it tilts from −R·e_Z by the gyro's own misalignment and "
+            "per-axis scale errors; the gyro's other scales are not excited by the wheel",
+        }
+
+
+def _calibration(values, cov, rotation, residual, source) -> GyroCalibration:
+    w, b = np.asarray(values[:3], float), np.asarray(values[3:], float)
+    k = float(np.linalg.norm(w))
+    u = w / k
+    cov_w = cov[:3, :3]
+    j_axis = (np.eye(3) - np.outer(u, u)) / k
+    ideal = -rotation[:, 2]
+    angle = float(np.rad2deg(np.arccos(np.clip(u @ ideal, -1.0, 1.0))))
+    return GyroCalibration(
+        scale=k,
+        scale_std=float(np.sqrt(max(u @ cov_w @ u, 0.0))),
+        axis=u,
+        axis_std=np.sqrt(np.maximum(np.diag(j_axis @ cov_w @ j_axis.T), 0.0)),
+        bias_radps=b,
+        bias_std_radps=np.sqrt(np.maximum(np.diag(cov[3:, 3:]), 0.0)),
+        axis_angle_deg=angle,
+        residual_rms_radps=np.sqrt(np.mean(residual**2, axis=0)),
+        source=source,
+    )
+
+
+def gyro_from_fit(
+    result: CalibrationResult, gyro_t: np.ndarray, gyro: np.ndarray
+) -> GyroCalibration:
+    """The gyro block of a joint fit that included the gyro."""
+    index = [result.names.index(f"gyro.{n}") for n in _NAMES]
+    values = result.values[index]
+    cov = result.covariance[np.ix_(index, index)]
+    residual = gyro - gyro_prediction(result.params, gyro_t, result.layout)
+    return _calibration(values, cov, result.params.bench.misalignment.matrix, residual, "joint fit")
+
+
+def gyro_by_product(
+    result: CalibrationResult, gyro_t: np.ndarray, gyro: np.ndarray, max_ar_order: int = 10
+) -> GyroCalibration:
+    """The gyro block by regression on the fitted ω(t) (the fit did not use the gyro)."""
+    from wheelcal.estimate.joint import with_gyro_start
+
+    layout = ParameterLayout(
+        spin_degree=result.layout.spin_degree,
+        fit_tilt=result.layout.fit_tilt,
+        fit_radius=result.layout.fit_radius,
+        effects=(*result.layout.effects, GyroReading()),
+    )
+    params = with_gyro_start(result.params, layout, gyro_t, gyro)
+    residual = gyro - gyro_prediction(params, gyro_t, layout)
+    noise = NoiseModel.estimate(residual, max_ar_order)
+    normal = accumulate_gyro(params, gyro_t, gyro, layout, noise)
+    block = layout.blocks[f"effect:{GyroReading.name}"]
+    h = normal.hessian[block, block]
+    cov = scaled_pinv(h)
+    values = params.effect(GyroReading.name, len(_NAMES)) - cov @ normal.gradient[block]
+    params = params.with_changes(effects={**params.effects, GyroReading.name: values})
+    residual = gyro - gyro_prediction(params, gyro_t, layout)
+    return _calibration(
+        values,
+        cov,
+        result.params.bench.misalignment.matrix,
+        residual,
+        "regression on the fitted wheel rate (the free spin's cubic was kept)",
+    )

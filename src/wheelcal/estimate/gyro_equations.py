@@ -1,0 +1,119 @@
+"""Whitened normal equations of the gyroscope stream, on the joint fit's parameters.
+
+With a :class:`~wheelcal.model.effects.GyroReading` in the layout, every valid
+gyro sample adds three residuals, ω_meas − (w ω(t) + b), to the
+accelerometer's.  Their partial derivatives are
+
+* spin coefficients and spin effects p:  w · ∂ω/∂p  (the rows of the
+  kinematics, :func:`~wheelcal.model.forward.wheel_kinematics`);
+* the reading's own parameters:  ∂/∂w_i = ω e_i,  ∂/∂b_i = e_i;
+
+and nothing else (the gyro does not see tilt, R, gains or offsets — on a
+fixed bench it measures the motion only).  The gyro noise model (AR colour per
+axis, from the gyro residual) whitens them as the accelerometer's model
+whitens its residual; the two streams are independent, so their Fisher
+informations add.  Accumulated in chunks like
+:func:`~wheelcal.estimate.normal_equations.accumulate`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.normal_equations import NormalEquations, add_gram, chunking
+from wheelcal.model import CalibrationParams, ParameterLayout
+from wheelcal.model.forward import wheel_kinematics
+
+
+def gyro_effect(layout: ParameterLayout):
+    """The layout's gyro reading effect, or None."""
+    return next((e for e in layout.effects if e.stage == "gyro"), None)
+
+
+def gyro_prediction(
+    params: CalibrationParams, t_s: np.ndarray, layout: ParameterLayout
+) -> np.ndarray:
+    """Predicted gyro samples (N, 3) at centred times ``t_s``."""
+    effect = gyro_effect(layout)
+    kin = wheel_kinematics(params, t_s, layout.effects)
+    return effect.reading(params.effect(effect.name, effect.size), kin.omega_radps)
+
+
+def _rows(layout: ParameterLayout) -> list[slice]:
+    """Layout slices fed by the kinematics' derivative rows, in their order."""
+    blocks = layout.blocks
+    return [blocks["spin"]] + [
+        blocks[f"effect:{e.name}"] for e in layout.effects if e.stage == "spin"
+    ]
+
+
+def accumulate_gyro(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    gyro_radps: np.ndarray,
+    layout: ParameterLayout,
+    noise: NoiseModel,
+    jacobian: bool = True,
+    chunk: int | None = None,
+) -> NormalEquations:
+    """Cost, H and g of the whitened gyro residual (model − data) over ``layout``.
+
+    ``t_s`` and ``gyro_radps`` hold the valid gyro samples only (rows left
+    out — clipped, missing — are simply absent).
+    """
+    effect = gyro_effect(layout)
+    block = layout.blocks[f"effect:{effect.name}"]
+    n = t_s.size
+    chunk, sparse = chunking(layout, t_s, chunk)
+    p = noise.order
+    cost, entries = 0.0, 0
+    hess = np.zeros((layout.size, layout.size)) if jacobian else None
+    grad = np.zeros(layout.size) if jacobian else None
+    values = params.effect(effect.name, effect.size)
+    w = values[:3]
+    row_slices = _rows(layout)
+    for start in range(0, n, chunk):
+        stop = min(n, start + chunk)
+        lo = max(0, start - p)
+        t = t_s[lo:stop]
+        kin = wheel_kinematics(params, t, layout.effects, jacobian)
+        residual = effect.reading(values, kin.omega_radps) - gyro_radps[lo:stop]
+        if not jacobian:
+            rw, _ = noise.whiten(residual)
+            cost += float(np.sum(rw * rw))
+            entries += rw.size
+            continue
+        jac = np.zeros((layout.size, 3, t.size))
+        row = 0
+        for target in row_slices:
+            size = target.stop - target.start
+            d_omega = kin.d_omega[row : row + size]  # (size, N)
+            jac[target] = d_omega[:, None, :] * w[None, :, None]
+            row += size
+        for i in range(3):
+            jac[block.start + i, i] = kin.omega_radps
+            jac[block.start + 3 + i, i] = 1.0
+        rw, jw = noise.whiten(residual, jac)
+        jt = jw.reshape(jw.shape[0], -1)
+        r_flat = rw.reshape(-1)
+        add_gram(hess, grad, jt, r_flat, sparse)
+        cost += float(r_flat @ r_flat)
+        entries += r_flat.size
+    return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
+
+
+def combined(a: NormalEquations, b: NormalEquations) -> NormalEquations:
+    """The normal equations of two independent streams over the same parameters.
+
+    ``a`` may carry extra columns after the free parameters (the systematic
+    budget's); ``b`` covers the free parameters only, and adds to that block.
+    """
+    if a.hessian is None or b.hessian is None:
+        return NormalEquations(a.cost + b.cost, None, None, a.entries + b.entries)
+    size = b.hessian.shape[0]
+    hess = a.hessian.copy()
+    grad = a.gradient.copy()
+    hess[:size, :size] += b.hessian
+    grad[:size] += b.gradient
+    return NormalEquations(a.cost + b.cost, hess, grad, a.entries + b.entries)
