@@ -77,3 +77,10 @@ def test_the_calibration_object_is_immutable(session):
         cal.document["sensor"] = {}
     with pytest.raises(ValueError):
         cal.gain[0] = 2.0
+
+
+def test_wheelcal_diagnose_is_the_api_even_after_the_package_is_imported(session):
+    import wheelcal.diagnose.closed_loop
+
+    cal = wheelcal.diagnose(session.recording, radius_m=0.28)
+    assert cal.diagnosis is not None

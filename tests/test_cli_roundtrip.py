@@ -182,5 +182,6 @@ def test_convert_csv_in_g_and_ms_calibrates_like_the_original(tmp_path, calibrat
     np.testing.assert_allclose(a["gain"], b["gain"], atol=1e-6)
     np.testing.assert_allclose(a["offset_mps2"], b["offset_mps2"], atol=1e-4)
     # A column that is not there is named in the error.
-    assert main(["convert", str(csv), str(tmp_path / "x.mcap"), "--accel-unit", "g"]) == 1
+    bad = ["--accel-columns", "ax", "ay", "a_z"]
+    assert main(["convert", str(csv), str(tmp_path / "x.mcap"), "--accel-unit", "g", *bad]) == 1
     assert not (tmp_path / "x.mcap").exists()

@@ -5,6 +5,19 @@ finite times (s, relative to ``epoch_unix_ns``), finite samples (N, 3) in m/s²,
 and the session facts the estimator needs (:class:`SessionInfo`).  Readers
 repair what can be repaired (duplicate stamps, NaNs, clipped samples) *before*
 building one and record what they did in ``notes``.
+
+Optional channels on the accelerometer's clock (additive, issue 13):
+
+* ``gyro_radps`` (N, 3), rad/s, in the gyro's own axes (which sit close to,
+  not exactly on, the accelerometer's).  **A row of NaN marks a sample whose
+  gyro reading must be left out** — clipped at the gyro's full scale, NaN in
+  the file, or absent from that message — while its accelerometer sample
+  stays; :attr:`Recording.gyro_valid` is the mask of usable rows.  A row is
+  either all finite or all NaN (never partly), and ``inf`` is refused.
+  Sign (CONTRACT bench frame): the wheel turns at Ω = −ω e_Z, so an ideal
+  gyro reads −ω R e_Z (R maps bench → sensor).
+* ``temperature_c`` (N,), °C, finite: the sensor's temperature interpolated
+  onto the sample times.
 """
 
 from __future__ import annotations
@@ -22,6 +35,7 @@ SESSION_FACT_KEYS = (
     "radius_std_m",
     "gravity_mps2",
     "full_scale_g",
+    "gyro_full_scale_dps",
     "sensor_id",
     "mounting_id",
 )
@@ -58,6 +72,8 @@ class SessionInfo:
     mounting_id: str = ""
     gravity_mps2: float | None = None
     full_scale_g: float | None = None
+    #: The gyroscope's range (±°/s) if known: readings at it are clipped.
+    gyro_full_scale_dps: float | None = None
     extra: tuple[tuple[str, str], ...] = ()
     #: The user insists on a gravity outside Earth's range (``--force-gravity``).
     gravity_forced: bool = False
@@ -76,6 +92,9 @@ class SessionInfo:
             raise RecordingError(
                 f"gravity_mps2 = {self.gravity_mps2} is not a value of g on Earth (9.7–9.9 m/s²)"
             )
+        fs = self.gyro_full_scale_dps
+        if fs is not None and not (np.isfinite(fs) and fs > 0):
+            raise RecordingError(f"gyro_full_scale_dps must be a positive number, got {fs}")
 
     @property
     def gravity_or_standard_mps2(self) -> float:
@@ -89,7 +108,22 @@ class SessionInfo:
 
 @dataclass(frozen=True, eq=False)
 class Recording:
-    """Accelerometer samples of one session, in SI units."""
+    """Accelerometer samples of one session, in SI units, and optional gyro and temperature.
+
+    Attributes
+    ----------
+    time_s:
+        (N,) strictly increasing, s from ``epoch_unix_ns``.
+    accel_mps2:
+        (N, 3) accelerometer samples, m/s², finite.
+    gyro_radps:
+        ``None`` (no gyroscope) or (N, 3) angular rate in rad/s on the same
+        clock, in the gyro's axes; a row of NaN = left out (clipped, NaN or
+        absent in the file), see :attr:`gyro_valid`.  Sign: an ideal gyro on
+        the wheel reads −ω R e_Z (module docstring).
+    temperature_c:
+        ``None`` or (N,) sensor temperature in °C at the sample times, finite.
+    """
 
     time_s: np.ndarray
     accel_mps2: np.ndarray
@@ -98,6 +132,8 @@ class Recording:
     source: str = "<memory>"
     topic: str = ""
     notes: tuple[str, ...] = ()
+    gyro_radps: np.ndarray | None = None
+    temperature_c: np.ndarray | None = None
     #: Where the reader found the sensor clipping: (3, 2) low/high rail per axis in
     #: m/s², NaN where none; None when nothing clipped.  Clipped samples are already
     #: gone; the estimator also leaves out what the model predicts near a rail.
@@ -128,6 +164,51 @@ class Recording:
         object.__setattr__(self, "accel_mps2", a)
         object.__setattr__(self, "epoch_unix_ns", int(self.epoch_unix_ns))
         object.__setattr__(self, "notes", tuple(self.notes))
+        if self.gyro_radps is not None:
+            object.__setattr__(self, "gyro_radps", self._checked_gyro(t.size))
+        if self.temperature_c is not None:
+            object.__setattr__(self, "temperature_c", self._checked_temperature(t.size))
+
+    def _checked_gyro(self, n: int) -> np.ndarray:
+        w = np.array(self.gyro_radps, dtype=float)
+        if w.shape != (n, 3):
+            raise RecordingError(
+                f"{self.source}: gyro_radps must be (N, 3) = ({n}, 3), got {w.shape}"
+            )
+        finite = np.isfinite(w)
+        if np.any(np.isinf(w)):
+            raise RecordingError(f"{self.source}: gyro_radps holds inf (use NaN rows to leave out)")
+        partial = finite.any(axis=1) & ~finite.all(axis=1)
+        if np.any(partial):
+            raise RecordingError(
+                f"{self.source}: gyro_radps row {int(np.argmax(partial))} is partly NaN; "
+                "a row is either all finite or all NaN (left out)"
+            )
+        w.setflags(write=False)
+        return w
+
+    def _checked_temperature(self, n: int) -> np.ndarray:
+        temp = np.array(self.temperature_c, dtype=float).reshape(-1)
+        if temp.size != n:
+            raise RecordingError(
+                f"{self.source}: temperature_c needs one value per sample ({n}), got {temp.size}"
+            )
+        if not np.all(np.isfinite(temp)):
+            raise RecordingError(f"{self.source}: temperature_c holds NaN or inf")
+        temp.setflags(write=False)
+        return temp
+
+    @property
+    def has_gyro(self) -> bool:
+        """Whether the recording carries a gyroscope channel."""
+        return self.gyro_radps is not None
+
+    @property
+    def gyro_valid(self) -> np.ndarray:
+        """(N,) True where the gyro row is usable (all False without a gyro)."""
+        if self.gyro_radps is None:
+            return np.zeros(self.time_s.size, dtype=bool)
+        return np.isfinite(self.gyro_radps[:, 0])
 
     @property
     def samples(self) -> int:
@@ -145,17 +226,23 @@ class Recording:
         return float(1.0 / np.median(np.diff(self.time_s)))
 
     def select(self, keep: np.ndarray) -> Recording:
-        """The samples where ``keep`` (bool per sample) is True."""
+        """The samples where ``keep`` (bool per sample) is True, every channel."""
         keep = np.asarray(keep, dtype=bool)
         if keep.sum() < 2:
             raise RecordingError(f"{self.source}: fewer than two samples left")
-        return replace(self, time_s=self.time_s[keep], accel_mps2=self.accel_mps2[keep])
+        return replace(
+            self,
+            time_s=self.time_s[keep],
+            accel_mps2=self.accel_mps2[keep],
+            gyro_radps=None if self.gyro_radps is None else self.gyro_radps[keep],
+            temperature_c=None if self.temperature_c is None else self.temperature_c[keep],
+        )
 
     def window(self, start_s: float, end_s: float) -> Recording:
-        """The samples with start_s <= t <= end_s (times keep their epoch)."""
+        """The samples with start_s <= t <= end_s (times keep their epoch), every channel."""
         keep = (self.time_s >= start_s) & (self.time_s <= end_s)
         if keep.sum() < 2:
             raise RecordingError(
                 f"{self.source}: window [{start_s:.3f}, {end_s:.3f}] s holds fewer than two samples"
             )
-        return replace(self, time_s=self.time_s[keep], accel_mps2=self.accel_mps2[keep])
+        return self.select(keep)

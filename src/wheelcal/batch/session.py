@@ -57,6 +57,7 @@ class SessionOptions:
     radius_std_m: float | None = None
     gravity_mps2: float | None = None
     full_scale_g: float | None = None
+    gyro_full_scale_dps: float | None = None
     sensor_id: str | None = None
     mounting_id: str | None = None
     start_s: float | None = None

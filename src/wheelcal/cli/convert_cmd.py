@@ -1,4 +1,4 @@
-"""``wheelcal convert IN.csv OUT.mcap`` — a CSV accelerometer log into a contract MCAP."""
+"""``wheelcal convert IN.csv OUT.mcap`` — a CSV IMU log into a contract MCAP."""
 
 from __future__ import annotations
 
@@ -9,37 +9,61 @@ def register(sub) -> None:
     """Add the ``convert`` parser."""
     p = sub.add_parser(
         "convert",
-        help="convert a CSV log (time + three acceleration columns) into a contract MCAP",
+        help="convert a CSV log (time, acceleration, optional gyro) into a contract MCAP",
         description=(
-            "Read a CSV with a time column and three acceleration columns (by header name, "
-            "or by 0-based index for files without a header) and write an MCAP that "
-            "`wheelcal calibrate` reads, with the session facts as wheelcal.session metadata."
+            "Read a CSV with a time column, three acceleration columns and optionally three "
+            "gyro columns and a temperature column, and write an MCAP that `wheelcal calibrate` "
+            "reads, with the session facts as wheelcal.session metadata. Columns are "
+            "recognised by name (t/time/timestamp/SampleTimeFine, ax/acc_x/Acc_X/accel_x, "
+            "gx/gyr_x/Gyr_X/gyro_x, temp/temperature; any case) unless given, an Excel "
+            "'sep=,' line and a trailing empty column are skipped, a wrapping 32-bit counter is "
+            "unwrapped, and the time unit is inferred when not given (refused when the "
+            "sampling rate it implies is implausible). Only the units must be stated."
         ),
     )
     p.add_argument("source", metavar="IN.csv")
     p.add_argument("destination", metavar="OUT.mcap")
-    p.add_argument("--time-column", default="t", help="header name or index (default t)")
+    p.add_argument("--time-column", help="header name or 0-based index (default: recognised)")
     p.add_argument(
         "--accel-columns",
         nargs=3,
-        default=["ax", "ay", "az"],
         metavar=("X", "Y", "Z"),
-        help="header names or indices (default ax ay az)",
+        help="header names or indices (default: recognised)",
     )
-    p.add_argument("--time-unit", choices=("s", "ms", "us", "ns"), default="s")
     p.add_argument(
-        "--accel-unit", choices=("m/s^2", "g"), required=True, help="unit of the samples"
+        "--time-unit",
+        choices=("s", "ms", "us", "ns"),
+        help="default: from the column name, else inferred from the sampling rate",
     )
-    p.add_argument("--delimiter", help="default: detect , ; or tab")
+    p.add_argument(
+        "--accel-unit", choices=("m/s^2", "g"), required=True, help="unit of the acceleration"
+    )
+    p.add_argument(
+        "--gyro-columns",
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="header names or indices of the gyro (default: recognised if present)",
+    )
+    p.add_argument(
+        "--gyro-unit", choices=("rad/s", "deg/s"), help="unit of the gyro (needed with a gyro)"
+    )
+    p.add_argument("--no-gyro", action="store_true", help="leave gyro columns out")
+    p.add_argument("--temperature-column", help="°C column (default: recognised if present)")
+    p.add_argument("--delimiter", help="default: an Excel sep= line, else detect , ; or tab")
     p.add_argument("--epoch-unix-ns", type=int, default=0, help="added to every time stamp")
     p.add_argument("--format", choices=("json", "ros2"), default="json", help="message encoding")
     p.add_argument("--radius", type=float, help="store radius_m in the session metadata")
     p.add_argument("--sensor-id")
     p.add_argument("--mounting-id")
+    p.add_argument(
+        "--gyro-full-scale-dps", type=float, help="store gyro_full_scale_dps (the gyro's range)"
+    )
     p.set_defaults(handler=run)
 
 
-def _column(text: str) -> str | int:
+def _column(text: str | None) -> str | int | None:
+    if text is None:
+        return None
     return int(text) if text.lstrip("-").isdigit() else text
 
 
@@ -48,14 +72,21 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.cli.errors import UsageError
     from wheelcal.io.csv_convert import CsvLayout, convert_csv
 
+    def triple(values):
+        return None if values is None else tuple(_column(c) for c in values)
+
     try:
         layout = CsvLayout(
             time_column=_column(args.time_column),
-            accel_columns=tuple(_column(c) for c in args.accel_columns),
+            accel_columns=triple(args.accel_columns),
             time_unit=args.time_unit,
             accel_unit=args.accel_unit,
             delimiter=args.delimiter,
             epoch_unix_ns=args.epoch_unix_ns,
+            gyro_columns=triple(args.gyro_columns),
+            gyro_unit=args.gyro_unit,
+            read_gyro=not args.no_gyro,
+            temperature_column=_column(args.temperature_column),
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from None
@@ -65,13 +96,18 @@ def run(args: argparse.Namespace) -> int:
             ("radius_m", args.radius),
             ("sensor_id", args.sensor_id),
             ("mounting_id", args.mounting_id),
+            ("gyro_full_scale_dps", args.gyro_full_scale_dps),
         )
         if v is not None
     }
     result = convert_csv(
         args.source, args.destination, layout, encoding=args.format, session=session
     )
-    print(f"wrote {args.destination}: {result.samples} samples from {result.rows} rows")
+    used = ", ".join(f"{role} {cols}" for role, cols in result.columns.items() if cols is not None)
+    print(
+        f"wrote {args.destination}: {result.samples} samples from {result.rows} rows "
+        f"({result.rate_hz:.4g} Hz; columns: {used})"
+    )
     for note in result.notes:
         print(f"  note: {note}")
     return 0

@@ -8,6 +8,9 @@ import json
 from wheelcal.cli.errors import UsageError
 from wheelcal.cli.options import positive_float
 
+#: ROS 2 files carry the temperature on its own topic at 1/20 of the sample rate.
+TEMPERATURE_STRIDE = 20
+
 
 def register(sub) -> None:
     """Add the ``simulate`` parser."""
@@ -30,6 +33,25 @@ def register(sub) -> None:
     p.add_argument("--free-spin-only", action="store_true", help="no rest, push or stop")
     p.add_argument("--quantise", action="store_true", help="16-bit ±4 g output with clipping")
     p.add_argument("--no-radius", action="store_true", help="leave radius_m out of the metadata")
+    p.add_argument(
+        "--gyro",
+        action="store_true",
+        help="add a gyroscope (MPU-9250-class errors; ROS 2: angular_velocity, JSON: gyro rows)",
+    )
+    p.add_argument(
+        "--gyro-full-scale-dps",
+        type=positive_float,
+        default=2000.0,
+        metavar="DPS",
+        help="gyro range ±DPS °/s, stored as gyro_full_scale_dps (default 2000; 250 clips a "
+        "hand spin)",
+    )
+    p.add_argument(
+        "--temperature",
+        action="store_true",
+        help="add a sensor temperature (ROS 2: a sensor_msgs/msg/Temperature topic at 1/20 of "
+        "the rate; JSON: temperature_c)",
+    )
     p.add_argument("--sensor-id", default="sim-sensor")
     p.add_argument("--mounting-id", default="sim-mounting")
     p.add_argument("--truth", metavar="JSON", help="also write the ground truth here")
@@ -45,7 +67,14 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.io import write_recording
     from wheelcal.io.atomic import atomic_write_text
     from wheelcal.model import SpinParams
-    from wheelcal.simulate import NoiseSpec, Quantiser, preset, simulate
+    from wheelcal.simulate import (
+        GyroSpec,
+        NoiseSpec,
+        Quantiser,
+        TemperatureSpec,
+        preset,
+        simulate,
+    )
     from wheelcal.simulate.session import simulate_session
 
     rng = np.random.default_rng(args.seed)
@@ -65,6 +94,13 @@ def run(args: argparse.Namespace) -> int:
     if args.quantise:
         scenario = dataclasses.replace(scenario, quantiser=Quantiser())
     info = scenario.info.merged(sensor_id=args.sensor_id, mounting_id=args.mounting_id)
+    if args.gyro:
+        info = info.merged(gyro_full_scale_dps=args.gyro_full_scale_dps)
+        scenario = dataclasses.replace(
+            scenario, gyro=GyroSpec(full_scale_dps=args.gyro_full_scale_dps)
+        )
+    if args.temperature:
+        scenario = dataclasses.replace(scenario, temperature=TemperatureSpec())
     scenario = dataclasses.replace(scenario, info=info)
     if args.free_spin_only:
         sim = simulate(scenario, rng, source=args.out)
@@ -74,11 +110,19 @@ def run(args: argparse.Namespace) -> int:
         recording, window = full.recording, full.window_s
     if args.no_radius:  # (a Scenario always knows its radius; the file need not)
         recording = dataclasses.replace(recording, info=dataclasses.replace(info, radius_m=None))
-    write_recording(recording, args.out, encoding=args.format, batch_size=args.batch)
+    write_recording(
+        recording,
+        args.out,
+        encoding=args.format,
+        batch_size=args.batch,
+        temperature_stride=TEMPERATURE_STRIDE,
+    )
     if args.truth:
         atomic_write_text(args.truth, json.dumps(truth_dict(scenario, window), indent=2) + "\n")
     spin = f"free spin {window[0]:.2f}–{window[1]:.2f} s"
-    print(f"wrote {args.out}: {recording.samples} samples, {spin}")
+    extras = [name for name, on in (("gyro", args.gyro), ("temperature", args.temperature)) if on]
+    also = f", with {' and '.join(extras)}" if extras else ""
+    print(f"wrote {args.out}: {recording.samples} samples, {spin}{also}")
     return 0
 
 
@@ -102,4 +146,23 @@ def truth_dict(scenario, window) -> dict:
             "std_mps2": list(scenario.noise.std_mps2),
             "bandwidth_hz": scenario.noise.bandwidth_hz,
         },
+        **({"gyro": gyro_truth(scenario)} if scenario.gyro is not None else {}),
+    }
+
+
+def gyro_truth(scenario) -> dict:
+    """The simulated gyro's errors and its true response along the wheel axis (rad/s units)."""
+    spec = scenario.gyro
+    scale, axis = spec.wheel_axis_response(scenario.truth.bench.misalignment.matrix)
+    return {
+        "model": "w = (I + diag(scale_error)) M (-omega R e_Z) + G (R a)/g0 + bias + noise",
+        "scale_along_wheel_axis": scale,
+        "axis": axis.tolist(),
+        "bias_radps": list(spec.bias_radps),
+        "scale_error": list(spec.scale_error),
+        "misalignment_deg": list(spec.misalignment_deg),
+        "g_sensitivity_dps_per_g": [list(row) for row in spec.g_sensitivity_dps_per_g],
+        "noise_density_dps_rthz": spec.noise_density_dps_rthz,
+        "noise_std_radps": spec.noise_std_radps(scenario.rate_hz),
+        "full_scale_dps": spec.full_scale_dps,
     }

@@ -1,6 +1,7 @@
 """File input and output: MCAP recordings (contract formats), CSV conversion, atomic writes.
 
-Read a device recording with :func:`read_recording`; write one with
+Read a device recording with :func:`read_recording` (accelerometer, and the
+gyro and temperature when the file has them); write one with
 :func:`write_recording`; add a channel to a copy with :func:`copy_with_channels`.
 Errors are :class:`InputError` subclasses whose message names the file and
 the problem.
@@ -22,6 +23,7 @@ from wheelcal.io.mcap_writer import (
     accel_channel,
     copy_with_channels,
     session_metadata,
+    temperature_channel,
     write_accel_mcap,
     write_recording,
 )
@@ -51,6 +53,7 @@ __all__ = [
     "read_recording",
     "require_radius",
     "session_metadata",
+    "temperature_channel",
     "write_accel_mcap",
     "write_recording",
 ]

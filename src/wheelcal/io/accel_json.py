@@ -6,7 +6,13 @@ encoding ``json``)::
     {"timestamps_ns": [int, ...], "accel": [[ax, ay, az], ...]}
 
 one or many samples per message (devices batch samples into radio packets);
-the channel's metadata ``unit`` is ``m/s^2`` (default) or ``g``.
+the channel's metadata ``unit`` is ``m/s^2`` (default) or ``g``.  Optional,
+additive (issue 13): ``"gyro": [[gx, gy, gz], ...]``, one row per timestamp
+(a row may be ``null``: no reading for that sample), in the unit of the
+channel metadata ``gyro_unit`` — ``rad/s`` (default) or ``deg/s`` — and
+``"temperature_c": [...]``, one value (°C, or ``null``) per timestamp.  A
+message may carry either or both, or neither: samples of messages without
+them have no reading (NaN).
 
 Decoding, fast path: all payloads of a channel as newline-delimited JSON
 through Arrow's C++ reader (``pyarrow``, which rerun-sdk depends on), one
@@ -24,6 +30,7 @@ passes cost as much per byte.)
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from itertools import chain
 
 import numpy as np
@@ -35,6 +42,8 @@ JSON_SCHEMA_ENCODING = "jsonschema"
 JSON_MESSAGE_ENCODING = "json"
 UNIT_KEY = "unit"
 UNITS = ("m/s^2", "g")
+GYRO_UNIT_KEY = "gyro_unit"
+GYRO_UNITS = ("rad/s", "deg/s")
 
 ACCEL_BATCH_SCHEMA = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -53,6 +62,22 @@ ACCEL_BATCH_SCHEMA = {
             "items": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
             "description": "One [ax, ay, az] per timestamp.",
         },
+        "gyro": {
+            "type": "array",
+            "items": {
+                "type": ["array", "null"],
+                "items": {"type": "number"},
+                "minItems": 3,
+                "maxItems": 3,
+            },
+            "description": "Optional: one [gx, gy, gz] (or null) per timestamp; unit from the "
+            "channel metadata 'gyro_unit' ('rad/s' default, or 'deg/s').",
+        },
+        "temperature_c": {
+            "type": "array",
+            "items": {"type": ["number", "null"]},
+            "description": "Optional: sensor temperature in degrees Celsius per timestamp.",
+        },
     },
     "required": ["timestamps_ns", "accel"],
 }
@@ -65,6 +90,20 @@ class AccelBatchError(ValueError):
 def schema_bytes() -> bytes:
     """The JSON Schema of ``wheelcal.AccelBatch``, as stored in the MCAP Schema record."""
     return json.dumps(ACCEL_BATCH_SCHEMA, indent=2).encode("utf-8")
+
+
+@dataclass(frozen=True, eq=False)
+class AccelBatchArrays:
+    """All samples of a ``wheelcal.AccelBatch`` channel, in the channel's units.
+
+    ``gyro`` (N, 3) and ``temperature_c`` (N,) are ``None`` when no message
+    carries them, else NaN where a message or a row gives no value.
+    """
+
+    time_ns: np.ndarray
+    accel: np.ndarray
+    gyro: np.ndarray | None = None
+    temperature_c: np.ndarray | None = None
 
 
 def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -87,6 +126,22 @@ def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, n
         Invalid JSON, missing keys, non-integer stamps, or rows that are not
         three numbers or do not match the stamps one to one.
     """
+    out = decode_accel_batch(blocks, optional=False)
+    return out.time_ns, out.accel
+
+
+def decode_accel_batch(blocks: tuple[MessageBlock, ...], optional: bool = True) -> AccelBatchArrays:
+    """As :func:`decode_accel_blocks`, with the optional ``gyro`` and ``temperature_c``.
+
+    ``optional=False`` ignores them (they are then not even parsed).
+
+    Raises
+    ------
+    AccelBatchError
+        As :func:`decode_accel_blocks`; also a ``gyro`` row that is neither
+        three numbers nor null, or a ``gyro``/``temperature_c`` list whose
+        length differs from the message's ``timestamps_ns``.
+    """
     payloads = [
         block.buffer[start : start + length]
         for block in blocks
@@ -95,8 +150,14 @@ def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, n
         )
     ]
     if not payloads:
-        return np.empty(0, np.int64), np.empty((0, 3))
-    fast = _decode_with_arrow(payloads)
+        return AccelBatchArrays(np.empty(0, np.int64), np.empty((0, 3)))
+    joined_lines = b"\n".join(payloads)
+    # Accelerometer-only files stay on the old path.  A one-byte search (memchr, ~40× faster
+    # than a substring search) for a letter that neither the required keys nor JSON numbers
+    # contain ("g" of "gyro", "u" of "temperature_c") rules the keys out first.
+    want_gyro = optional and b"g" in joined_lines and b'"gyro"' in joined_lines
+    want_temp = optional and b"u" in joined_lines and b'"temperature_c"' in joined_lines
+    fast = _decode_with_arrow(payloads, joined_lines, want_gyro, want_temp)
     if fast is not None:
         return fast
     joined = b"[" + b",".join(payloads) + b"]"
@@ -127,10 +188,57 @@ def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, n
         accel = np.fromiter(chain.from_iterable(flat_rows), np.float64, 3 * len(flat_rows))
     except (ValueError, TypeError):
         raise AccelBatchError('every "accel" row must be three numbers [ax, ay, az]') from None
-    return time_ns.astype(np.int64), accel.reshape(-1, 3)
+    counts = [len(s) for s in stamps]
+    gyro = _optional_rows(messages, counts, "gyro", 3) if want_gyro else None
+    temp = _optional_rows(messages, counts, "temperature_c", 0) if want_temp else None
+    return AccelBatchArrays(time_ns.astype(np.int64), accel.reshape(-1, 3), gyro, temp)
 
 
-def _decode_with_arrow(payloads: list) -> tuple[np.ndarray, np.ndarray] | None:
+def _number(value) -> float:
+    if value is None:
+        return np.nan
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError
+    return float(value)
+
+
+def _optional_rows(messages: list, counts: list[int], key: str, width: int) -> np.ndarray | None:
+    """Values of an optional per-sample key (NaN where absent or null); None if no message has it.
+
+    ``width`` 3 reads ``[x, y, z]`` rows (or null), 0 reads scalars (or null).
+    """
+    shape = (sum(counts), width) if width else (sum(counts),)
+    out = np.full(shape, np.nan)
+    found = False
+    at = 0
+    what = "three numbers or null" if width else "a number or null"
+    for message, count in zip(messages, counts, strict=True):
+        values = message.get(key) if isinstance(message, dict) else None
+        if values is not None:
+            found = True
+            if not isinstance(values, list) or len(values) != count:
+                raise AccelBatchError(
+                    f'a message has different numbers of "timestamps_ns" and "{key}"'
+                )
+            try:
+                for i, value in enumerate(values):
+                    if value is None:
+                        continue
+                    if width:
+                        if not isinstance(value, list) or len(value) != width:
+                            raise TypeError
+                        out[at + i] = [_number(v) for v in value]
+                    else:
+                        out[at + i] = _number(value)
+            except TypeError:
+                raise AccelBatchError(f'every "{key}" entry must be {what}') from None
+        at += count
+    return out if found else None
+
+
+def _decode_with_arrow(
+    payloads: list, joined: bytes, want_gyro: bool, want_temp: bool
+) -> AccelBatchArrays | None:
     """Parse with Arrow's C++ JSON reader (single thread), or None to use json.loads.
 
     Arrow parses numbers with correctly rounded conversions (same values as
@@ -143,18 +251,19 @@ def _decode_with_arrow(payloads: list) -> tuple[np.ndarray, np.ndarray] | None:
         import pyarrow.json as pa_json
     except ImportError:  # rerun-sdk brings pyarrow; without it, json.loads still works
         return None
-    joined = b"\n".join(payloads)
     if joined.count(b"\n") != len(payloads) - 1:
         return None
-    schema = pa.schema(
-        [("timestamps_ns", pa.list_(pa.int64())), ("accel", pa.list_(pa.list_(pa.float64())))]
-    )
+    fields = [("timestamps_ns", pa.list_(pa.int64())), ("accel", pa.list_(pa.list_(pa.float64())))]
+    if want_gyro:
+        fields.append(("gyro", pa.list_(pa.list_(pa.float64()))))
+    if want_temp:
+        fields.append(("temperature_c", pa.list_(pa.float64())))
     try:
         table = pa_json.read_json(
             pa.BufferReader(joined),
             read_options=pa_json.ReadOptions(use_threads=False, block_size=len(joined) + 1),
             parse_options=pa_json.ParseOptions(
-                explicit_schema=schema, unexpected_field_behavior="ignore"
+                explicit_schema=pa.schema(fields), unexpected_field_behavior="ignore"
             ),
         )
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
@@ -178,7 +287,42 @@ def _decode_with_arrow(payloads: list) -> tuple[np.ndarray, np.ndarray] | None:
         raise AccelBatchError('every "accel" row must be three numbers [ax, ay, az]')
     time_ns = stamps.flatten().to_numpy(zero_copy_only=False).astype(np.int64)
     accel = values.to_numpy(zero_copy_only=False).astype(np.float64).reshape(-1, 3)
-    return time_ns, accel
+    gyro = temp = None
+    if want_gyro:
+        gyro = _arrow_optional(table.column("gyro").combine_chunks(), per_message_stamps, 3)
+    if want_temp:
+        temp = _arrow_optional(
+            table.column("temperature_c").combine_chunks(), per_message_stamps, 0
+        )
+    return AccelBatchArrays(time_ns, accel, gyro, temp)
+
+
+def _arrow_optional(column, per_message: np.ndarray, width: int) -> np.ndarray | None:
+    """NaN-filled (N, width) or (N,) values of an optional list column (null = absent)."""
+    present = ~column.is_null().to_numpy(zero_copy_only=False)
+    if not np.any(present):
+        return None
+    key = '"gyro"' if width else '"temperature_c"'
+    lengths = np.nan_to_num(column.value_lengths().to_numpy(zero_copy_only=False)).astype(np.int64)
+    if np.any(lengths[present] != per_message[present]):
+        raise AccelBatchError(f'a message has different numbers of "timestamps_ns" and {key}')
+    n = int(per_message.sum())
+    where = np.repeat(present, per_message)  # samples whose message carries the key
+    items = column.flatten()  # only the present messages' entries, in order
+    if not width:
+        out = np.full(n, np.nan)
+        out[where] = items.to_numpy(zero_copy_only=False).astype(np.float64)
+        return out
+    out = np.full((n, width), np.nan)
+    row_ok = ~items.is_null().to_numpy(zero_copy_only=False)
+    widths = np.nan_to_num(items.value_lengths().to_numpy(zero_copy_only=False)).astype(np.int64)
+    if np.any(widths[row_ok] != width):
+        raise AccelBatchError(f"every {key} entry must be three numbers or null")
+    values = items.flatten().to_numpy(zero_copy_only=False).astype(np.float64)
+    block = np.full((row_ok.size, width), np.nan)
+    block[row_ok] = values.reshape(-1, width)
+    out[where] = block
+    return out
 
 
 def _message_at(payloads: list[bytes], pos: int) -> int:
@@ -188,12 +332,18 @@ def _message_at(payloads: list[bytes], pos: int) -> int:
 
 
 def encode_accel_batches(
-    time_ns: np.ndarray, accel: np.ndarray, batch_size: int
+    time_ns: np.ndarray,
+    accel: np.ndarray,
+    batch_size: int,
+    gyro: np.ndarray | None = None,
+    temperature_c: np.ndarray | None = None,
 ) -> list[tuple[int, bytes]]:
     """``wheelcal.AccelBatch`` payloads of up to ``batch_size`` samples each.
 
     Floats are written with Python's shortest round-trip repr, so reading the
-    file back gives the same float64 values bit for bit.
+    file back gives the same float64 values bit for bit.  ``gyro`` (N, 3) and
+    ``temperature_c`` (N,) are written when given; a gyro row with a NaN is
+    written as ``null`` (no reading), as is a NaN temperature.
 
     Returns
     -------
@@ -205,12 +355,24 @@ def encode_accel_batches(
         raise ValueError(f"batch_size must be at least 1, got {batch_size}")
     stamps = np.asarray(time_ns, dtype=np.int64).tolist()
     rows = np.asarray(accel, dtype=float).reshape(-1, 3).tolist()
+    extra: dict[str, list] = {}
+    if gyro is not None:
+        rate = np.asarray(gyro, dtype=float).reshape(-1, 3)
+        if rate.shape[0] != len(stamps):
+            raise ValueError(f"{len(stamps)} stamps but {rate.shape[0]} gyro rows")
+        ok = np.all(np.isfinite(rate), axis=1).tolist()
+        extra["gyro"] = [r if good else None for r, good in zip(rate.tolist(), ok, strict=True)]
+    if temperature_c is not None:
+        temp = np.asarray(temperature_c, dtype=float).reshape(-1)
+        if temp.size != len(stamps):
+            raise ValueError(f"{len(stamps)} stamps but {temp.size} temperatures")
+        extra["temperature_c"] = [v if np.isfinite(v) else None for v in temp.tolist()]
     out = []
     for i in range(0, len(stamps), batch_size):
         batch_stamps = stamps[i : i + batch_size]
-        payload = json.dumps(
-            {"timestamps_ns": batch_stamps, "accel": rows[i : i + batch_size]},
-            separators=(",", ":"),
-        )
+        message = {"timestamps_ns": batch_stamps, "accel": rows[i : i + batch_size]}
+        for key, values in extra.items():
+            message[key] = values[i : i + batch_size]
+        payload = json.dumps(message, separators=(",", ":"))
         out.append((batch_stamps[-1], payload.encode("utf-8")))
     return out

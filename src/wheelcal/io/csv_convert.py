@@ -1,18 +1,42 @@
-"""Convert a CSV accelerometer log into a contract MCAP (``wheelcal convert``).
+"""Convert a CSV IMU log into a contract MCAP (``wheelcal convert``).
 
-A CSV log has a time column and three acceleration columns, chosen by header
-name or by 0-based index, with a time unit (s, ms, us, ns) and an
-acceleration unit (m/s^2 or g).  Times are converted to integer nanoseconds
-*exactly* from their decimal text (no float rounding of absolute Unix
-times); ``epoch_unix_ns`` is added, for logs whose time starts at zero.
+A CSV log has a time column, three acceleration columns and optionally
+three gyro columns and a temperature column.  Real exports (a logger, a
+phone app, a vendor's tool, a spreadsheet) are read as they come:
 
-The data are carried over faithfully — defects such as NaNs, duplicate or
-unordered stamps are left for :func:`~wheelcal.io.mcap_reader.read_recording`
-to repair or refuse, so that happens in one place with one set of rules.
-Rows whose time is not a number are skipped (and counted); an empty
-acceleration cell becomes NaN; any other non-numeric acceleration cell is an
-error (it means the columns or the delimiter are wrong).  The output is
-written atomically.
+* an Excel ``sep=,`` first line sets the delimiter and is skipped; otherwise
+  the delimiter is the one of ``,`` ``;`` tab the header uses most;
+  ``#`` comment lines and blank lines are skipped; a trailing empty column
+  (every line ending in the delimiter) is ignored;
+* columns are chosen by header name or 0-based index, or **recognised** by
+  name, case-insensitively, ignoring a unit in brackets (``Acc_X (m/s^2)``)
+  and spaces, dots and dashes (read as ``_``): time ``t``, ``time``,
+  ``timestamp``, ``SampleTimeFine``, … (optionally with a unit suffix,
+  ``time_ms``); acceleration ``ax``, ``acc_x``, ``Acc_X``, ``accel_x``,
+  ``acceleration_x``, …; gyro ``gx``, ``gyr_x``, ``Gyr_X``, ``gyro_x``, …;
+  temperature ``temp``, ``temperature``.  Two columns recognised for one
+  role are an error that names them (choose with the options);
+* the time unit (s, ms, us, ns) is taken as given, else from the column
+  name (``SampleTimeFine`` is µs, ``time_ms`` is ms, ``Time (s)`` is s),
+  else inferred from the data: the unit whose implied sampling rate is
+  plausible — and refused when no unit, or more than one, gives a rate
+  between 1 Hz and 100 kHz with one of them the typical 10 Hz – 10 kHz, or
+  when the given unit implies a rate outside 1 Hz – 100 kHz (almost surely
+  the wrong unit).  A Unix epoch's magnitude breaks ties;
+* an integer time that wraps like a 32-bit counter (a drop by more than
+  2³¹ counts, values in [0, 2³²)) is unwrapped;
+* the stated acceleration unit is checked against the data: at rest
+  (quiet stretches) |a| must be ≈ 1 g in that unit; the stated gyro unit
+  likewise (rad/s beyond 4000 °/s is deg/s).
+
+Times are converted to integer nanoseconds *exactly* from their decimal text
+(no float rounding of absolute Unix times); ``epoch_unix_ns`` is added, for
+logs whose time starts at zero.  Other defects — NaNs, duplicate or unordered
+stamps — are carried over for :func:`~wheelcal.io.mcap_reader.read_recording`
+to repair or refuse, in one place with one set of rules.  Rows whose time is
+not a number are skipped (and counted); an empty cell becomes NaN; any other
+non-numeric cell is an error (the columns or the delimiter are wrong).  Every
+error names the file; the output is written atomically (complete or absent).
 """
 
 from __future__ import annotations
@@ -20,8 +44,9 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 
@@ -29,56 +54,119 @@ import numpy as np
 
 from wheelcal.io.errors import InputError
 from wheelcal.io.mcap_writer import Compression, Encoding, write_accel_mcap
+from wheelcal.io.sample_checks import rest_level
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 
 TIME_UNITS_NS = {"s": 1_000_000_000, "ms": 1_000_000, "us": 1_000, "ns": 1}
 ACCEL_UNITS = ("m/s^2", "g")
+GYRO_UNITS = ("rad/s", "deg/s")
+#: Sampling rates a time unit may imply; outside, the unit is almost surely wrong.
+PLAUSIBLE_RATE_HZ = (1.0, 100_000.0)
+#: Rates IMU logs actually use (to choose between two plausible units).
+TYPICAL_RATE_HZ = (10.0, 10_000.0)
+MAX_GYRO_DPS = 4000.0
+
+_UNIT_ALIASES = {
+    "s": "s",
+    "sec": "s",
+    "secs": "s",
+    "second": "s",
+    "seconds": "s",
+    "ms": "ms",
+    "msec": "ms",
+    "millis": "ms",
+    "milliseconds": "ms",
+    "us": "us",
+    "µs": "us",
+    "μs": "us",
+    "usec": "us",
+    "micros": "us",
+    "microseconds": "us",
+    "ns": "ns",
+    "nsec": "ns",
+    "nanoseconds": "ns",
+}
+_TIME_NAMES = (  # by priority; the unit a name implies, or None
+    ("t", None),
+    ("time", None),
+    ("timestamp", None),
+    ("time_stamp", None),
+    ("sampletimefine", "us"),  # Xsens: 1 MHz ticks of the device clock, 32-bit
+    ("sample_time_fine", "us"),
+    ("seconds_elapsed", "s"),
+    ("elapsed", None),
+    ("elapsed_time", None),
+)
+_UNIT_SUFFIX = "|".join(sorted(_UNIT_ALIASES, key=len, reverse=True))
+_TIME_WITH_UNIT = re.compile(rf"^(t|time|timestamp|time_stamp|elapsed)_({_UNIT_SUFFIX})$")
+_ACCEL = re.compile(r"^(?:a|acc|accel|accelerometer|acceleration)_?([xyz])$")
+_GYRO = re.compile(r"^(?:g|gyr|gyro|gyroscope|w|omega|angular_velocity|ang_vel)_?([xyz])$")
+_TEMPERATURE = re.compile(r"^(?:temp|temperature)(?:_c|_degc)?$")
+_BRACKET_UNIT = re.compile(r"\s*[\(\[]([^\)\]]*)[\)\]]\s*$")
+_EXCEL_SEP = re.compile(r'^\s*"?sep=(.)"?\s*$', re.IGNORECASE)
+
+Column = str | int
 
 
 @dataclass(frozen=True)
 class CsvLayout:
     """Where the data are in the CSV and in which units.
 
-    ``time_column`` and ``accel_columns`` are header names, or 0-based
-    indices for a file without a header.  ``delimiter=None`` detects one of
-    ``,`` ``;`` tab.
+    Columns are header names, or 0-based indices for a file without a
+    header; ``None`` recognises them by name (see the module docstring).
+    ``time_unit=None`` infers it; ``delimiter=None`` detects one of
+    ``,`` ``;`` tab.  Gyro columns are read when given or recognised, unless
+    ``read_gyro=False``; their unit ``gyro_unit`` must then be stated.
     """
 
-    time_column: str | int = "t"
-    accel_columns: tuple[str | int, str | int, str | int] = ("ax", "ay", "az")
-    time_unit: str = "s"
+    time_column: Column | None = None
+    accel_columns: tuple[Column, Column, Column] | None = None
+    time_unit: str | None = None
     accel_unit: str = "m/s^2"
     delimiter: str | None = None
     epoch_unix_ns: int = 0
+    gyro_columns: tuple[Column, Column, Column] | None = None
+    gyro_unit: str | None = None
+    read_gyro: bool = True
+    temperature_column: Column | None = None
+    check_units: bool = True
 
     def __post_init__(self) -> None:
-        if self.time_unit not in TIME_UNITS_NS:
+        if self.time_unit is not None and self.time_unit not in TIME_UNITS_NS:
             raise ValueError(f"time_unit must be one of {list(TIME_UNITS_NS)}")
         if self.accel_unit not in ACCEL_UNITS:
             raise ValueError(f"accel_unit must be one of {list(ACCEL_UNITS)}")
-        if len(self.accel_columns) != 3:
-            raise ValueError("accel_columns needs exactly three columns (x, y, z)")
-        kinds = {isinstance(c, int) for c in (self.time_column, *self.accel_columns)}
-        if len(kinds) != 1:
+        if self.gyro_unit is not None and self.gyro_unit not in GYRO_UNITS:
+            raise ValueError(f"gyro_unit must be one of {list(GYRO_UNITS)}")
+        for name in ("accel_columns", "gyro_columns"):
+            value = getattr(self, name)
+            if value is not None and len(value) != 3:
+                raise ValueError(f"{name} needs exactly three columns (x, y, z)")
+        given = [self.time_column, self.temperature_column]
+        given += list(self.accel_columns or ()) + list(self.gyro_columns or ())
+        kinds = {isinstance(c, int) for c in given if c is not None}
+        if len(kinds) > 1:
             raise ValueError("give all columns by name or all by index, not a mix")
+        if kinds == {True} and (self.time_column is None or self.accel_columns is None):
+            raise ValueError("a file without a header needs the time and acceleration indices")
+
+    @property
+    def by_index(self) -> bool:
+        """Whether the file has no header (columns given by index)."""
+        return isinstance(self.time_column, int)
 
 
 @dataclass(frozen=True)
 class CsvConversion:
-    """What :func:`convert_csv` did."""
+    """What :func:`convert_csv` did: counts, the columns and units used, and notes."""
 
     rows: int
     samples: int
     skipped_rows: int
     notes: tuple[str, ...]
-
-
-def _to_ns(text: str, scale: int) -> int:
-    """Exact integer nanoseconds from a decimal time string."""
-    value = Decimal(text.strip()) * scale
-    if not value.is_finite():
-        raise InvalidOperation
-    return int(value.to_integral_value())
+    columns: Mapping[str, object] = field(default_factory=dict)
+    time_unit: str = "s"
+    rate_hz: float = 0.0
 
 
 def _to_float(text: str) -> float:
@@ -88,19 +176,271 @@ def _to_float(text: str) -> float:
     return float(text)
 
 
-def _columns(path: str, header: list[str], layout: CsvLayout) -> list[int]:
-    wanted = [layout.time_column, *layout.accel_columns]
-    if isinstance(layout.time_column, int):
-        width = len(header)
-        bad = [c for c in wanted if not 0 <= c < width]  # type: ignore[operator]
-        if bad:
-            raise InputError(path, f"column index {bad[0]} out of range (the file has {width})")
-        return [int(c) for c in wanted]
+def _normalise(name: str) -> tuple[str, str | None]:
+    """A header name as a lower-case key (``Acc_X (m/s^2)`` → ``acc_x``) and its bracketed unit."""
+    text = name.strip().strip('"').strip()
+    unit = None
+    match = _BRACKET_UNIT.search(text)
+    if match:
+        unit = match.group(1).strip().lower()
+        text = text[: match.start()]
+    key = re.sub(r"[\s.\-]+", "_", text.lower()).strip("_")
+    return key, unit
+
+
+def _lines(path: str, text: str, delimiter: str | None) -> tuple[list[str], str, list[str]]:
+    notes = []
+    lines = [line for line in text.splitlines() if line.strip() and not line.startswith("#")]
+    if lines:
+        excel = _EXCEL_SEP.match(lines[0])
+        if excel:
+            lines = lines[1:]
+            delimiter = delimiter or excel.group(1)
+            notes.append(f"skipped the Excel 'sep={excel.group(1)}' line")
+    if not lines:
+        raise InputError(path, "the CSV file has no data")
+    delimiter = delimiter or max((",", ";", "\t"), key=lines[0].count)
+    return lines, delimiter, notes
+
+
+def _find(path: str, header: list[str], wanted: Column, role: str) -> int:
+    """The index of an explicitly given column (exact name, else case-insensitive)."""
+    if isinstance(wanted, int):
+        if not 0 <= wanted < len(header):
+            raise InputError(
+                path, f"column index {wanted} out of range (the file has {len(header)})"
+            )
+        return wanted
     names = [h.strip() for h in header]
-    missing = [c for c in wanted if c not in names]
-    if missing:
-        raise InputError(path, f"no column {missing[0]!r}; the header has {names}")
-    return [names.index(c) for c in wanted]  # type: ignore[arg-type]
+    if wanted in names:
+        return names.index(wanted)
+    folded = [i for i, name in enumerate(names) if name.lower() == wanted.lower()]
+    if len(folded) == 1:
+        return folded[0]
+    raise InputError(path, f"no {role} column {wanted!r}; the header has {names}")
+
+
+def _recognise(path: str, header: list[str], pattern: re.Pattern, role: str) -> list[int] | None:
+    """Columns x, y, z whose names match ``pattern``; None if not all three are there."""
+    found: dict[str, list[int]] = {"x": [], "y": [], "z": []}
+    for i, name in enumerate(header):
+        match = pattern.match(_normalise(name)[0])
+        if match:
+            found[match.group(1)].append(i)
+    if not any(found.values()):
+        return None
+    for axis, where in found.items():
+        if len(where) > 1:
+            names = [header[i].strip() for i in where]
+            raise InputError(
+                path,
+                f"several {role} columns for {axis}: {names}; choose with --{role}-columns",
+            )
+    if not all(found.values()):
+        missing = next(axis for axis, where in found.items() if not where)
+        # Name the column the others suggest: ax, ay → az; Acc_X, Acc_Y → Acc_Z.
+        model = _BRACKET_UNIT.sub("", header[next(w[0] for w in found.values() if w)]).strip()
+        at = max(model.rfind(c) for c in "xyzXYZ")
+        letter = missing.upper() if model[at].isupper() else missing
+        stem = model[:at] + letter + model[at + 1 :]
+        raise InputError(
+            path,
+            f"no column {stem!r} ({role} {missing}); the header has {[h.strip() for h in header]}",
+        )
+    return [found[a][0] for a in "xyz"]
+
+
+def _time_column(path: str, header: list[str]) -> tuple[int, str | None]:
+    """The recognised time column and the unit its name implies."""
+    keys = [_normalise(h) for h in header]
+    for name, unit in _TIME_NAMES:
+        where = [i for i, (key, _) in enumerate(keys) if key == name]
+        if len(where) > 1:
+            raise InputError(
+                path,
+                f"several time columns {[header[i].strip() for i in where]}; "
+                "choose one with --time-column",
+            )
+        if where:
+            bracket = keys[where[0]][1]
+            return where[0], unit or _UNIT_ALIASES.get(bracket or "")
+    for i, (key, _) in enumerate(keys):
+        match = _TIME_WITH_UNIT.match(key)
+        if match:
+            return i, _UNIT_ALIASES[match.group(2)]
+    raise InputError(
+        path,
+        "no time column recognised (t, time, timestamp, SampleTimeFine, …); the header has "
+        f"{[h.strip() for h in header]}; name it with --time-column",
+    )
+
+
+def _temperature_column(header: list[str]) -> int | None:
+    where = [i for i, h in enumerate(header) if _TEMPERATURE.match(_normalise(h)[0])]
+    return where[0] if len(where) == 1 else None
+
+
+@dataclass(frozen=True)
+class _Columns:
+    time: int
+    accel: list[int]
+    gyro: list[int] | None
+    temperature: int | None
+    time_unit_hint: str | None
+
+
+def _columns(path: str, header: list[str], layout: CsvLayout) -> _Columns:
+    hint = None
+    if layout.time_column is None:
+        time, hint = _time_column(path, header)
+    else:
+        time = _find(path, header, layout.time_column, "time")
+        if isinstance(layout.time_column, str):
+            key, bracket = _normalise(header[time])
+            match = _TIME_WITH_UNIT.match(key)
+            hint = _UNIT_ALIASES[match.group(2)] if match else _UNIT_ALIASES.get(bracket or "")
+            hint = hint or dict(_TIME_NAMES).get(key)
+    if layout.accel_columns is None:
+        accel = _recognise(path, header, _ACCEL, "accel")
+        if accel is None:
+            bare = [[i for i, h in enumerate(header) if _normalise(h)[0] == a] for a in "xyz"]
+            if not all(len(b) == 1 for b in bare):
+                raise InputError(
+                    path,
+                    "no acceleration columns recognised (ax/acc_x/Acc_X/accel_x …); the header "
+                    f"has {[h.strip() for h in header]}; name them with --accel-columns",
+                )
+            accel = [b[0] for b in bare]
+    else:
+        accel = [_find(path, header, c, "acceleration") for c in layout.accel_columns]
+    gyro = None
+    if layout.read_gyro:
+        if layout.gyro_columns is not None:
+            gyro = [_find(path, header, c, "gyro") for c in layout.gyro_columns]
+        elif not layout.by_index:
+            gyro = _recognise(path, header, _GYRO, "gyro")
+    temperature = None
+    if layout.temperature_column is not None:
+        temperature = _find(path, header, layout.temperature_column, "temperature")
+    elif not layout.by_index:
+        temperature = _temperature_column(header)
+    return _Columns(time, accel, gyro, temperature, hint)
+
+
+def _unwrap_counter(values: list[Decimal], notes: list[str], name: str) -> list[Decimal]:
+    """Undo the wraps of a 32-bit integer counter (drops by more than 2³¹ counts)."""
+    if not values or any(v != v.to_integral_value() for v in values):
+        return values
+    counts = np.array([int(v) for v in values], dtype=np.int64)
+    if counts.min() < 0 or counts.max() >= 2**32:
+        return values
+    steps = np.diff(counts)
+    wraps = steps < -(2**31)
+    if not np.any(wraps):
+        return values
+    unwrapped = counts + np.concatenate([[0], np.cumsum(wraps)]) * 2**32
+    notes.append(f"unwrapped {int(wraps.sum())} wrap(s) of the 32-bit counter {name!r}")
+    return [Decimal(int(v)) for v in unwrapped]
+
+
+def _median_step(values: list[Decimal]) -> float:
+    steps = np.diff(np.array([float(v) for v in values]))
+    steps = steps[steps > 0]
+    return float(np.median(steps)) if steps.size else 0.0
+
+
+def _rates(step: float) -> dict[str, float]:
+    return {unit: 1e9 / (step * scale) for unit, scale in TIME_UNITS_NS.items()}
+
+
+def _choose_time_unit(
+    path: str, name: str, values: list[Decimal], given: str | None, hint: str | None
+) -> tuple[str, float, str]:
+    """The time unit, the implied rate and how it was chosen; refusal if implausible."""
+    step = _median_step(values)
+    if step <= 0:
+        raise InputError(path, f"the time column {name!r} does not advance")
+    rates = _rates(step)
+    lo, hi = PLAUSIBLE_RATE_HZ
+    plausible = [u for u, r in rates.items() if lo <= r <= hi]
+
+    def alternatives() -> str:
+        others = [f"{u}: {rates[u]:.4g} Hz" for u in plausible]
+        return f"; with --time-unit {' or '.join(others)}" if others else ""
+
+    chosen = given or hint
+    if chosen is not None:
+        rate = rates[chosen]
+        if not lo <= rate <= hi:
+            how = "as given" if given else "as its name says"
+            raise InputError(
+                path,
+                f"the time column {name!r} in {chosen} ({how}) implies a sampling rate of "
+                f"{rate:.4g} Hz, not plausible ({lo:g} Hz … {hi:g} Hz): almost surely the "
+                f"wrong time unit{alternatives()}",
+            )
+        return chosen, rate, "given" if given else f"from the column name {name!r}"
+    first = float(values[0])
+    epoch = [u for u in plausible if 1e9 <= first * TIME_UNITS_NS[u] * 1e-9 <= 4.2e9]
+    typical = [u for u in plausible if TYPICAL_RATE_HZ[0] <= rates[u] <= TYPICAL_RATE_HZ[1]]
+    for candidates, why in (
+        (epoch, "Unix time"),
+        (plausible, "the only plausible rate"),
+        (typical, "the only typical rate"),
+    ):
+        if len(candidates) == 1:
+            unit = candidates[0]
+            return unit, rates[unit], f"inferred ({why}: median step {step:g})"
+    listing = ", ".join(f"{u}: {r:.4g} Hz" for u, r in rates.items())
+    if not plausible:
+        raise InputError(
+            path,
+            f"the time column {name!r} (median step {step:g}) implies no plausible sampling "
+            f"rate in any unit ({listing}); is it a time?",
+        )
+    raise InputError(
+        path,
+        f"the time unit of column {name!r} is ambiguous (median step {step:g}: {listing}); "
+        "state it with --time-unit",
+    )
+
+
+def _check_accel_unit(path: str, accel: np.ndarray, unit: str) -> str | None:
+    """Refuse a stated unit the data contradict (|a| at rest ≈ 1 g); a note on what was seen."""
+    g_in_unit = STANDARD_GRAVITY_MPS2 if unit == "m/s^2" else 1.0
+    rest = rest_level(accel)
+    if rest is None:
+        return "no quiet stretch to check the acceleration unit against (|a| at rest = 1 g)"
+    ratio = rest / g_in_unit
+    if 0.8 < ratio < 1.25:
+        return None
+    guesses = {"g": 1.0, "m/s^2": STANDARD_GRAVITY_MPS2, "mg": 1000.0, "mm/s^2": 9806.65}
+    guess = [name for name, level in guesses.items() if 0.8 < rest / level < 1.25]
+    looks = f": the data look like {guess[0]}" if guess else ""
+    fix = (
+        " (--accel-unit g)"
+        if guess == ["g"]
+        else (" (--accel-unit m/s^2)" if guess == ["m/s^2"] else "")
+    )
+    raise InputError(
+        path,
+        f"at rest the samples read |a| = {rest:.4g}, but 1 g is {g_in_unit:g} {unit}"
+        f"{looks}{fix}; the acceleration unit is stated wrongly",
+    )
+
+
+def _check_gyro_unit(path: str, gyro: np.ndarray, unit: str) -> None:
+    finite = gyro[np.all(np.isfinite(gyro), axis=1)]
+    if unit != "rad/s" or finite.size == 0:
+        return
+    peak = float(np.max(np.abs(finite)))
+    if np.degrees(peak) > MAX_GYRO_DPS:
+        raise InputError(
+            path,
+            f"the gyro columns read up to {peak:.4g}, beyond any MEMS gyroscope in rad/s "
+            f"(±{MAX_GYRO_DPS:g} °/s = {np.radians(MAX_GYRO_DPS):.4g} rad/s): they look like "
+            "deg/s (--gyro-unit deg/s)",
+        )
 
 
 def convert_csv(
@@ -114,7 +454,7 @@ def convert_csv(
     session: Mapping[str, str] | None = None,
     compression: Compression = "zstd",
 ) -> CsvConversion:
-    """Convert a CSV accelerometer log into a contract MCAP file.
+    """Convert a CSV IMU log into a contract MCAP file.
 
     Parameters
     ----------
@@ -123,11 +463,13 @@ def convert_csv(
     mcap_path:
         Output file (written atomically).
     layout:
-        Columns and units (:class:`CsvLayout`).
+        Columns and units (:class:`CsvLayout`); by default every column is
+        recognised by name and the time unit inferred.
     encoding:
         ``"json"`` (``wheelcal.AccelBatch``, ``batch_size`` samples per
-        message, unit kept as given) or ``"ros2"`` (``sensor_msgs/msg/Imu``;
-        g is converted to m/s², as the message requires).
+        message, units kept as given) or ``"ros2"`` (``sensor_msgs/msg/Imu``;
+        g → m/s² and deg/s → rad/s, as the message requires; a temperature
+        goes to a ``sensor_msgs/msg/Temperature`` topic).
     batch_size:
         Samples per JSON message.
     topic:
@@ -140,12 +482,15 @@ def convert_csv(
     Returns
     -------
     CsvConversion
-        Row counts and notes on anything skipped.
+        Row counts, the columns and time unit used, and notes on anything
+        skipped, inferred or repaired.
 
     Raises
     ------
     InputError
-        Missing or unreadable file, no data rows, unknown columns.
+        Missing or unreadable file, no data rows, unknown or ambiguous
+        columns, an implausible or ambiguous time unit, a stated unit the
+        data contradict — always naming the file.
     """
     layout = layout or CsvLayout()
     path = str(csv_path)
@@ -155,58 +500,125 @@ def convert_csv(
         raise InputError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, f"cannot be read as text ({exc})") from None
-    lines = [line for line in text.splitlines() if line.strip() and not line.startswith("#")]
-    if not lines:
-        raise InputError(path, "the CSV file has no data")
-    delimiter = layout.delimiter or max((",", ";", "\t"), key=lines[0].count)
+    lines, delimiter, notes = _lines(path, text, layout.delimiter)
     rows = list(csv.reader(io.StringIO("\n".join(lines)), delimiter=delimiter))
-    by_index = isinstance(layout.time_column, int)
     header = rows[0]
-    body = rows if by_index else rows[1:]
+    if not layout.by_index:
+        while header and not header[-1].strip():
+            header = header[:-1]
+        if len(header) < len(rows[0]):
+            notes.append("ignored the empty trailing column (each line ends with the delimiter)")
+    body = rows if layout.by_index else rows[1:]
     if not body:
         raise InputError(path, "the CSV file has a header but no data rows")
     cols = _columns(path, header, layout)
-    scale = TIME_UNITS_NS[layout.time_unit]
-    stamps: list[int] = []
-    values: list[list[float]] = []
+    if cols.gyro is not None and layout.gyro_unit is None:
+        names = [header[i].strip() for i in cols.gyro] if not layout.by_index else cols.gyro
+        raise InputError(
+            path,
+            f"gyro columns {names} found: state their unit (--gyro-unit rad/s or deg/s), "
+            "or leave them out (--no-gyro)",
+        )
+    times: list[Decimal] = []
+    accel_rows: list[list[float]] = []
+    gyro_rows: list[list[float]] = []
+    temps: list[float] = []
     skipped = 0
-    first_line = 1 if by_index else 2
+    first_line = 1 if layout.by_index else 2
     for line, row in enumerate(body, start=first_line):
         try:
-            stamp = _to_ns(row[cols[0]], scale)
+            stamp = Decimal(row[cols.time].strip())
+            if not stamp.is_finite():
+                raise InvalidOperation
         except (IndexError, InvalidOperation, ValueError):
             skipped += 1
             continue
         try:
-            sample = [_to_float(row[c]) for c in cols[1:]]
+            sample = [_to_float(row[c]) for c in cols.accel]
+            rate = [_to_float(row[c]) for c in cols.gyro] if cols.gyro else None
+            temp = _to_float(row[cols.temperature]) if cols.temperature is not None else None
         except (IndexError, ValueError):
             raise InputError(
-                path, f"data row {line}: an acceleration cell is not a number: {row!r}"
+                path, f"data row {line}: a data cell is not a number: {row!r}"
             ) from None
-        stamps.append(stamp + layout.epoch_unix_ns)
-        values.append(sample)
-    if not stamps:
+        times.append(stamp)
+        accel_rows.append(sample)
+        if rate is not None:
+            gyro_rows.append(rate)
+        if temp is not None:
+            temps.append(temp)
+    if not times:
         raise InputError(path, f"none of the {len(body)} rows has a numeric time")
-    accel = np.array(values, dtype=float)
-    unit = layout.accel_unit
-    notes = []
-    if encoding == "ros2" and unit == "g":
+    time_name = header[cols.time].strip() if not layout.by_index else f"#{cols.time}"
+    times = _unwrap_counter(times, notes, time_name)
+    unit, rate_hz, how = _choose_time_unit(
+        path, time_name, times, layout.time_unit, cols.time_unit_hint
+    )
+    if how != "given":
+        notes.append(f"time unit {unit} {how}: {rate_hz:.4g} Hz")
+    scale = TIME_UNITS_NS[unit]
+    stamps = np.array(
+        [int((t * scale).to_integral_value()) + layout.epoch_unix_ns for t in times],
+        dtype=np.int64,
+    )
+    accel = np.array(accel_rows, dtype=float)
+    accel_unit = layout.accel_unit
+    if layout.check_units:
+        seen = _check_accel_unit(path, accel, accel_unit)
+        if seen:
+            notes.append(seen)
+    gyro = np.array(gyro_rows, dtype=float) if cols.gyro else None
+    gyro_unit = layout.gyro_unit or "rad/s"
+    if gyro is not None and layout.check_units:
+        _check_gyro_unit(path, gyro, gyro_unit)
+    temperature = np.array(temps, dtype=float) if cols.temperature is not None else None
+    if encoding == "ros2" and accel_unit == "g":
         accel = accel * STANDARD_GRAVITY_MPS2
-        unit = "m/s^2"
+        accel_unit = "m/s^2"
         notes.append("converted g to m/s^2 (sensor_msgs/msg/Imu carries m/s^2)")
+    if encoding == "ros2" and gyro is not None and gyro_unit == "deg/s":
+        gyro = np.radians(gyro)
+        gyro_unit = "rad/s"
+        notes.append("converted deg/s to rad/s (sensor_msgs/msg/Imu carries rad/s)")
     if skipped:
         notes.append(f"skipped {skipped} rows without a numeric time")
     write_accel_mcap(
         mcap_path,
-        np.array(stamps, dtype=np.int64),
+        stamps,
         accel,
         encoding=encoding,
         topic=topic,
         batch_size=batch_size,
-        unit=unit,
+        unit=accel_unit,
         compression=compression,
         session=dict(session or {}),
+        gyro=gyro,
+        gyro_unit=gyro_unit,
+        temperature_c=temperature,
     )
+    names = {
+        "time": cols.time,
+        "accel": cols.accel,
+        "gyro": cols.gyro,
+        "temperature": cols.temperature,
+    }
+    if not layout.by_index:
+        names = {
+            role: (
+                None
+                if where is None
+                else [header[i].strip() for i in where]
+                if isinstance(where, list)
+                else header[where].strip()
+            )
+            for role, where in names.items()
+        }
     return CsvConversion(
-        rows=len(body), samples=len(stamps), skipped_rows=skipped, notes=tuple(notes)
+        rows=len(body),
+        samples=len(times),
+        skipped_rows=skipped,
+        notes=tuple(notes),
+        columns=names,
+        time_unit=unit,
+        rate_hz=rate_hz,
     )

@@ -38,6 +38,8 @@ CDR_MESSAGE_ENCODING = "cdr"
 _CDR_LE = b"\x00\x01\x00\x00"
 _TAIL_BYTES = 296  # orientation … linear_acceleration_covariance
 _ACCEL_AT = 200  # linear_acceleration, relative to q
+_GYRO_AT = 104  # angular_velocity, relative to q
+_GYRO_COV_AT = 128  # angular_velocity_covariance, relative to q
 
 #: The message definition as ``ros2 bag record`` stores it (dependencies appended).
 IMU_MSGDEF = """\
@@ -106,8 +108,20 @@ class ImuLayoutError(ValueError):
 
 
 def _gather(arr: np.ndarray, at: np.ndarray, dtype: str, count: int = 1) -> np.ndarray:
-    """Values of ``dtype`` (count per message) starting at byte positions ``at``."""
-    size = np.dtype(dtype).itemsize * count
+    """Values of ``dtype`` (count per message) starting at byte positions ``at``.
+
+    Messages of one fixed-size type sit at a constant stride in a chunk; then a
+    strided view reads them without building a byte index (the general case).
+    """
+    item = np.dtype(dtype).itemsize
+    size = item * count
+    if at.size > 1:
+        step = int(at[1] - at[0])
+        if step >= size and np.all(np.diff(at) == step):
+            view = np.ndarray(
+                (at.size, count), dtype=dtype, buffer=arr, offset=int(at[0]), strides=(step, item)
+            )
+            return view.reshape(-1) if count == 1 else view.copy()
     raw = arr[at[:, None] + np.arange(size)]
     out = raw.view(dtype)
     return out.reshape(-1) if count == 1 else out.reshape(-1, count)
@@ -133,7 +147,28 @@ def decode_imu_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, ...
     ImuLayoutError
         A message whose size or encapsulation does not fit the Imu layout.
     """
-    stamps, logs, accels = [], [], []
+    return _decode(blocks, gyro=False)[:3]
+
+
+def decode_imu_with_gyro(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, ...]:
+    """As :func:`decode_imu_blocks`, plus ``angular_velocity``.
+
+    Returns
+    -------
+    stamp_ns, log_time_ns, accel
+        As :func:`decode_imu_blocks`.
+    gyro : ndarray, shape (N, 3), or None
+        ``angular_velocity`` in rad/s (REP 103); a row of NaN where the
+        message marks it absent (``angular_velocity_covariance[0] == -1``);
+        ``None`` when every message does.  (A channel of exact zeros is the
+        caller's to judge: it is absent too, by convention of many drivers.)
+    """
+    return _decode(blocks, gyro=True)
+
+
+def _decode(blocks: tuple[MessageBlock, ...], gyro: bool) -> tuple:
+    stamps, logs, accels, gyros = [], [], [], []
+    any_gyro = False
     for block in blocks:
         if block.count == 0:
             continue
@@ -147,6 +182,7 @@ def decode_imu_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, ...
         sec = np.empty(off.size, np.int64)
         nsec = np.empty(off.size, np.int64)
         accel = np.empty((off.size, 3))
+        rate = np.full((off.size, 3), np.nan) if gyro else None
         for endian, code in (("<", 1), (">", 0)):
             sel = np.flatnonzero(kind == code)
             if sel.size == 0:
@@ -165,22 +201,40 @@ def decode_imu_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, ...
                     f"({int(actual[0])} bytes, expected {int(expected[0])})"
                 )
             accel[sel] = _gather(arr, body + q + _ACCEL_AT, endian + "f8", 3)
+            if gyro:
+                # Covariance element 0 == -1: "no estimate" (the message definition).
+                present = _gather(arr, body + q + _GYRO_COV_AT, endian + "f8") != -1.0
+                if np.any(present):
+                    any_gyro = True
+                    rows = sel[present]
+                    rate[rows] = _gather(
+                        arr, body[present] + q[present] + _GYRO_AT, endian + "f8", 3
+                    )
         if np.any(nsec >= 1_000_000_000):
             raise ImuLayoutError("header.stamp.nanosec is 1e9 or more")
         stamps.append(sec * 1_000_000_000 + nsec)
         logs.append(block.log_time_ns)
         accels.append(accel)
+        gyros.append(rate)
     if not stamps:
-        return np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3))
-    return np.concatenate(stamps), np.concatenate(logs), np.concatenate(accels)
+        empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3)))
+        return (*empty, None)
+    rate_all = np.concatenate(gyros) if any_gyro else None
+    return np.concatenate(stamps), np.concatenate(logs), np.concatenate(accels), rate_all
 
 
-def encode_imu_messages(time_ns: np.ndarray, accel_mps2: np.ndarray, frame_id: str) -> list[bytes]:
-    """CDR little-endian ``Imu`` payloads with only ``linear_acceleration`` filled.
+def encode_imu_messages(
+    time_ns: np.ndarray,
+    accel_mps2: np.ndarray,
+    frame_id: str,
+    gyro_radps: np.ndarray | None = None,
+) -> list[bytes]:
+    """CDR little-endian ``Imu`` payloads with ``linear_acceleration`` (and the gyro) filled.
 
-    Orientation and angular velocity are marked "not provided" by setting
-    element 0 of their covariance to −1 (the convention the message
-    definition documents); the acceleration covariance is all zero
+    Orientation is marked "not provided" by setting element 0 of its
+    covariance to −1 (the convention the message definition documents); so is
+    ``angular_velocity`` when ``gyro_radps`` is ``None``, or on the rows of
+    ``gyro_radps`` that are NaN (left out).  Other covariances are all zero
     ("unknown").
 
     Parameters
@@ -191,6 +245,8 @@ def encode_imu_messages(time_ns: np.ndarray, accel_mps2: np.ndarray, frame_id: s
         Linear acceleration, shape (N, 3).
     frame_id:
         ``header.frame_id`` for every message.
+    gyro_radps:
+        Angular velocity (N, 3) in rad/s, or ``None``.
 
     Returns
     -------
@@ -201,7 +257,7 @@ def encode_imu_messages(time_ns: np.ndarray, accel_mps2: np.ndarray, frame_id: s
     accel = np.asarray(accel_mps2, dtype=float).reshape(-1, 3)
     name = frame_id.encode("utf-8") + b"\x00"
     q = (12 + len(name) + 7) // 8 * 8
-    tail = [4 + q + k for k in (0, 32, 104, 128, _ACCEL_AT, 224)]
+    tail = [4 + q + k for k in (0, 32, _GYRO_AT, _GYRO_COV_AT, _ACCEL_AT, 224)]
     names = ["encap", "sec", "nsec", "str_len", "frame", "orient", "orient_cov"]
     names += ["gyro", "gyro_cov", "accel", "accel_cov"]
     formats = ["V4", "<i4", "<u4", "<u4", f"V{len(name)}", ("<f8", 4), ("<f8", 9)]
@@ -225,7 +281,15 @@ def encode_imu_messages(time_ns: np.ndarray, accel_mps2: np.ndarray, frame_id: s
     rec["frame"] = np.void(name)
     rec["orient"][:, 3] = 1.0  # identity quaternion (ignored: covariance[0] = -1)
     rec["orient_cov"][:, 0] = -1.0
-    rec["gyro_cov"][:, 0] = -1.0
+    if gyro_radps is None:
+        rec["gyro_cov"][:, 0] = -1.0
+    else:
+        rate = np.asarray(gyro_radps, dtype=float).reshape(-1, 3)
+        if rate.shape[0] != time_ns.size:
+            raise ValueError(f"{time_ns.size} stamps but {rate.shape[0]} gyro rows")
+        absent = ~np.all(np.isfinite(rate), axis=1)
+        rec["gyro"] = np.where(absent[:, None], 0.0, rate)
+        rec["gyro_cov"][absent, 0] = -1.0
     rec["accel"] = accel
     raw = rec.tobytes()
     size = dtype.itemsize

@@ -13,6 +13,19 @@ by its schema —
 — and ``topic=`` chooses among several.  Session facts come from the
 ``wheelcal.session`` metadata record, overridden by ``info_overrides``.
 
+Optional channels (additive, issue 13), read onto the accelerometer's samples:
+
+* the gyro — ROS 2 ``angular_velocity`` (rad/s; absent where
+  ``angular_velocity_covariance[0] == -1``, and a channel of exact zeros is
+  absent too), or the batch's ``"gyro"`` rows (channel metadata
+  ``gyro_unit`` ``rad/s`` default or ``deg/s``) — kept aligned through the
+  accelerometer's repairs and checked by :mod:`~wheelcal.io.gyro_checks`
+  (clipped rows left out as NaN rows);
+* the temperature — the batch's ``"temperature_c"``, else a ROS 2
+  ``sensor_msgs/msg/Temperature`` topic (the only one, or the one in the
+  accelerometer topic's namespace; ``temperature_topic=`` chooses),
+  interpolated onto the sample times (:mod:`~wheelcal.io.temperature_align`).
+
 The pipeline is: :func:`~wheelcal.io.mcap_scan.scan_mcap` (record walk, every
 CRC verified) → a vectorised decoder (:mod:`~wheelcal.io.imu_cdr`,
 :mod:`~wheelcal.io.accel_json`) → :func:`~wheelcal.io.sample_checks.clean_samples`
@@ -30,28 +43,35 @@ import numpy as np
 
 from wheelcal.io.accel_json import (
     ACCEL_BATCH_SCHEMA_NAME,
+    GYRO_UNIT_KEY,
+    GYRO_UNITS,
     JSON_MESSAGE_ENCODING,
     JSON_SCHEMA_ENCODING,
     UNIT_KEY,
     UNITS,
     AccelBatchError,
-    decode_accel_blocks,
+    decode_accel_batch,
 )
 from wheelcal.io.errors import InputError, TopicError
+from wheelcal.io.gyro_checks import RADPS_PER_DPS, align_to_samples, check_gyro
 from wheelcal.io.imu_cdr import (
     CDR_MESSAGE_ENCODING,
     IMU_SCHEMA_NAME,
     ROS2_SCHEMA_ENCODING,
     ImuLayoutError,
     decode_imu_blocks,
+    decode_imu_with_gyro,
 )
 from wheelcal.io.mcap_scan import ChannelRecord, McapScan, scan_mcap
 from wheelcal.io.sample_checks import InputPolicy, clean_samples
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
+from wheelcal.io.temperature_align import temperature_at
+from wheelcal.io.temperature_cdr import TEMPERATURE_SCHEMA_NAME, decode_temperature_blocks
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 from wheelcal.recording import Recording
 
 _IMU_NAMES = (IMU_SCHEMA_NAME, "sensor_msgs/Imu")
+_TEMPERATURE_NAMES = (TEMPERATURE_SCHEMA_NAME, "sensor_msgs/Temperature")
 _EXPECTED = (
     f"{IMU_SCHEMA_NAME} ({ROS2_SCHEMA_ENCODING}/{CDR_MESSAGE_ENCODING}) or "
     f"{ACCEL_BATCH_SCHEMA_NAME} ({JSON_SCHEMA_ENCODING}/{JSON_MESSAGE_ENCODING})"
@@ -157,12 +177,28 @@ def list_accel_topics(path: str | os.PathLike) -> list[AccelTopic]:
     return accel_topics(scan_mcap(path))
 
 
-def _decode(scan: McapScan, chosen: AccelTopic, where: str) -> tuple[np.ndarray, ...]:
+@dataclass(frozen=True, eq=False)
+class _Decoded:
+    """What a decoder gives, in SI units (gyro rad/s), before the checks."""
+
+    time_ns: np.ndarray
+    accel: np.ndarray
+    gyro: np.ndarray | None
+    temperature: tuple[np.ndarray, np.ndarray] | None  # (stamps, °C) on the samples' stamps
+    notes: list
+
+
+def _decode(
+    scan: McapScan, chosen: AccelTopic, where: str, gyro: bool, temperature: bool
+) -> _Decoded:
     blocks = scan.blocks.get(chosen.channel_id, ())
     notes: list[str] = []
     try:
         if chosen.encoding == "ros2":
-            stamp, log_time, accel = decode_imu_blocks(blocks)
+            if gyro:
+                stamp, log_time, accel, rate = decode_imu_with_gyro(blocks)
+            else:
+                (stamp, log_time, accel), rate = decode_imu_blocks(blocks), None
             unstamped = stamp == 0
             if np.any(unstamped):
                 stamp = np.where(unstamped, log_time, stamp)
@@ -170,11 +206,78 @@ def _decode(scan: McapScan, chosen: AccelTopic, where: str) -> tuple[np.ndarray,
                     f"{int(unstamped.sum())} messages had a zero header.stamp; "
                     "their log time was used"
                 )
-            return stamp, accel, notes
-        time_ns, accel = decode_accel_blocks(blocks)
-        return time_ns, accel, notes
+            return _Decoded(stamp, accel, rate, None, notes)
+        batch = decode_accel_batch(blocks, optional=gyro or temperature)
+        temp = None
+        if temperature and batch.temperature_c is not None:
+            temp = (batch.time_ns, batch.temperature_c)
+        return _Decoded(batch.time_ns, batch.accel, batch.gyro if gyro else None, temp, notes)
     except (ImuLayoutError, AccelBatchError) as exc:
         raise InputError(scan.path, f"{where}: {exc}") from None
+
+
+def _gyro_unit(scan: McapScan, chosen: AccelTopic, where: str, override: str | None) -> str:
+    unit = override
+    if unit is None and chosen.encoding == "json":
+        unit = scan.channels[chosen.channel_id].metadata.get(GYRO_UNIT_KEY, "rad/s")
+    unit = unit or "rad/s"
+    if unit not in GYRO_UNITS:
+        raise InputError(scan.path, f"{where}: gyro unit {unit!r} is not one of {list(GYRO_UNITS)}")
+    return unit
+
+
+def temperature_topics(scan: McapScan) -> list[ChannelRecord]:
+    """The ROS 2 ``sensor_msgs/msg/Temperature`` channels of a file, by topic."""
+    found = []
+    for channel in scan.channels.values():
+        schema = scan.schema_of(channel)
+        if (
+            schema is not None
+            and schema.encoding == ROS2_SCHEMA_ENCODING
+            and schema.name in _TEMPERATURE_NAMES
+            and channel.message_encoding == CDR_MESSAGE_ENCODING
+        ):
+            found.append(channel)
+    return sorted(found, key=lambda c: c.topic)
+
+
+def _temperature_topic(
+    scan: McapScan, accel_topic: str, wanted: str | None, notes: list[str]
+) -> tuple[ChannelRecord, np.ndarray, np.ndarray] | None:
+    """The Temperature topic to read and its (stamps, °C), or None (with a note if unclear)."""
+    found = temperature_topics(scan)
+    if wanted is not None:
+        chosen = [c for c in found if c.topic == wanted]
+        if not chosen:
+            listing = ", ".join(c.topic for c in found) or "none"
+            raise TopicError(
+                scan.path,
+                f"there is no sensor_msgs/msg/Temperature topic {wanted!r} "
+                f"(temperature topics: {listing})",
+            )
+    else:
+        chosen = [c for c in found if scan.message_count(c.id) > 0]
+        if len(chosen) > 1:
+            space = accel_topic.rsplit("/", 1)[0] + "/"
+            chosen = [c for c in chosen if c.topic.startswith(space)] if space != "/" else []
+            if len(chosen) != 1:
+                listing = ", ".join(c.topic for c in found)
+                notes.append(
+                    f"several temperature topics ({listing}); none read — choose one "
+                    "(temperature_topic=)"
+                )
+                return None
+    if not chosen:
+        return None
+    channel = chosen[0]
+    try:
+        stamp, log_time, temp = decode_temperature_blocks(scan.blocks.get(channel.id, ()))
+    except ImuLayoutError as exc:
+        raise InputError(scan.path, f"topic {channel.topic}: {exc}") from None
+    if stamp.size == 0:
+        return None
+    stamp = np.where(stamp == 0, log_time, stamp)
+    return channel, stamp, temp
 
 
 def read_recording(
@@ -186,6 +289,10 @@ def read_recording(
     accel_unit: str | None = None,
     policy: InputPolicy | None = None,
     gravity_checked: bool = True,
+    gyro: bool = True,
+    gyro_unit: str | None = None,
+    temperature: bool = True,
+    temperature_topic: str | None = None,
 ) -> Recording:
     """Read the accelerometer samples and session facts of an MCAP recording.
 
@@ -211,13 +318,23 @@ def read_recording(
     gravity_checked:
         Refuse a ``gravity_mps2`` outside Earth's 9.7–9.9 m/s² (False: the
         user forced it).
+    gyro:
+        Read the gyroscope if the file has one (``False``: accelerometer only).
+    gyro_unit:
+        Override of the gyro unit the file states (``"rad/s"`` or ``"deg/s"``;
+        JSON: channel metadata ``gyro_unit``, ROS 2: rad/s by REP 103).
+    temperature:
+        Read the temperature if the file has one.
+    temperature_topic:
+        The ``sensor_msgs/msg/Temperature`` topic, when a file has several.
 
     Returns
     -------
     Recording
         Times in s from the first sample (``epoch_unix_ns``), samples in m/s²,
         ``source`` = the path, ``topic``, and ``notes`` on anything repaired.
-        ``info.radius_m`` may be ``None`` — see
+        ``gyro_radps`` (rad/s, NaN rows left out) and ``temperature_c`` when
+        the file has them.  ``info.radius_m`` may be ``None`` — see
         :func:`~wheelcal.io.session_meta.require_radius`.
 
     Raises
@@ -228,6 +345,8 @@ def read_recording(
         and the problem in the message.
     """
     policy = policy or InputPolicy()
+    if gyro_unit is not None and gyro_unit not in GYRO_UNITS:
+        raise InputError(path, f"gyro unit {gyro_unit!r} is not one of {list(GYRO_UNITS)}")
     scan = scan_mcap(path)
     chosen = choose_topic(scan, topic)
     where = f"topic {chosen.topic}"
@@ -239,10 +358,18 @@ def read_recording(
     unit = accel_unit or chosen.unit
     if unit not in UNITS:
         raise InputError(scan.path, f"{where}: unit {unit!r} is not one of {list(UNITS)}")
-    time_ns, accel, notes = _decode(scan, chosen, where)
+    decoded = _decode(scan, chosen, where, gyro, temperature)
+    time_ns, accel, notes = decoded.time_ns, decoded.accel, decoded.notes
     if unit == "g":
         accel = accel * STANDARD_GRAVITY_MPS2  # CONTRACT: g always means 9.80665 m/s²
         notes.append("samples converted from g (9.80665 m/s²)")
+    raw_gyro = decoded.gyro
+    if raw_gyro is not None and _gyro_unit(scan, chosen, where, gyro_unit) == "deg/s":
+        raw_gyro = raw_gyro * RADPS_PER_DPS
+        notes.append("gyro converted from deg/s")
+    temp_source = None
+    if temperature:
+        temp_source = _temperature_source(scan, chosen, decoded, temperature_topic, notes)
     clean = clean_samples(
         f"{scan.path} ({where})",
         time_ns,
@@ -251,6 +378,25 @@ def read_recording(
         full_scale_g=info.full_scale_g,
         policy=policy,
     )
+    extra_notes: list[str] = []
+    gyro_rows = None
+    if raw_gyro is not None:
+        aligned = align_to_samples(time_ns, accel, raw_gyro, clean.time_ns)
+        hint = (
+            "state the channel metadata gyro_unit ('rad/s' or 'deg/s')"
+            if chosen.encoding == "json"
+            else "sensor_msgs/msg/Imu carries rad/s (REP 103): fix the driver, or read with "
+            "gyro_unit='deg/s'"
+        )
+        gyro_rows, gyro_notes = check_gyro(
+            f"{scan.path} ({where})", aligned, info.gyro_full_scale_dps, unit_hint=hint
+        )
+        extra_notes += gyro_notes
+    temp_rows = None
+    if temp_source is not None:
+        what, stamps, values = temp_source
+        temp_rows, temp_notes = temperature_at(what, stamps, values, clean.time_ns)
+        extra_notes += temp_notes
     if scan.chunks_without_crc:
         notes.append(
             f"{scan.chunks_without_crc} of {scan.chunks} chunks carry no CRC; "
@@ -264,6 +410,28 @@ def read_recording(
         epoch_unix_ns=epoch,
         source=scan.path,
         topic=chosen.topic,
-        notes=tuple(notes) + clean.notes,
+        notes=tuple(notes) + clean.notes + tuple(extra_notes),
+        gyro_radps=gyro_rows,
+        temperature_c=temp_rows,
         clip_limits_mps2=clean.clip_limits_mps2,
     )
+
+
+def _temperature_source(
+    scan: McapScan, chosen: AccelTopic, decoded: _Decoded, wanted: str | None, notes: list[str]
+) -> tuple[str, np.ndarray, np.ndarray] | None:
+    """(description, stamps, °C) of the temperature to use: the batch's own, else a topic."""
+    if decoded.temperature is not None:
+        if wanted is not None:
+            notes.append(f"temperature from the batches' temperature_c; topic {wanted} not used")
+        stamps, values = decoded.temperature
+        return "temperature_c of the batches", stamps, values
+    if not temperature_topics(scan):
+        if wanted is not None:
+            raise TopicError(scan.path, f"there is no sensor_msgs/msg/Temperature topic {wanted!r}")
+        return None
+    found = _temperature_topic(scan, chosen.topic, wanted, notes)
+    if found is None:
+        return None
+    channel, stamps, values = found
+    return f"topic {channel.topic}", stamps, values

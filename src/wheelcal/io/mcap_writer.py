@@ -8,7 +8,10 @@ intact.
 * :func:`write_recording` — a :class:`~wheelcal.recording.Recording` as ROS 2
   ``sensor_msgs/msg/Imu`` (one message per sample) or ``wheelcal.AccelBatch``
   JSON (``batch_size`` samples per message), with the ``wheelcal.session``
-  metadata record.
+  metadata record.  A gyro goes into ``angular_velocity`` (ROS 2; a left-out
+  row is marked absent, covariance[0] = −1) or the batch's ``"gyro"`` rows
+  (JSON; ``null``); a temperature into a ``sensor_msgs/msg/Temperature``
+  topic (ROS 2) or the batch's ``"temperature_c"`` (JSON).
 * :func:`write_accel_mcap` — the same from raw arrays, without the checks a
   ``Recording`` makes (for converters, and for test files with defects).
 * :func:`copy_with_channels` — every record of an existing MCAP (schemas,
@@ -29,6 +32,8 @@ import numpy as np
 
 from wheelcal.io.accel_json import (
     ACCEL_BATCH_SCHEMA_NAME,
+    GYRO_UNIT_KEY,
+    GYRO_UNITS,
     JSON_MESSAGE_ENCODING,
     JSON_SCHEMA_ENCODING,
     UNIT_KEY,
@@ -47,9 +52,15 @@ from wheelcal.io.imu_cdr import (
 )
 from wheelcal.io.mcap_scan import scan_mcap
 from wheelcal.io.session_meta import SESSION_METADATA_NAME
+from wheelcal.io.temperature_cdr import (
+    TEMPERATURE_MSGDEF,
+    TEMPERATURE_SCHEMA_NAME,
+    encode_temperature_messages,
+)
 from wheelcal.recording import Recording, SessionInfo
 
 DEFAULT_TOPICS = {"ros2": "/imu/data_raw", "json": "/wheelcal/accel"}
+DEFAULT_TEMPERATURE_TOPIC = "/imu/temperature"
 DEFAULT_CHUNK_BYTES = 1024 * 1024
 
 Encoding = Literal["ros2", "json"]
@@ -91,6 +102,8 @@ def session_metadata(info: SessionInfo) -> dict[str, str]:
         out["gravity_mps2"] = repr(float(info.gravity_mps2))
     if info.full_scale_g is not None:
         out["full_scale_g"] = repr(float(info.full_scale_g))
+    if info.gyro_full_scale_dps is not None:
+        out["gyro_full_scale_dps"] = repr(float(info.gyro_full_scale_dps))
     for key, value in info.extra:
         out.setdefault(key, value)
     return out
@@ -105,8 +118,11 @@ def accel_channel(
     batch_size: int = 1,
     frame_id: str = "imu",
     unit: str = "m/s^2",
+    gyro: np.ndarray | None = None,
+    gyro_unit: str = "rad/s",
+    temperature_c: np.ndarray | None = None,
 ) -> ChannelData:
-    """An accelerometer channel in one of the contract's encodings.
+    """An accelerometer channel (with an optional gyro) in one of the contract's encodings.
 
     Parameters
     ----------
@@ -125,9 +141,19 @@ def accel_channel(
         ``header.frame_id`` of the Imu messages.
     unit:
         ``"m/s^2"`` or ``"g"`` (JSON only), stored in the channel metadata.
+    gyro:
+        Angular rate (N, 3) in ``gyro_unit``, or ``None``; NaN rows are
+        written as "no reading" (ROS 2: covariance[0] = −1; JSON: ``null``).
+    gyro_unit:
+        ``"rad/s"`` or ``"deg/s"`` (JSON only; stored as ``gyro_unit``).
+    temperature_c:
+        Per-sample temperature (N,) in °C — JSON only (``"temperature_c"``);
+        ROS 2 carries it on its own topic (:func:`temperature_channel`).
     """
     if unit not in UNITS:
         raise ValueError(f"unit must be one of {UNITS}, got {unit!r}")
+    if gyro_unit not in GYRO_UNITS:
+        raise ValueError(f"gyro_unit must be one of {GYRO_UNITS}, got {gyro_unit!r}")
     time_ns = np.asarray(time_ns, dtype=np.int64).reshape(-1)
     accel = np.asarray(accel, dtype=float).reshape(-1, 3)
     if time_ns.size != accel.shape[0]:
@@ -135,7 +161,13 @@ def accel_channel(
     if encoding == "ros2":
         if unit != "m/s^2":
             raise ValueError("sensor_msgs/msg/Imu carries m/s² only (REP 103)")
-        payloads = encode_imu_messages(time_ns, accel, frame_id)
+        if gyro is not None and gyro_unit != "rad/s":
+            raise ValueError("sensor_msgs/msg/Imu carries rad/s only (REP 103)")
+        if temperature_c is not None:
+            raise ValueError(
+                "ROS 2 carries the temperature on its own topic: temperature_channel()"
+            )
+        payloads = encode_imu_messages(time_ns, accel, frame_id, gyro)
         return ChannelData(
             topic=topic or DEFAULT_TOPICS["ros2"],
             schema_name=IMU_SCHEMA_NAME,
@@ -145,16 +177,48 @@ def accel_channel(
             messages=tuple(zip(time_ns.tolist(), payloads, strict=True)),
         )
     if encoding == "json":
+        metadata = {UNIT_KEY: unit}
+        if gyro is not None:
+            metadata[GYRO_UNIT_KEY] = gyro_unit
         return ChannelData(
             topic=topic or DEFAULT_TOPICS["json"],
             schema_name=ACCEL_BATCH_SCHEMA_NAME,
             schema_encoding=JSON_SCHEMA_ENCODING,
             schema_data=schema_bytes(),
             message_encoding=JSON_MESSAGE_ENCODING,
-            messages=tuple(encode_accel_batches(time_ns, accel, batch_size)),
-            metadata={UNIT_KEY: unit},
+            messages=tuple(encode_accel_batches(time_ns, accel, batch_size, gyro, temperature_c)),
+            metadata=metadata,
         )
     raise ValueError(f"encoding must be 'ros2' or 'json', got {encoding!r}")
+
+
+def temperature_channel(
+    time_ns: np.ndarray,
+    temperature_c: np.ndarray,
+    *,
+    topic: str = DEFAULT_TEMPERATURE_TOPIC,
+    stride: int = 1,
+    frame_id: str = "imu",
+) -> ChannelData:
+    """A ROS 2 ``sensor_msgs/msg/Temperature`` channel: every ``stride``-th reading.
+
+    NaN readings are skipped (a Temperature message has no "absent" marker).
+    """
+    if stride < 1:
+        raise ValueError(f"stride must be at least 1, got {stride}")
+    time_ns = np.asarray(time_ns, dtype=np.int64).reshape(-1)[::stride]
+    temp = np.asarray(temperature_c, dtype=float).reshape(-1)[::stride]
+    keep = np.isfinite(temp)
+    time_ns, temp = time_ns[keep], temp[keep]
+    payloads = encode_temperature_messages(time_ns, temp, frame_id)
+    return ChannelData(
+        topic=topic,
+        schema_name=TEMPERATURE_SCHEMA_NAME,
+        schema_encoding=ROS2_SCHEMA_ENCODING,
+        schema_data=TEMPERATURE_MSGDEF.encode("utf-8"),
+        message_encoding=CDR_MESSAGE_ENCODING,
+        messages=tuple(zip(time_ns.tolist(), payloads, strict=True)),
+    )
 
 
 def _compression(name: str):
@@ -252,6 +316,10 @@ def write_accel_mcap(
     frame_id: str = "imu",
     compression: Compression = "zstd",
     session: Mapping[str, str] | None = None,
+    gyro: np.ndarray | None = None,
+    gyro_unit: str = "rad/s",
+    temperature_c: np.ndarray | None = None,
+    temperature_stride: int = 1,
 ) -> None:
     """Write raw stamps and samples as a contract MCAP (no validation of the data).
 
@@ -270,21 +338,39 @@ def write_accel_mcap(
         See :func:`accel_channel`.
     compression:
         ``"zstd"``, ``"lz4"`` or ``"none"``.
+    gyro, gyro_unit:
+        Optional angular rate (N, 3) and its unit (ROS 2: rad/s only).
+    temperature_c, temperature_stride:
+        Optional per-sample temperature (N,), °C: the batches' ``temperature_c``
+        (JSON), or a ``sensor_msgs/msg/Temperature`` topic (ROS 2) with every
+        ``temperature_stride``-th reading.
     """
-    channel = accel_channel(
-        time_ns,
-        accel,
-        encoding=encoding,
-        topic=topic,
-        batch_size=batch_size,
-        frame_id=frame_id,
-        unit=unit,
-    )
+    ros2 = encoding == "ros2"
+    channels = [
+        accel_channel(
+            time_ns,
+            accel,
+            encoding=encoding,
+            topic=topic,
+            batch_size=batch_size,
+            frame_id=frame_id,
+            unit=unit,
+            gyro=gyro,
+            gyro_unit=gyro_unit,
+            temperature_c=None if ros2 else temperature_c,
+        )
+    ]
+    if ros2 and temperature_c is not None:
+        channels.append(
+            temperature_channel(
+                time_ns, temperature_c, stride=temperature_stride, frame_id=frame_id
+            )
+        )
     values = session_metadata(info) if info is not None else {}
     values.update(session or {})
     write_channels(
         path,
-        [channel],
+        channels,
         {SESSION_METADATA_NAME: values} if values else None,
         profile="ros2" if encoding == "ros2" else "",
         compression=compression,
@@ -305,10 +391,12 @@ def write_recording(
     batch_size: int = 1,
     frame_id: str = "imu",
     compression: Compression = "zstd",
+    temperature_stride: int = 1,
 ) -> None:
     """Write a recording as a contract MCAP with its ``wheelcal.session`` record.
 
-    Samples are written in m/s²; stamps are ``epoch_unix_ns + round(time_s · 1e9)``.
+    Samples are written in m/s², the gyro (if any) in rad/s; stamps are
+    ``epoch_unix_ns + round(time_s · 1e9)``.
 
     Parameters
     ----------
@@ -323,6 +411,10 @@ def write_recording(
         See :func:`accel_channel`.
     compression:
         Chunk compression: ``"zstd"``, ``"lz4"`` or ``"none"``.
+    temperature_stride:
+        ROS 2 only: write every n-th temperature reading to the
+        ``sensor_msgs/msg/Temperature`` topic (a driver publishes it slower
+        than the samples; the reader interpolates).
     """
     write_accel_mcap(
         path,
@@ -334,6 +426,9 @@ def write_recording(
         batch_size=batch_size,
         frame_id=frame_id,
         compression=compression,
+        gyro=recording.gyro_radps,
+        temperature_c=recording.temperature_c,
+        temperature_stride=temperature_stride,
     )
 
 

@@ -2,7 +2,8 @@
 
 CONTRACT, input item 3: string values ``radius_m`` (needed, unless given on
 the command line), optional ``radius_std_m``, ``sensor_id``, ``mounting_id``,
-``gravity_mps2``, ``full_scale_g``, and free-form others (kept in
+``gravity_mps2``, ``full_scale_g``, ``gyro_full_scale_dps`` (the gyroscope's
+range, ±°/s), and free-form others (kept in
 :attr:`SessionInfo.extra`).  Command-line values override the file.  Several
 ``wheelcal.session`` records are merged in file order (later keys win), so a
 tool that appends a corrected record to a copy is honoured.
@@ -19,7 +20,7 @@ from wheelcal.io.errors import SessionInfoError
 from wheelcal.recording import Recording, RecordingError, SessionInfo
 
 SESSION_METADATA_NAME = "wheelcal.session"
-FLOAT_KEYS = ("radius_m", "radius_std_m", "gravity_mps2", "full_scale_g")
+FLOAT_KEYS = ("radius_m", "radius_std_m", "gravity_mps2", "full_scale_g", "gyro_full_scale_dps")
 TEXT_KEYS = ("sensor_id", "mounting_id")
 KNOWN_KEYS = FLOAT_KEYS + TEXT_KEYS
 
@@ -100,9 +101,10 @@ def session_info(
             name,
             f"radius_m = {radius} ({merged['radius_m'][1]}) must be a positive length in metres",
         )
-    full_scale = values.get("full_scale_g")
-    if full_scale is not None and full_scale <= 0:  # type: ignore[operator]
-        raise SessionInfoError(name, f"full_scale_g = {full_scale} must be positive")
+    for key in ("full_scale_g", "gyro_full_scale_dps"):
+        full_scale = values.get(key)
+        if full_scale is not None and full_scale <= 0:  # type: ignore[operator]
+            raise SessionInfoError(name, f"{key} = {full_scale} must be positive")
     try:
         return SessionInfo(
             **values,  # type: ignore[arg-type]

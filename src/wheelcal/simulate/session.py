@@ -21,6 +21,11 @@ zero at the ends of each phase, so the free spin stays exactly the model.
 Sensor noise (the scenario's :class:`NoiseSpec`) covers the whole recording;
 the quantiser, if any, is applied last.  The bench-frame force of eq. (1)
 holds in every phase with the phase's own ϑ, ω, ω̇.
+
+A scenario's gyro (if any) reads the wheel's rate in every phase — zero at
+rest, the smooth step during push and stop — and the true specific force
+(hand shake included) for its g-sensitivity; the hand's shake is a
+translation, so the gyro sees no rotation from it.
 """
 
 from __future__ import annotations
@@ -174,7 +179,9 @@ def simulate_session(
 
     free = (t >= start) & (t <= end)
     outside = ~free
-    inside = motion(t[free] - centre)
+    # Phase 3 is exactly the model: its kinematics include the spin effects, if any.
+    inside_out = scenario.clean_output(t[free] - centre)
+    inside = inside_out.kinematics
     omega[free] = inside.omega_radps
     omega_dot[free] = inside.omega_dot_radps2
     bench = truth.bench
@@ -183,21 +190,28 @@ def simulate_session(
         rows = np.flatnonzero(phase[outside])
         shake[rows] = _hand_shake(rows.size, rate, plan, rng)
     clean = np.empty((t.size, 3))
+    sensed = np.empty((t.size, 3))
     # Eq. (4)–(5) with the phase's own ϑ, ω, ω̇; the sensor's effects (a warm-up, a
-    # nonlinearity …) act in every phase, the spin's only in the free spin.
+    # nonlinearity …) act in every phase, the spin's only in the free spin.  The
+    # hand's shake is a bench-frame force, sensed like any other.
     sensor_effects = tuple(e for e in scenario.effects if e.stage == "sensor")
-    clean[outside] = evaluate(
+    outside_out = evaluate(
         truth,
         t[outside] - centre,
         effects=sensor_effects,
         kinematics=Kinematics(theta[outside], omega[outside], omega_dot[outside]),
-    ).predicted_mps2
-    clean[outside] += truth.sensor.gain * (shake @ bench.misalignment.matrix.T)
-    clean[free] = scenario.clean_signal(t[free] - centre)  # Phase 3: exactly the model
+    )
+    shake_sensed = shake @ bench.misalignment.matrix.T
+    sensed[outside] = outside_out.sensed_mps2 + shake_sensed
+    clean[outside] = outside_out.predicted_mps2 + truth.sensor.gain * shake_sensed
+    sensed[free] = inside_out.sensed_mps2
+    clean[free] = inside_out.predicted_mps2  # Phase 3: exactly the model
 
     # Bearings and road vibrate in proportion to the speed, fully above 2 rad/s.
     envelope = np.minimum(1.0, np.abs(omega) / 2.0)
-    recording = scenario.record(t, clean, rng, epoch_unix_ns, source, envelope)
+    recording = scenario.record(
+        t, clean, rng, epoch_unix_ns, source, envelope, omega_radps=omega, sensed_mps2=sensed
+    )
     return SimulatedFullSession(
         recording=recording,
         truth=truth,
