@@ -77,7 +77,8 @@ def test_report_equals_direct_computation_and_failure_is_listed(tmp_path, record
     md = (out / "report.md").read_text()
     assert "zz_corrupt.mcap" in md and "| `gain_x` |" in md
     csv_rows = (out / "sessions.csv").read_text().strip().splitlines()
-    assert len(csv_rows) == 1 + 5 and csv_rows[0].startswith("file,sensor_id,mounting_id")
+    # one row per session, the failed one included (its status says so)
+    assert len(csv_rows) == 1 + 6 and csv_rows[0].startswith("file,sensor_id,mounting_id")
     assert not list(out.glob("*.tmp*")) and not (out / "zz_corrupt.calibration.json").exists()
 
 
@@ -107,7 +108,9 @@ def test_batch_cli_exit_status_and_progress_lines(tmp_path, recordings, capsys):
     assert status == 1
     assert "zz_corrupt.mcap" in captured.err and "FAILED" in captured.err
     assert "[" in captured.err and "ok" in captured.err  # plain log lines when not a terminal
-    assert "5 calibrated now" in captured.out or "calibrated now" in captured.out
+    # The summary and report.md say the same (a failed session is not "calibrated now").
+    assert "6 sessions: 5 calibrated, 1 failed" in captured.out
+    assert "6 sessions: 5 calibrated, 1 failed." in (tmp_path / "out" / "report.md").read_text()
 
 
 def test_dask_executor_on_a_local_cluster(tmp_path, recordings):

@@ -95,6 +95,13 @@ def test_pooled_test_finds_a_faint_nonlinearity_and_the_joint_fit_fixes_offsets(
     assert np.mean(np.abs(z)) > 4 and sum(abs(v) > 4 for v in z) >= 6, np.round(z, 1)
     assert (tmp_path / "out" / "sensors" / "S1.sensor.json").exists()
     assert "Closure: sensor `S1`" in (tmp_path / "out" / "report.md").read_text()
+    # The deliverable per sensor is the joint fit's: its offsets inherit that accuracy, and it
+    # says that the linear correction cannot express the nonlinearity.
+    deliverable = json.loads((tmp_path / "out" / "sensors" / "S1.calibration.json").read_text())
+    assert deliverable["pooling"]["method"] == "joint_sensor_fit"
+    for a, o, v in zip("xyz", truth_offsets, deliverable["sensor"]["offset_mps2"], strict=True):
+        assert abs(v - o) < 4 * bound[f"offset_{a}_mps2"]
+    assert any("nonlinearity_x" in w for w in deliverable["fit"]["warnings"])
 
 
 def test_differing_warmups_inflate_the_offset_spread_until_the_warmup_is_fitted(tmp_path):

@@ -9,10 +9,10 @@ and writes the sensor model of the joint fit to ``sensors/<sensor_id>.sensor.jso
 from __future__ import annotations
 
 import json
-import re
 from collections import defaultdict
 
 from wheelcal.batch.pipeline import Pipeline
+from wheelcal.batch.sensors import SENSORS_FOLDER, sensor_file_stem
 from wheelcal.diagnose.sensor_closure import SessionInput, close_sensor
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.model.effects import make_effect
@@ -65,8 +65,8 @@ def run_closure(pipeline: Pipeline, calibrations: list[dict]) -> dict:
         entry = closure.as_dict()
         entry["files"] = [m["source"]["file"] for m in members]
         if closure.sensor_fit is not None:
-            safe = re.sub(r"[^A-Za-z0-9_.-]", "_", sensor_id or "unnamed")
-            path = pipeline.output / "sensors" / f"{safe}.sensor.json"
+            stem = sensor_file_stem(sensor_id)
+            path = pipeline.output / SENSORS_FOLDER / f"{stem}.sensor.json"
             path.parent.mkdir(parents=True, exist_ok=True)
             doc = {
                 "format": "wheelcal.sensor/1",

@@ -126,11 +126,17 @@ class Pipeline:
     executor: Executor = field(default_factory=Executor)
 
     def input_files(self) -> list[Path]:
-        """Recordings matched by the globs plus the simulated ones (sorted, de-duplicated)."""
+        """Recordings matched by the globs plus the simulated ones (sorted, de-duplicated).
+
+        Two spellings of one file (``a/x.mcap``, ``./b/../a/x.mcap``) count once.
+        """
         found: set[Path] = set(self.simulated_paths())
         for pattern in self.globs:
             found.update(Path(p) for p in glob.glob(os.path.expanduser(pattern), recursive=True))
-        return sorted(p for p in found if p.is_file())
+        unique: dict[Path, Path] = {}
+        for p in sorted(p for p in found if p.is_file()):
+            unique.setdefault(p.resolve(), p)
+        return sorted(unique.values())
 
     def simulated_paths(self) -> list[Path]:
         """Where the [simulate] section puts its recordings."""

@@ -14,6 +14,13 @@ expected value).
 
 The systematic σ (radius, gravity, clock) is shared by every session of a bench,
 so it cannot show in the spread; it is listed separately.
+
+What matters is never only inside JSON: ``report.md`` opens with the sensor's
+pooled calibration ("apply this": bias, matrix, σ and the export command), links
+the PNG overview, and lists every session with a notes column (samples the
+reader dropped or clipped, warnings, undetermined parameters, outliers, and why a
+session failed or was refused); ``sessions.csv`` has a row per session, failed
+ones included, with the same counts.
 """
 
 from __future__ import annotations
@@ -21,7 +28,9 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from collections import defaultdict
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -120,12 +129,19 @@ def build_report(
     failed: list[dict],
     skipped: int = 0,
     diagnoses: list[dict] | None = None,
+    per_session: Sequence[Mapping] | None = None,
 ) -> dict:
     """The ``report.json`` dictionary (CONTRACT keys plus additive extras).
 
     With ``diagnoses`` (closed loop on every session) each group also gets the
     same statistics for the paper's model (``parameters_paper_model``) and how
     often each effect was found (``effects_found``): the ratio before and after.
+
+    ``per_session`` — one ``{"file", "stem", "status", "calibration", "error",
+    "gate", "fix"}`` per session (status ``calibrated``, ``up to date`` or
+    ``failed``) — becomes the additive ``per_session`` list: each session with
+    its counts and notes (see :func:`session_entry`).  Without it the list is
+    made from ``calibrations`` and ``failed``.
     """
     by_file = {d["source"]["file"]: d for d in diagnoses or []}
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
@@ -177,6 +193,12 @@ def build_report(
                     found[step["effect"]] += 1
             group["effects_found"] = dict(sorted(found.items()))
         out_groups.append(group)
+    by_cal = {c["source"]["file"]: c for c in calibrations}
+    if per_session is None:
+        per_session = [
+            {"file": f, "status": "calibrated", "calibration": None} for f in sorted(by_cal)
+        ] + [{**f, "status": "failed"} for f in failed]
+    entries = [session_entry(s, by_cal.get(s["file"]), outliers) for s in per_session]
     return {
         "format": "wheelcal.report/1",
         "sessions": len(calibrations) + len(failed),
@@ -185,8 +207,101 @@ def build_report(
         "failed": failed,
         "groups": out_groups,
         "outliers": outliers,
+        "per_session": entries,
         "notes": list(_NOTES),
     }
+
+
+#: What the reader writes into ``source.notes`` when it drops samples (wheelcal.io.sample_checks).
+_DROPPED = {
+    "clipped": re.compile(r"dropped (\d+) clipped samples"),
+    "nonfinite": re.compile(r"dropped (\d+) NaN/inf samples"),
+    "duplicate": re.compile(r"(\d+) samples repeated a timestamp"),
+}
+
+
+def dropped_counts(notes: Sequence[str]) -> dict[str, int]:
+    """Samples the reader dropped, by cause, from a calibration's ``source.notes``."""
+    counts = dict.fromkeys(_DROPPED, 0)
+    for note in notes:
+        for cause, pattern in _DROPPED.items():
+            match = pattern.search(note)
+            if match:
+                counts[cause] += int(match.group(1))
+    return counts
+
+
+def error_text(error: str, file: str) -> str:
+    """An error without its leading file name, for lines that already name the file."""
+    prefix = f"{file}: "
+    return error[len(prefix) :] if error.startswith(prefix) else error
+
+
+def session_notes(calibration: Mapping, outliers: Sequence[Mapping] = ()) -> list[str]:
+    """What a person must know about one calibrated session, one short line each.
+
+    The reader's repairs (clipped, dropped or merged samples, gaps), the fit's
+    warnings, parameters the recording could not determine, a fit that did not
+    converge, and the report's outlier flags.
+    """
+    src = calibration.get("source", {})
+    fit = calibration.get("fit", {})
+    notes = list(src.get("notes", []))
+    if fit.get("converged") is False:
+        notes.append("⚠ the fit did not converge")
+    notes += [f"⚠ {w}" for w in fit.get("warnings", [])]
+    for entry in calibration.get("sensor", {}).get("undetermined", []) or []:
+        notes.append(f"undetermined: {entry.get('parameter')} ({entry.get('reason', '')})")
+    for o in outliers:
+        if o["file"] == src.get("file"):
+            notes.append(
+                f"outlier in {o['parameter']} (t = {o['t']:.1f}, p = {o['p_corrected']:.2g})"
+            )
+    return notes
+
+
+def session_entry(
+    session: Mapping, calibration: Mapping | None, outliers: Sequence[Mapping] = ()
+) -> dict:
+    """One ``per_session`` entry of ``report.json``: status, counts and notes."""
+    file = session["file"]
+    entry = {
+        "file": file,
+        "stem": session.get("stem"),
+        "status": session["status"],
+        "calibration": session.get("calibration"),
+    }
+    if calibration is None:
+        gate = session.get("gate")
+        reason = error_text(session.get("error") or "failed", file)
+        entry.update(gate=gate, fix=session.get("fix"), error=reason)
+        entry["notes"] = [f"{'refused' if gate else 'failed'}: {reason}"]
+        return entry
+    src = calibration["source"]
+    fit = calibration.get("fit", {})
+    counts = dropped_counts(src.get("notes", []))
+    entry.update(
+        window_s=src.get("window_s"),
+        samples=src.get("samples"),
+        residual_rms_mps2=fit.get("residual_rms_mps2"),
+        clipped_samples=counts["clipped"],
+        dropped_samples=sum(counts.values()),
+        warnings=len(fit.get("warnings", [])),
+        notes=session_notes(calibration, outliers),
+    )
+    return entry
+
+
+def counts_sentence(report: Mapping) -> str:
+    """The one sentence on how many sessions did what (report.md and the CLI say the same)."""
+    total = report["sessions"]
+    calibrated = report["calibrated"]
+    fresh = report["skipped_up_to_date"]
+    failed = len(report["failed"])
+    text = f"{total} session{'s' if total != 1 else ''}: {calibrated} calibrated"
+    if fresh:
+        text += f" ({calibrated - fresh} now, {fresh} up to date)"
+    return text + f", {failed} failed"
 
 
 def _fmt(x, digits=5) -> str:
@@ -205,20 +320,11 @@ def _with_before_column() -> str:
 
 
 def report_markdown(report: dict, title: str = "Repeatability report") -> str:
-    """``report.md`` for people."""
-    lines = [
-        f"# {title}",
-        "",
-        f"{report['calibrated']} of {report['sessions']} sessions calibrated"
-        + (
-            f" ({report['skipped_up_to_date']} up to date, not recomputed)"
-            if report["skipped_up_to_date"]
-            else ""
-        )
-        + (f"; **{len(report['failed'])} failed**" if report["failed"] else "")
-        + ".",
-        "",
-    ]
+    """``report.md`` for people: what to apply first, then the evidence."""
+    lines = [f"# {title}", "", counts_sentence(report) + ".", ""]
+    lines += apply_this_markdown(report.get("sensors", []))
+    lines += overview_markdown(report.get("overview"))
+    lines += sessions_markdown(report.get("per_session", []))
     for g in report["groups"]:
         who = f"sensor `{g['sensor_id'] or '-'}`, mounting `{g['mounting_id'] or '-'}`"
         lines += [f"## {who} ({g['sessions']} sessions)", "", _TABLE_HEAD]
@@ -243,7 +349,8 @@ def report_markdown(report: dict, title: str = "Repeatability report") -> str:
             found = ", ".join(f"`{k}` in {v}" for k, v in g["effects_found"].items())
             lines += ["", f"Closed loop: effects found — {found} of {g['sessions']} sessions."]
         lines.append("")
-    lines += [_RATIO_NOTE, ""]
+    if report["groups"]:
+        lines += [_RATIO_NOTE, ""]
     lines += closure_markdown(report.get("closure"))
     if report["outliers"]:
         lines += [
@@ -258,13 +365,133 @@ def report_markdown(report: dict, title: str = "Repeatability report") -> str:
         lines.append("")
     if report["failed"]:
         lines += ["## Failed sessions", ""]
-        lines += [f"- `{f['file']}`: {f['error']}" for f in report["failed"]]
+        for f in report["failed"]:
+            line = f"- `{f['file']}`: {error_text(f['error'], f['file'])}"
+            if f.get("gate") and f.get("fix") and f["fix"] not in f["error"]:
+                line += f" — fix: {f['fix']}"
+            lines.append(line)
         lines.append("")
     return "\n".join(lines)
 
 
-def sessions_csv(calibrations: list[dict]) -> str:
-    """One row per session: identifiers, window, every reported parameter (value, std)."""
+def _decimals(sigma) -> int:
+    """Decimals that show a value to the second significant digit of its σ."""
+    if sigma is None or not math.isfinite(sigma) or sigma <= 0:
+        return 6
+    return int(min(12, max(0, 1 - math.floor(math.log10(sigma)))))
+
+
+def _value(x, sigma) -> str:
+    if x is None:
+        return "null"
+    return "0" if x == 0 else f"{x:.{_decimals(sigma)}f}"
+
+
+def _sigma(x) -> str:
+    return "–" if x is None else f"{x:.2g}"
+
+
+def apply_this_markdown(sensors: Sequence[Mapping]) -> list[str]:
+    """One "apply this" table per sensor: bias, matrix, σ, and the command that exports it."""
+    lines = []
+    for s in sensors:
+        sensor, systematic, correction = s["sensor"], s["systematic"], s["correction"]
+        method = (
+            "the joint sensor fit"
+            if s["method"] == "joint_sensor_fit"
+            else "the precision-weighted mean"
+        )
+        lines += [
+            f"## Apply this — sensor `{s['sensor_id'] or '-'}`",
+            "",
+            f"Pooled from {s['sessions']} session{'s' if s['sessions'] != 1 else ''} by {method}"
+            " (σ scaled by max(1, √χ²_red) of their scatter). Corrected specific force in the "
+            "sensor frame: **a = M (v − b)**, m/s². σ stat is this calibration's statistical σ; "
+            "σ sys is shared by the sessions (radius, gravity, clock) and does not average away.",
+            "",
+            "| axis | bias b (m/s²) | σ stat | σ sys | matrix M (row) | gain | σ stat | σ sys |",
+            "|---|---:|---:|---:|---|---:|---:|---:|",
+        ]
+        for k, axis in enumerate(AXES):
+            g_std = sensor["gain_std"][k]
+            row = ", ".join(_value(m, g_std) for m in correction["matrix"][k])
+            lines.append(
+                _row(
+                    axis,
+                    _value(correction["bias_mps2"][k], sensor["offset_std_mps2"][k]),
+                    _sigma(sensor["offset_std_mps2"][k]),
+                    _sigma(systematic["offset_std_mps2"][k]),
+                    f"[{row}]",
+                    _value(sensor["gain"][k], g_std),
+                    _sigma(g_std),
+                    _sigma(systematic["gain_std"][k]),
+                )
+            )
+        lines += [
+            "",
+            f"File: `{s['file']}`. Export it: `wheelcal export {s['file']} --format yaml` "
+            f"(ROS/Kalibr) or `--format c` (firmware header); "
+            f"apply it: `wheelcal apply {s['file']} IN.mcap OUT.mcap`.",
+        ]
+        for entry in sensor.get("undetermined", []):
+            lines.append(
+                f"- undetermined: `{entry['parameter']}` ({entry['reason']}); "
+                "the correction leaves that axis unchanged"
+            )
+        lines += [f"- ⚠ {w}" for w in s.get("warnings", [])]
+        lines.append("")
+    return lines
+
+
+def overview_markdown(overview: Mapping | None) -> list[str]:
+    """The PNG overview's link, or why there is none."""
+    if not overview:
+        return []
+    if overview.get("file"):
+        return [
+            f"![Overview: each parameter per session with ±σ and the group mean; residual "
+            f"against wheel angle]({overview['file']})",
+            "",
+        ]
+    return [f"Overview PNG not drawn: {overview.get('note', 'unavailable')}.", ""]
+
+
+def sessions_markdown(entries: Sequence[Mapping]) -> list[str]:
+    """Every session in one table, with a notes column (nothing important left in JSON)."""
+    if not entries:
+        return []
+    lines = [
+        "## Sessions",
+        "",
+        "| # | file | status | window (s) | samples | residual rms x / y / z (m/s²) | notes |",
+        "|---:|---|---|---|---:|---|---|",
+    ]
+    for i, e in enumerate(entries, start=1):
+        window = e.get("window_s")
+        rms = e.get("residual_rms_mps2")
+        notes = "<br>".join(n.replace("|", "\\|") for n in e.get("notes", [])) or "–"
+        lines.append(
+            _row(
+                i,
+                f"`{e['file']}`",
+                e["status"] if not e.get("gate") else f"refused ({e['gate']})",
+                "–" if not window else f"{window[0]:.2f}–{window[1]:.2f}",
+                e.get("samples", "–"),
+                "–" if not rms else " / ".join(_fmt(x, 3) for x in rms),
+                notes,
+            )
+        )
+    lines.append("")
+    return lines
+
+
+def sessions_csv(calibrations: list[dict], per_session: Sequence[Mapping] | None = None) -> str:
+    """One row per session: identifiers, window, every reported parameter (value, std), counts.
+
+    With ``per_session`` (``report.json``'s list) failed sessions get a row too,
+    and the appended columns carry the status, the reader's dropped and clipped
+    sample counts, the number of notes and their text.
+    """
     names = [
         p for p in REPORT_PARAMETERS if any(p in c.get("parameters", {}) for c in calibrations)
     ]
@@ -274,8 +501,19 @@ def sessions_csv(calibrations: list[dict]) -> str:
     for name in names:
         header += [name, f"{name}_std"]
     header += [f"residual_rms_{a}_mps2" for a in AXES] + ["warnings"]
+    header += ["status", "stem", "gate", "clipped_samples", "dropped_samples", "notes", "details"]
     writer.writerow(header)
-    for cal in calibrations:
+    by_file = {c["source"]["file"]: c for c in calibrations}
+    if per_session is None:
+        per_session = [{"file": f, "status": "calibrated"} for f in by_file]
+    for entry in per_session:
+        cal = by_file.get(entry["file"])
+        notes = list(entry.get("notes", []))
+        tail = [entry["status"], entry.get("stem") or "", entry.get("gate") or ""]
+        if cal is None:
+            row = [entry["file"], "", "", "", "", ""] + [""] * (2 * len(names) + 4)
+            writer.writerow([*row, *tail, "", "", len(notes), " | ".join(notes)])
+            continue
         src = cal["source"]
         row = [
             src["file"],
@@ -286,10 +524,17 @@ def sessions_csv(calibrations: list[dict]) -> str:
         ]
         for name in names:
             p = cal["parameters"].get(name, {})
-            row += [p.get("value", ""), p.get("std", "")]
-        row += [*cal["fit"]["residual_rms_mps2"], len(cal["fit"]["warnings"])]
+            row += [_csv_number(p.get("value")), _csv_number(p.get("std"))]
+        row += [*map(_csv_number, cal["fit"]["residual_rms_mps2"]), len(cal["fit"]["warnings"])]
+        counts = dropped_counts(src.get("notes", []))
+        row += [*tail, counts["clipped"], sum(counts.values()), len(notes), " | ".join(notes)]
         writer.writerow(row)
     return buf.getvalue()
+
+
+def _csv_number(x) -> str | float:
+    """A float at its shortest round-trip precision (repr); empty for null."""
+    return "" if x is None else float(x)
 
 
 def _row(*cells) -> str:

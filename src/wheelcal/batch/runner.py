@@ -6,7 +6,9 @@
    are up to date and skipped.
 3. Run the rest on local processes (one BLAS thread each) or on a Dask cluster.
    A failing session is recorded with its error; the batch goes on.
-4. Write ``report.json``, ``report.md``, ``sessions.csv`` (and ``batch.rrd``)
+4. Pool each sensor's sessions into ``sensors/<sensor_id>.calibration.json``
+   (:mod:`wheelcal.batch.sensors`), draw ``overview.png``, and write
+   ``report.json``, ``report.md``, ``sessions.csv`` (and ``batch.rrd``)
    atomically — unless nothing changed since the last run.
 """
 
@@ -16,7 +18,6 @@ import hashlib
 import json
 import os
 import time
-from collections import Counter
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
@@ -26,7 +27,8 @@ from threadpoolctl import threadpool_limits
 
 from wheelcal.batch.pipeline import Pipeline, PipelineError
 from wheelcal.batch.provenance import file_sha256, run_key, stored_run_key
-from wheelcal.batch.session import SessionOptions, calibrate_session, session_stem
+from wheelcal.batch.session import SessionOptions, calibrate_session
+from wheelcal.batch.stems import unique_stems
 from wheelcal.runtime import tune_allocator
 
 
@@ -43,11 +45,20 @@ class SessionRecord:
     timings_s: dict[str, float] = field(default_factory=dict)
     gate: str | None = None  # the plausibility gate that refused the session, if any
     fix: str | None = None  # the likely fix for a refused session
+    #: What the reader repaired and the fit's warnings (⚠), for the progress line.
+    notes: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
         """Calibrated now or up to date."""
         return self.error is None
+
+    @property
+    def status(self) -> str:
+        """``calibrated``, ``up to date`` or ``failed`` (as ``report.json`` ``per_session``)."""
+        if not self.ok:
+            return "failed"
+        return "up to date" if self.skipped else "calibrated"
 
 
 @dataclass(frozen=True)
@@ -81,6 +92,15 @@ class BatchOutcome:
         """Sessions whose outputs were up to date."""
         return [r for r in self.records if r.skipped]
 
+    def counts(self) -> dict:
+        """Session counts with the keys of ``report.json`` (so both say the same)."""
+        return {
+            "sessions": len(self.records),
+            "calibrated": sum(r.ok for r in self.records),
+            "skipped_up_to_date": len(self.skipped),
+            "failed": [r.source for r in self.failed],
+        }
+
 
 @dataclass(frozen=True)
 class _Task:
@@ -89,6 +109,7 @@ class _Task:
     out_dir: str
     key: str
     input_sha256: str
+    stem: str
 
 
 def _run_task(task: _Task) -> SessionRecord:
@@ -101,7 +122,10 @@ def _run_task(task: _Task) -> SessionRecord:
             task.out_dir,
             provenance={"run_key": task.key, "input_sha256": task.input_sha256},
             durable=False,  # atomic, not fsync-ed one by one: run_batch syncs once
+            stem=task.stem,
         )
+    result = outcome.result
+    notes = () if result is None else (*result.notes, *(f"⚠ {w}" for w in result.warnings))
     return SessionRecord(
         source=outcome.source,
         stem=outcome.stem,
@@ -111,22 +135,20 @@ def _run_task(task: _Task) -> SessionRecord:
         timings_s=outcome.timings_s,
         gate=outcome.gate,
         fix=outcome.fix,
+        notes=notes,
     )
 
 
 def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
-    stems = Counter(session_stem(f) for f in files)
-    clashes = sorted(s for s, n in stems.items() if n > 1)
-    if clashes:
-        raise PipelineError(
-            f"{pipeline.path}: several inputs share the output stem(s) {clashes}; "
-            "rename them or split the pipeline"
-        )
+    try:
+        stems = unique_stems(files)
+    except ValueError as exc:
+        raise PipelineError(f"{pipeline.path}: {exc}") from None
     out = pipeline.output
     produces = {"rrd": pipeline.rerun}
     tasks, up_to_date = [], []
     for f in files:
-        stem = session_stem(f)
+        stem = stems[str(f)]
         try:
             sha = file_sha256(f)
         except OSError as exc:
@@ -150,7 +172,7 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
                 )
             )
         else:
-            tasks.append(_Task(str(f), pipeline.options, str(out), key, sha))
+            tasks.append(_Task(str(f), pipeline.options, str(out), key, sha, stem))
     return tasks, up_to_date
 
 
@@ -188,7 +210,7 @@ def _collect(future, task: _Task) -> SessionRecord:
     except Exception as exc:  # one session must never stop the batch
         return SessionRecord(
             source=task.path,
-            stem=session_stem(task.path),
+            stem=task.stem,
             error=f"{task.path}: worker failed: {exc!r}",
         )
 
@@ -240,19 +262,24 @@ def run_batch(
 
 def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tuple[str, ...], bool]:
     from wheelcal.batch.report import build_report, report_markdown, sessions_csv
-    from wheelcal.io.atomic import atomic_write_text
+    from wheelcal.batch.sensors import write_sensor_calibrations
+    from wheelcal.io.atomic import atomic_write_bytes, atomic_write_text
+    from wheelcal.viz.batch_png import OVERVIEW_FILE, overview_png
 
     out = pipeline.output
-    paths = [out / "report.json", out / "report.md", out / "sessions.csv"]
-    if pipeline.rerun:
-        paths.append(out / "batch.rrd")
+    json_path, md_path, csv_path = out / "report.json", out / "report.md", out / "sessions.csv"
     keys = sorted(
-        (r.source, stored_run_key(Path(r.calibration_path)) if r.ok else r.error) for r in records
+        (r.source, r.stem, stored_run_key(Path(r.calibration_path)) if r.ok else r.error)
+        for r in records
     )
     report_key = hashlib.sha256(json.dumps(keys).encode()).hexdigest()
-    existing = _stored_report_key(out / "report.json")
-    if existing == report_key and all(p.exists() for p in paths):
-        return tuple(map(str, paths)), False
+    stored_key, stored_outputs = _stored_report(json_path)
+    if (
+        stored_key == report_key
+        and stored_outputs
+        and all(Path(p).exists() for p in stored_outputs)
+    ):
+        return tuple(stored_outputs), False
     calibrations = [
         json.loads(Path(r.calibration_path).read_text(encoding="utf-8")) for r in records if r.ok
     ]
@@ -263,23 +290,54 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
                 path = Path(r.calibration_path).with_name(f"{r.stem}.diagnosis.json")
                 diagnoses.append(json.loads(path.read_text(encoding="utf-8")))
     failed = [_failure(r) for r in records if not r.ok]
+    per_session = [
+        {**_failure(r), "stem": r.stem, "status": r.status, "calibration": r.calibration_path}
+        for r in records
+    ]
     report = build_report(
-        calibrations, failed, skipped=sum(r.skipped for r in records), diagnoses=diagnoses
+        calibrations,
+        failed,
+        skipped=sum(r.skipped for r in records),
+        diagnoses=diagnoses,
+        per_session=per_session,
     )
     if pipeline.closure:
         from wheelcal.batch.closure import run_closure
 
         report["closure"] = run_closure(pipeline, calibrations)
+    sensors = write_sensor_calibrations(
+        out,
+        calibrations,
+        {r.source: r.calibration_path for r in records if r.ok},
+        report.get("closure"),
+    )
+    report["sensors"] = [s.summary() for s in sensors]
+    paths = [json_path, md_path, csv_path, *(s.path for s in sensors)]
+    png, note = overview_png(
+        calibrations,
+        [s.doc for s in sensors],
+        title=pipeline.name,
+        numbers=[i + 1 for i, r in enumerate(records) if r.ok],  # as report.md's session table
+    )
+    if png is not None:
+        atomic_write_bytes(out / OVERVIEW_FILE, png, durable=False)
+        paths.append(out / OVERVIEW_FILE)
+        report["overview"] = {"file": OVERVIEW_FILE}
+    else:
+        report["overview"] = {"file": None, "note": note}
+    if pipeline.rerun:
+        paths.append(out / "batch.rrd")
     report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
-    report["provenance"] = {"report_key": report_key}
-    atomic_write_text(paths[1], report_markdown(report, f"Repeatability report — {pipeline.name}"))
-    atomic_write_text(paths[2], sessions_csv(calibrations))
+    report["provenance"] = {"report_key": report_key, "outputs": [str(p) for p in paths]}
+    atomic_write_text(md_path, report_markdown(report, f"Repeatability report — {pipeline.name}"))
+    atomic_write_text(csv_path, sessions_csv(calibrations, report["per_session"]))
     if pipeline.rerun:
         from wheelcal.viz.batch_rrd import write_batch_rrd
 
-        write_batch_rrd(paths[3], calibrations)
+        write_batch_rrd(out / "batch.rrd", calibrations)
+    _sync()  # the sensor files and the PNG (written without per-file fsync)
     # report.json last: its key marks the whole report as complete.
-    atomic_write_text(paths[0], json.dumps(report, indent=2, allow_nan=False) + "\n")
+    atomic_write_text(json_path, json.dumps(report, indent=2, allow_nan=False) + "\n")
     return tuple(map(str, paths)), True
 
 
@@ -298,8 +356,10 @@ def _sync() -> None:
         os.sync()
 
 
-def _stored_report_key(path: Path) -> str | None:
+def _stored_report(path: Path) -> tuple[str | None, list[str]]:
+    """The report key and the output list of an earlier ``report.json`` (None, [] if none)."""
     try:
-        return json.loads(path.read_text(encoding="utf-8")).get("provenance", {}).get("report_key")
-    except (OSError, ValueError):
-        return None
+        provenance = json.loads(path.read_text(encoding="utf-8")).get("provenance", {})
+    except (OSError, ValueError, AttributeError):
+        return None, []
+    return provenance.get("report_key"), list(provenance.get("outputs", []))

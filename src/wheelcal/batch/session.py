@@ -318,6 +318,7 @@ def calibrate_session(
     out_dir: str | Path,
     provenance: dict | None = None,
     durable: bool = True,
+    stem: str | None = None,
 ) -> SessionOutcome:
     """Calibrate one recording and write ``<out>/<stem>.calibration.json``.
 
@@ -325,12 +326,13 @@ def calibrate_session(
     calibration of this file is left in ``out_dir`` (an earlier one is renamed
     ``.stale``).  ``provenance`` is stored in the JSON (the batch runner's
     up-to-date check).  ``durable=False`` skips the per-file fsyncs (the batch
-    syncs once at the end); the files are still written atomically.
+    syncs once at the end); the files are still written atomically.  ``stem``
+    names the outputs (default :func:`session_stem`; a batch passes unique ones).
     """
     source = str(path)
-    stem = session_stem(path)
+    stem = stem or session_stem(path)
     try:
-        outcome = compute_session(path, options)
+        outcome = replace(compute_session(path, options), stem=stem)
         return write_session(outcome, options, out_dir, provenance, durable)
     except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:
         message = str(exc)

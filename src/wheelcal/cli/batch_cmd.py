@@ -12,8 +12,10 @@ def register(sub) -> None:
         help="run a pipeline file: calibrate many recordings in parallel, write the report",
         description=(
             "Run the sessions of a pipeline file (see pipelines/) in parallel and write "
-            "<output>/<stem>.calibration.json per session, report.json, report.md, "
-            "sessions.csv and, with Rerun on, .rrd recordings. Up-to-date sessions are skipped. "
+            "<output>/<stem>.calibration.json per session, one pooled "
+            "<output>/sensors/<sensor_id>.calibration.json per sensor (export and apply take it), "
+            "report.json, report.md, sessions.csv, overview.png and, with Rerun on, .rrd "
+            "recordings. Up-to-date sessions are skipped. "
             "Exit status 1 if any session failed (the others still run)."
         ),
     )
@@ -29,6 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wheelcal.batch.pipeline import PipelineError, load_pipeline
+    from wheelcal.batch.report import counts_sentence
     from wheelcal.batch.runner import run_batch
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.cli.progress import BatchProgress
@@ -49,12 +52,7 @@ def run(args: argparse.Namespace) -> int:
         outcome = run_batch(pipeline, BatchProgress())
     except PipelineError as exc:
         raise UsageError(str(exc)) from None
-    ran = len(outcome.records) - len(outcome.skipped)
-    print(
-        f"{pipeline.name}: {len(outcome.records)} session(s), {ran} calibrated now, "
-        f"{len(outcome.skipped)} up to date, {len(outcome.failed)} failed "
-        f"in {outcome.wall_s:.1f} s"
-    )
+    print(f"{pipeline.name}: {counts_sentence(outcome.counts())} in {outcome.wall_s:.1f} s")
     state = "written" if outcome.report_written else "unchanged"
     print(f"report ({state}): " + ", ".join(outcome.report_paths))
     if outcome.failed:

@@ -1,4 +1,9 @@
-"""Progress on long work: a bar on a terminal, plain log lines otherwise."""
+"""Progress on long work: a bar on a terminal, plain log lines otherwise.
+
+Each session's line names the file once, with what the reader repaired and the
+fit's warnings (⚠) — or why it failed.  On a terminal only sessions with
+something to say get a line above the bar.
+"""
 
 from __future__ import annotations
 
@@ -27,11 +32,14 @@ class BatchProgress:
         record = event.record
         if not record.ok:
             self.failed += 1
-            self._line(f"FAILED {record.error}")
-        elif not self.tty:
+            self._line(f"[{event.done}/{event.total}] FAILED {record.error}")
+        elif not self.tty or record.notes:
+            # On a terminal the bar stands for the plain sessions; one with notes
+            # (clipped or dropped samples, warnings) still gets its line.
             fit = record.timings_s.get("fit")
             timing = f" (fit {fit:.2f} s)" if fit is not None else ""
-            self._line(f"[{event.done}/{event.total}] ok {record.source}{timing}")
+            notes = f" — {'; '.join(record.notes)}" if record.notes else ""
+            self._line(f"[{event.done}/{event.total}] ok {record.source}{timing}{notes}")
         if self.tty:
             self._bar(event.done, event.total)
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from wheelcal import __version__
+from wheelcal.estimate.residual_profile import residual_by_wheel_angle
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.model import EULER_CONVENTION
@@ -22,6 +23,10 @@ from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.parameters import AXES
 
 FORMAT = "wheelcal.calibration/1"
+#: A sensor's calibration pooled from its sessions (:mod:`wheelcal.io.sensor_calibration_json`):
+#: same ``sensor``/``systematic``/``correction`` keys, so export and apply take either.
+SENSOR_CALIBRATION_FORMAT = "wheelcal.sensor_calibration/1"
+CORRECTION_FORMATS = (FORMAT, SENSOR_CALIBRATION_FORMAT)
 _SYSTEMATIC_NOTE = (
     "shared by every recording of the same bench and clock: repeating does not average it away"
 )
@@ -97,7 +102,9 @@ def calibration_dict(
             "file": result.source,
             "topic": result.topic,
             "samples": int(result.time_s.size),
-            "window_s": list(result.window_s),
+            # sample times are whole nanoseconds: written at that precision (93.645, not
+            # 93.64500000000001 from the ns → s conversion)
+            "window_s": [round(t, 9) for t in result.window_s],
             "window_reason": window_reason,
             "sensor_id": result.info.sensor_id,
             "mounting_id": result.info.mounting_id,
@@ -130,6 +137,9 @@ def calibration_dict(
                 "ambiguous": bool(result.twin.ambiguous),
             },
             "poorly_determined": list(result.identifiability.poorly_determined),
+            "residual_by_wheel_angle": residual_by_wheel_angle(
+                result.params.spin.theta_at(result.centred_time_s), result.residual_mps2
+            ),
             **_assessment(result),
         },
         "systematic": {
@@ -287,6 +297,7 @@ def write_calibration(
 def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> dict:
     """Read and check a calibration JSON (format tag, correction block).
 
+    Accepts a session's calibration and a sensor's pooled one (:data:`CORRECTION_FORMATS`).
     A calibration with undetermined parameters (``sensor.undetermined``) is
     refused unless ``allow_partial``: its correction leaves those axes
     unchanged, which a user must choose knowingly.
@@ -297,8 +308,11 @@ def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> di
         raise CalibrationFileError(f"{path}: no such calibration file") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationFileError(f"{path}: not a calibration JSON ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise CalibrationFileError(f"{path}: not a {FORMAT} file (format tag missing or different)")
+    if not isinstance(data, dict) or data.get("format") not in CORRECTION_FORMATS:
+        raise CalibrationFileError(
+            f"{path}: not a {' or '.join(CORRECTION_FORMATS)} file "
+            "(format tag missing or different)"
+        )
     try:
         load_correction_from(data)
     except (KeyError, TypeError, ValueError) as exc:

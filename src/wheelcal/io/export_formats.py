@@ -2,34 +2,60 @@
 
 Both carry the contract's correction, a = M (v − b) in the sensor frame,
 with b in m/s² and M dimensionless (row-major), plus the statistical and
-systematic σ of offsets and gains as comments/fields.
+systematic σ of offsets and gains as comments/fields.  A session's calibration
+(``wheelcal.calibration/1``) and a sensor's pooled one
+(``wheelcal.sensor_calibration/1``) export alike.
+
+Numbers are written at their shortest faithful precision: the shortest decimal
+that reads back to the same double in YAML (Python's ``repr``), and to the same
+``float`` in C (the C constants are single precision).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.io.calibration_json import load_correction_from, partial_axes
+from wheelcal.io.calibration_json import (
+    SENSOR_CALIBRATION_FORMAT,
+    load_correction_from,
+    partial_axes,
+)
+
+
+def _shortest(value: float) -> str:
+    """The shortest decimal that reads back as the same double (``1`` for 1.0, as before)."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
 
 
 def _floats(values) -> str:
-    return ", ".join(f"{float(v):.9g}" for v in np.asarray(values, dtype=float).reshape(-1))
+    return ", ".join(_shortest(v) for v in np.asarray(values, dtype=float).reshape(-1))
 
 
 def _c_float(value: float) -> str:
-    """A C float literal (``0.0f``, never the invalid ``0f``)."""
-    text = f"{float(value):.9g}"
-    if not any(c in text for c in ".eEn"):
-        text += ".0"
+    """A C float literal, shortest that gives the same float (``0.0f``, never ``0f``)."""
+    text = np.format_float_positional(np.float32(value), unique=True, trim="0")
+    if len(text) > 12:  # tiny or huge: scientific is shorter
+        text = np.format_float_scientific(np.float32(value), unique=True, trim="0")
     return text + "f"
 
 
 def _stds(values) -> str:
-    return ", ".join("null" if v is None else f"{float(v):.3g}" for v in values)
+    return ", ".join("null" if v is None else _shortest(v) for v in values)
+
+
+def origin(calibration: dict) -> str:
+    """Where a calibration comes from: the session's file, or the sensor and its sessions."""
+    if calibration.get("format") == SENSOR_CALIBRATION_FORMAT:
+        pooling = calibration.get("pooling", {})
+        n = pooling.get("sessions", "?")
+        method = str(pooling.get("method", "pooled")).replace("_", " ")
+        return f"sensor {calibration.get('sensor_id', '?')}, pooled from {n} sessions ({method})"
+    return str(calibration.get("source", {}).get("file", "?"))
 
 
 def _values(values) -> str:
-    return ", ".join("null" if v is None else f"{float(v):.9g}" for v in values)
+    return ", ".join("null" if v is None else _shortest(v) for v in values)
 
 
 def _partial_note(calibration: dict) -> list[str]:
@@ -51,7 +77,7 @@ def to_yaml(calibration: dict) -> str:
     systematic = calibration.get("systematic", {})
     noise = calibration.get("fit", {}).get("noise_std_mps2", [None] * 3)
     lines = [
-        f"# wheelcal calibration ({calibration['format']}) of {src.get('file', '?')}",
+        f"# wheelcal calibration ({calibration['format']}) of {origin(calibration)}",
         "# corrected specific force, sensor frame: a = matrix @ (v - bias)  [m/s^2]",
         *[f"# {line}" for line in _partial_note(calibration)],
         "imu0:",
@@ -84,7 +110,7 @@ def to_c_header(calibration: dict, prefix: str = "WHEELCAL") -> str:
     bias = ", ".join(map(_c_float, corr.bias_mps2))
     where = "  ".join(
         [
-            src.get("file", "?"),
+            origin(calibration),
             f"topic: {src.get('topic', '?')}",
             f"sensor: {src.get('sensor_id', '')}",
         ]

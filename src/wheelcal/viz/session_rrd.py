@@ -81,6 +81,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from wheelcal.estimate.residual_profile import binned_mean_by_angle
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import FreeSpinWindow
 from wheelcal.model import predict
@@ -148,28 +149,6 @@ def wheel_angle_rad(result: CalibrationResult) -> np.ndarray:
     return result.params.spin.theta_at(result.centred_time_s)
 
 
-def binned_mean_by_angle(
-    theta_rad: np.ndarray, values: np.ndarray, bins: int = ANGLE_BINS
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Mean of ``values`` (N, 3) in ``bins`` equal bins of ϑ mod 2π.
-
-    Returns
-    -------
-    centres_deg, mean, count
-        Centres in degrees of the bins that hold samples, the per-axis mean
-        there (B, 3) and the number of samples in each.
-    """
-    wrapped = np.mod(np.asarray(theta_rad, dtype=float), 2 * np.pi)
-    index = np.minimum((wrapped * (bins / (2 * np.pi))).astype(np.int64), bins - 1)
-    count = np.bincount(index, minlength=bins)
-    sums = np.column_stack(
-        [np.bincount(index, weights=values[:, k], minlength=bins) for k in range(3)]
-    )
-    filled = count > 0
-    centres_deg = (np.arange(bins) + 0.5) * (360.0 / bins)
-    return centres_deg[filled], sums[filled] / count[filled, None], count[filled]
-
-
 def log_signal(
     stream: rr.RecordingStream,
     name: str,
@@ -233,7 +212,7 @@ def log_residuals(
     stream.send_columns(
         path, indexes=[_time_column(t), angles], columns=rr.Scalars.columns(scalars=r)
     )
-    centres_deg, mean, _ = binned_mean_by_angle(theta, r)
+    centres_deg, mean, _ = binned_mean_by_angle(theta, r, ANGLE_BINS)
     widths = np.full(centres_deg.size, 360.0 / ANGLE_BINS)
     for k, axis in enumerate(AXES):
         chart = rr.BarChart(
