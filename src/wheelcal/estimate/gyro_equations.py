@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import NormalEquations, add_gram, chunking
+from wheelcal.estimate.normal_equations import NormalEquations, add_gram, chunking, local_view
 from wheelcal.model import CalibrationParams, ParameterLayout
 from wheelcal.model.forward import wheel_kinematics
 
@@ -63,7 +63,6 @@ def accumulate_gyro(
     out — clipped, missing — are simply absent).
     """
     effect = gyro_effect(layout)
-    block = layout.blocks[f"effect:{effect.name}"]
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
     p = noise.order
@@ -72,32 +71,38 @@ def accumulate_gyro(
     grad = np.zeros(layout.size) if jacobian else None
     values = params.effect(effect.name, effect.size)
     w = values[:3]
-    row_slices = _rows(layout)
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         lo = max(0, start - p)
         t = t_s[lo:stop]
-        kin = wheel_kinematics(params, t, layout.effects, jacobian)
+        view = local_view(params, layout, t[0], t[-1]) if sparse else None
+        here, at = (view.layout, view.params) if view else (layout, params)
+        kin = wheel_kinematics(at, t, here.effects, jacobian)
         residual = effect.reading(values, kin.omega_radps) - gyro_radps[lo:stop]
         if not jacobian:
             rw, _ = noise.whiten(residual)
             cost += float(np.sum(rw * rw))
             entries += rw.size
             continue
-        jac = np.zeros((layout.size, 3, t.size))
+        jac = np.zeros((here.size, 3, t.size))
         row = 0
-        for target in row_slices:
+        for target in _rows(here):
             size = target.stop - target.start
             d_omega = kin.d_omega[row : row + size]  # (size, N)
             jac[target] = d_omega[:, None, :] * w[None, :, None]
             row += size
+        gyro_block = here.blocks[f"effect:{effect.name}"]
         for i in range(3):
-            jac[block.start + i, i] = kin.omega_radps
-            jac[block.start + 3 + i, i] = 1.0
+            jac[gyro_block.start + i, i] = kin.omega_radps
+            jac[gyro_block.start + 3 + i, i] = 1.0
         rw, jw = noise.whiten(residual, jac)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)
-        add_gram(hess, grad, jt, r_flat, sparse)
+        if view is None:
+            hess += jt @ jt.T
+            grad += jt @ r_flat
+        else:
+            add_gram(hess, grad, jt, r_flat, view.index)
         cost += float(r_flat @ r_flat)
         entries += r_flat.size
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)

@@ -93,7 +93,8 @@ def initial_guess(
     if spline is None:
         vc = v - v.mean(axis=0)
     else:
-        vc = _rotating_part(v, rate_all / stride, 2 * np.pi * turn_hz_all)
+        measured = None if omega_radps is None else np.asarray(omega_radps, float)[::stride]
+        vc = _rotating_part(v, t, 2 * np.pi * turn_hz_all, measured)
     _, vecs = np.linalg.eigh(vc.T @ vc)
     plane = vecs[:, 1:]
     u = vc @ plane
@@ -110,17 +111,11 @@ def initial_guess(
     cov2 = u.T @ u / len(u)
     evals, evecs = np.linalg.eigh(cov2)
     circle = u @ evecs / np.sqrt(np.maximum(evals, 1e-30))
-    phase = np.unwrap(np.arctan2(circle[:, 1], circle[:, 0]))
-    if omega_radps is not None:
-        # A measured rate gives the phase's shape exactly: ϑ ≈ a + b ∫ω dt, with the
-        # constant, the sign and the rate's scale from the accelerometer's phase.
+    if omega_radps is None:
+        phase = np.unwrap(np.arctan2(circle[:, 1], circle[:, 0]))
+    else:
         measured = np.asarray(omega_radps, dtype=float)[::stride]
-        angle = np.concatenate(
-            [[0.0], np.cumsum(0.5 * (measured[1:] + measured[:-1]) * np.diff(t))]
-        )
-        (a, b), *_ = np.linalg.lstsq(np.column_stack([np.ones_like(t), angle]), phase, rcond=None)
-        phase = a + b * angle
-        omega_measured = b * measured
+        phase, omega_measured = _phase_from_rate(t, circle, measured)
     phase_coef_tau = np.polynomial.polynomial.polyfit(tau, phase, spin_degree + 1)
     phase_coef = phase_coef_tau / half ** np.arange(spin_degree + 2)
     omega = np.arange(1, spin_degree + 2) * phase_coef[1:]  # ω_k = (k+1)·c_{k+1}
@@ -207,15 +202,52 @@ def initial_guess(
     )
 
 
-def _rotating_part(v: np.ndarray, rate_hz: float, omega_radps: float) -> np.ndarray:
-    """The samples minus their mean over one revolution (phase from the smoothed derivative)."""
-    width = max(1, int(rate_hz * 2 * np.pi / max(omega_radps, 1e-3) / 8))
-    smooth = v
-    if width > 1:
-        kernel = np.ones(width) / width
-        smooth = np.column_stack([np.convolve(v[:, k], kernel, mode="same") for k in range(3)])
-    rough, _ = rotating_phase(np.gradient(smooth, axis=0))
-    ramp = np.maximum.accumulate(rough)
+def _phase_from_rate(
+    t: np.ndarray, circle: np.ndarray, rate: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """ϑ(t) = a + b ∫rate dt, with a and b from the rotating signal by coherent demodulation.
+
+    A measured rate (a gyro: unknown sign, scale within a few %, small bias)
+    gives the phase's *shape*; the rotating gravity, z = e^{±i(ϑ + c)}, gives
+    the rest.  |mean(z e^{−i b S(t)})| (S = ∫rate dt) peaks at the right b —
+    no unwrapping, so a push or a step cannot make the phase slip a turn.
+    """
+    angle = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+    z = circle[:, 0] + 1j * circle[:, 1]
+    span = max(float(np.max(np.abs(angle))), 1e-9)
+    # b within ±6 % of ±1 on a grid that moves the phase < 0.3 rad over the window,
+    # evaluated on a thinned copy (the peak is broad enough), then refined.
+    step = min(0.3 / span, 1e-3)
+    grid = np.concatenate([np.arange(0.94, 1.06, step), -np.arange(0.94, 1.06, step)])
+    thin = max(1, z.size // 2000)
+    power = np.abs(np.exp(-1j * np.outer(grid, angle[::thin])) @ z[::thin])
+    b = float(grid[int(np.argmax(power))])
+    for _ in range(3):  # the demodulated phase's remaining drift refines b
+        rest = np.unwrap(np.angle(z * np.exp(-1j * b * angle)))
+        b += float(np.polyfit(angle, rest, 1)[0])
+    a = float(np.angle(np.mean(z * np.exp(-1j * b * angle))))
+    return a + b * angle, b * rate
+
+
+def _rotating_part(
+    v: np.ndarray, t: np.ndarray, omega_radps: float, rate: np.ndarray | None
+) -> np.ndarray:
+    """The samples minus their mean over one revolution.
+
+    The revolutions are counted by the measured rate's integral when there is
+    one (a gyro), else by a rough phase of the smoothed derivative.
+    """
+    rate_hz = 1.0 / np.median(np.diff(t))
+    if rate is not None:
+        ramp = np.concatenate([[0.0], np.cumsum(np.abs(0.5 * (rate[1:] + rate[:-1])) * np.diff(t))])
+    else:
+        width = max(1, int(rate_hz * 2 * np.pi / max(omega_radps, 1e-3) / 8))
+        smooth = v
+        if width > 1:
+            kernel = np.ones(width) / width
+            smooth = np.column_stack([np.convolve(v[:, k], kernel, mode="same") for k in range(3)])
+        rough, _ = rotating_phase(np.gradient(smooth, axis=0))
+        ramp = np.maximum.accumulate(rough)
     max_half = int(np.pi / max(omega_radps / 8, 1e-3) * rate_hz)
     return v - revolution_mean(v, ramp, max_half)
 

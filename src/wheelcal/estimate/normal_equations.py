@@ -46,11 +46,49 @@ class NormalEquations:
 
 def chunking(layout: ParameterLayout, t_s: np.ndarray, chunk: int | None) -> tuple[int, bool]:
     """Samples per chunk, and whether the rows are sparse (a spline: two knot intervals)."""
-    spline = next((e for e in layout.effects if e.name == "spin_spline"), None)
+    spline = _spline_of(layout)
     if spline is None or spline.size < 8 or t_s.size < 2:
         return chunk or CHUNK_SAMPLES, False
     rate = (t_s.size - 1) / max(float(t_s[-1] - t_s[0]), 1e-12)
     return chunk or max(256, int(2 * spline.spacing_s * rate)), True
+
+
+def _spline_of(layout: ParameterLayout):
+    return next((e for e in layout.effects if e.name == "spin_spline"), None)
+
+
+@dataclass(frozen=True, eq=False)
+class LocalView:
+    """A chunk's view of a layout with a spline: only the basis functions alive there.
+
+    Over a few knot intervals all but a handful of the spline's basis functions
+    are zero, so the chunk is evaluated with a layout that holds only those
+    (``layout``, ``params``); ``index`` maps its rows to the full layout's.
+    """
+
+    layout: ParameterLayout
+    params: CalibrationParams
+    index: np.ndarray
+
+
+def local_view(
+    params: CalibrationParams, layout: ParameterLayout, t_lo: float, t_hi: float
+) -> LocalView:
+    """The view of ``layout`` on [t_lo, t_hi] (see :class:`LocalView`)."""
+    import dataclasses
+
+    spline = _spline_of(layout)
+    active = spline.active(t_lo, t_hi)
+    sub = spline.restricted(active)
+    effects = tuple(sub if e is spline else e for e in layout.effects)
+    local = dataclasses.replace(layout, effects=effects)
+    values = params.effect(spline.name, spline.size)
+    local_params = params.with_changes(
+        effects={**params.effects, spline.name: values[active.start : active.stop]}
+    )
+    position = {name: i for i, name in enumerate(layout.names)}
+    index = np.array([position[name] for name in local.names])
+    return LocalView(local, local_params, index)
 
 
 def accumulate(
@@ -86,42 +124,37 @@ def accumulate(
             continue
         # One buffer for the free parameters' columns and the extra ones: one
         # whitening and one Gram product (cheaper than blocks, measured).
-        rows = layout.size + (extra_size or 0)
-        buf = np.empty((rows, 3, stop - lo))
-        out = evaluate(params, t_s[lo:stop], layout, jacobian=True, out=buf[: layout.size])
+        view = local_view(params, layout, t_s[lo], t_s[stop - 1]) if sparse else None
+        here, at = (view.layout, view.params) if view else (layout, params)
+        buf = np.empty((here.size + (extra_size or 0), 3, stop - lo))
+        out = evaluate(at, t_s[lo:stop], here, jacobian=True, out=buf[: here.size])
         if extra is not None:
-            cols = extra(params, out, t_s[lo:stop])
+            cols = extra(at, out, t_s[lo:stop])
             if extra_size is None:  # first chunk: now we know how many
                 extra_size = cols.shape[0]
                 buf = np.concatenate([buf, cols])
             else:
-                buf[layout.size :] = cols
+                buf[here.size :] = cols
         rw, jw = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop], buf)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)
         if hess is None:
-            hess = np.zeros((jt.shape[0], jt.shape[0]))
-            grad = np.zeros(jt.shape[0])
-        add_gram(hess, grad, jt, r_flat, sparse)
+            total = layout.size + (extra_size or 0)
+            hess, grad = np.zeros((total, total)), np.zeros(total)
+        if view is None:
+            hess += jt @ jt.T
+            grad += jt @ r_flat
+        else:
+            index = np.concatenate([view.index, layout.size + np.arange(extra_size or 0)])
+            add_gram(hess, grad, jt, r_flat, index)
         cost += float(r_flat @ r_flat)
         entries += r_flat.size
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
 
 
 def add_gram(
-    hess: np.ndarray, grad: np.ndarray, jt: np.ndarray, r: np.ndarray, sparse: bool
+    hess: np.ndarray, grad: np.ndarray, jt: np.ndarray, r: np.ndarray, index: np.ndarray
 ) -> None:
-    """Add J Jᵀ to ``hess`` and J r to ``grad`` (only J's non-zero rows when ``sparse``).
-
-    A spline of the wheel angle has columns that live on a few knot intervals:
-    over a short chunk most of its rows are zero, and the Gram product of the
-    others is all that costs.
-    """
-    if not sparse:
-        hess += jt @ jt.T
-        grad += jt @ r
-        return
-    active = np.flatnonzero(np.any(jt != 0.0, axis=1))
-    sub = jt[active]
-    hess[np.ix_(active, active)] += sub @ sub.T
-    grad[active] += sub @ r
+    """Add J Jᵀ and J r of a chunk's rows to the rows ``index`` of ``hess`` and ``grad``."""
+    hess[np.ix_(index, index)] += jt @ jt.T
+    grad[index] += jt @ r

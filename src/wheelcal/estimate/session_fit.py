@@ -178,6 +178,8 @@ class SessionFit:
             f"gyro-aided ({why}): wheel angle = cubic + spline with knots every "
             f"{knots.spacing_s:g} s (chosen by BIC on the gyro's rate)"
         ]
+        result, window, disturbed_note = _without_disturbances(fitter, result, window)
+        notes.append(disturbed_note)
         if window.clip_limits_mps2 is not None:
             result, window, rail_note = _clear_of_rails(fitter, result, window)
             notes.append(rail_note)
@@ -235,6 +237,45 @@ class SessionFit:
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
         refuse_few_turns(result)
         return SessionFitOutcome(assess(result, rests, gates, motion), choice, rests)
+
+
+#: Stretches of the motion window whose residual exceeds this × the typical are left out.
+DISTURBANCE_FACTOR = 2.0
+DISTURBANCE_BLOCK_S = 0.5
+
+
+def _without_disturbances(
+    fitter: JointFit, result: CalibrationResult, window: Recording
+) -> tuple[CalibrationResult, Recording, str]:
+    """Refit without the stretches where something outside the model shook the sensor.
+
+    A gyro-aided window follows the whole motion, and a motion can include a
+    hand starting or braking the wheel, whose forces are not in the model.  The
+    residual shows them: blocks of ``DISTURBANCE_BLOCK_S`` whose RMS exceeds
+    ``DISTURBANCE_FACTOR`` × the median block are left out (with a block on
+    each side), and the fit is repeated once.
+    """
+    n = max(4, round(DISTURBANCE_BLOCK_S * window.rate_hz))
+    blocks = result.residual_mps2.shape[0] // n
+    if blocks < 8:
+        return result, window, ""
+    rms = np.sqrt(
+        np.mean(result.residual_mps2[: blocks * n].reshape(blocks, n, 3) ** 2, axis=(1, 2))
+    )
+    bad = rms > DISTURBANCE_FACTOR * np.median(rms)
+    if not np.any(bad):
+        return result, window, ""
+    bad = bad | np.concatenate([[False], bad[:-1]]) | np.concatenate([bad[1:], [False]])
+    keep = np.ones(window.time_s.size, dtype=bool)
+    keep[: blocks * n] = ~np.repeat(bad, n)
+    kept = window.select(keep)
+    refit = fitter.fit(kept, initial=result.params)
+    seconds = float(bad.sum() * n / window.rate_hz)
+    note = (
+        f"left out {seconds:.1f} s where the residual exceeded {DISTURBANCE_FACTOR:g}× the "
+        "typical (a hand starting or braking the wheel, a knock)"
+    )
+    return refit, kept, note
 
 
 #: Samples the model puts within this many noise σ of a rail are left out.

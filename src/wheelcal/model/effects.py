@@ -253,31 +253,43 @@ class GyroReading(Effect):
 
 
 def cubic_bspline_basis(
-    t_s: np.ndarray, start_s: float, spacing_s: float, count: int
+    t_s: np.ndarray, start_s: float, spacing_s: float, count: int, first: int = 0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Uniform cubic B-splines B_k(t) and their first two derivatives, each (count, N).
 
-    B_k(t) = B((t − start)/Δ − k + 3), with B the cardinal cubic B-spline on
-    [0, 4): u³/6, (−3u³ + 12u² − 12u + 4)/6, (3u³ − 24u² + 60u − 44)/6, (4 − u)³/6.
-    The ``count`` functions sum to 1 on [start, start + (count − 3)Δ].
+    B_k(t) = B((t − start)/Δ − k + 3), k = first … first + count − 1, with B the
+    cardinal cubic B-spline on [0, 4).  In knot interval j (t = start + (j + x)Δ,
+    0 ≤ x < 1) only B_j … B_{j+3} are non-zero:
+
+        (1 − x)³/6,  (3x³ − 6x² + 4)/6,  (−3x³ + 3x² + 3x + 1)/6,  x³/6,
+
+    so each sample costs four values, whatever ``count`` is.  All the
+    functions of a window sum to 1 on it.
     """
     t = np.asarray(t_s, dtype=float)
-    u = (t[None, :] - start_s) / spacing_s - np.arange(count)[:, None] + 3.0
-    b = np.zeros_like(u)
-    d1 = np.zeros_like(u)
-    d2 = np.zeros_like(u)
-    pieces = (
-        (0, lambda x: x**3 / 6, lambda x: x**2 / 2, lambda x: x),
-        (1, lambda x: (-3 * x**3 + 12 * x**2 - 12 * x + 4) / 6,
-         lambda x: -1.5 * x**2 + 4 * x - 2, lambda x: -3 * x + 4),
-        (2, lambda x: (3 * x**3 - 24 * x**2 + 60 * x - 44) / 6,
-         lambda x: 1.5 * x**2 - 8 * x + 10, lambda x: 3 * x - 8),
-        (3, lambda x: (4 - x) ** 3 / 6, lambda x: -((4 - x) ** 2) / 2, lambda x: 4 - x),
-    )  # fmt: skip
-    for lo, f, f1, f2 in pieces:
-        m = (u >= lo) & (u < lo + 1)
-        x = u[m]
-        b[m], d1[m], d2[m] = f(x), f1(x), f2(x)
+    position = (t - start_s) / spacing_s
+    interval = np.floor(position)
+    x = position - interval
+    x2, x3 = x * x, x * x * x
+    values = (
+        (1 - x) ** 3 / 6,
+        (3 * x3 - 6 * x2 + 4) / 6,
+        (-3 * x3 + 3 * x2 + 3 * x + 1) / 6,
+        x3 / 6,
+    )
+    slopes = (-((1 - x) ** 2) / 2, 1.5 * x2 - 2 * x, -1.5 * x2 + x + 0.5, x2 / 2)
+    curves = (1 - x, 3 * x - 2, -3 * x + 1, x)
+    b = np.zeros((count, t.size))
+    d1 = np.zeros((count, t.size))
+    d2 = np.zeros((count, t.size))
+    columns = np.arange(t.size)
+    for m in range(4):
+        row = interval.astype(np.int64) + m - first
+        ok = (row >= 0) & (row < count)
+        r, c = row[ok], columns[ok]
+        b[r, c] = values[m][ok]
+        d1[r, c] = slopes[m][ok]
+        d2[r, c] = curves[m][ok]
     return b, d1 / spacing_s, d2 / spacing_s**2
 
 
@@ -294,19 +306,49 @@ class SpinSpline(_SpinEffect):
     name = "spin_spline"
     description = "smooth correction of the wheel angle (cubic B-spline)"
 
-    def __init__(self, start_s: float, end_s: float, spacing_s: float = 5.0) -> None:
+    def __init__(
+        self,
+        start_s: float,
+        end_s: float,
+        spacing_s: float = 5.0,
+        first: int = 0,
+        count: int | None = None,
+    ) -> None:
         if not (end_s > start_s and spacing_s > 0):
             raise ValueError("need end_s > start_s and spacing_s > 0")
         intervals = max(1, int(np.ceil((end_s - start_s) / spacing_s - 1e-9)))
         self.start_s, self.end_s = float(start_s), float(end_s)
         self.spacing_s = (end_s - start_s) / intervals
-        self.param_names = tuple(f"c{k}_rad" for k in range(intervals + 3))
+        total = intervals + 3
+        self.first = int(first)
+        count = total - self.first if count is None else int(count)
+        if not (0 <= self.first and count >= 1 and self.first + count <= total):
+            raise ValueError(f"basis functions {first}…{first + count - 1} outside 0…{total - 1}")
+        self.param_names = tuple(f"c{k}_rad" for k in range(self.first, self.first + count))
 
     def settings(self) -> dict:
-        return {"start_s": self.start_s, "end_s": self.end_s, "spacing_s": self.spacing_s}
+        out = {"start_s": self.start_s, "end_s": self.end_s, "spacing_s": self.spacing_s}
+        if self.first or self.size != len(self.active(self.start_s, self.end_s)):
+            out.update(first=self.first, count=self.size)
+        return out
+
+    def active(self, t_lo: float, t_hi: float) -> range:
+        """Indices of the basis functions (of the whole window) not zero on [t_lo, t_hi]."""
+        total = round((self.end_s - self.start_s) / self.spacing_s) + 3
+        k0 = max(0, int(np.floor((t_lo - self.start_s) / self.spacing_s)))
+        k1 = min(total, int(np.floor((t_hi - self.start_s) / self.spacing_s)) + 4)
+        return range(k0, k1)
+
+    def restricted(self, indices: range) -> SpinSpline:
+        """The same spline seen through some of its basis functions (a chunk's)."""
+        return SpinSpline(
+            self.start_s, self.end_s, self.spacing_s, first=indices.start, count=len(indices)
+        )
 
     def spin_delta(self, values, t_s, kin, jacobian):
-        b, d1, d2 = cubic_bspline_basis(t_s, self.start_s, self.spacing_s, self.size)
+        b, d1, d2 = cubic_bspline_basis(
+            t_s, self.start_s, self.spacing_s, self.size, first=self.first
+        )
         values = np.asarray(values, dtype=float)
         return SpinDelta(
             theta=values @ b,

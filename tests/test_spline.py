@@ -1,0 +1,109 @@
+"""The wheel-angle spline: its basis, its Jacobian, and the chunked normal equations.
+
+* the four-values-per-sample basis equals the cardinal cubic B-spline formula
+  (written out independently here), sums to 1, and its derivatives are the
+  finite differences of it;
+* the Jacobian of a model with a spline (and the gyro stream) equals finite
+  differences of the prediction;
+* the normal equations accumulated chunk by chunk through local views (only
+  the basis functions alive in each chunk) equal the dense accumulation.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from wheelcal.estimate.gyro_equations import accumulate_gyro
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.normal_equations import accumulate
+from wheelcal.model import (
+    BenchParams,
+    CalibrationParams,
+    ParameterLayout,
+    Rotation,
+    SensorParams,
+    SpinParams,
+    evaluate,
+    predict,
+)
+from wheelcal.model.effects import GyroReading, SpinSpline, cubic_bspline_basis
+
+
+def _cardinal(t, start, spacing, count, first=0):
+    u = (t[None, :] - start) / spacing - (first + np.arange(count))[:, None] + 3
+    pieces = [
+        ((u >= 0) & (u < 1), u**3 / 6),
+        ((u >= 1) & (u < 2), (-3 * u**3 + 12 * u**2 - 12 * u + 4) / 6),
+        ((u >= 2) & (u < 3), (3 * u**3 - 24 * u**2 + 60 * u - 44) / 6),
+        ((u >= 3) & (u < 4), (4 - u) ** 3 / 6),
+    ]
+    return sum(np.where(m, v, 0.0) for m, v in pieces)
+
+
+@pytest.mark.parametrize("first, count", [(0, 9), (3, 4)])
+def test_basis_matches_the_cardinal_b_spline_and_its_derivatives(first, count):
+    t = np.linspace(-15.0, 15.0, 6001)
+    b, d1, d2 = cubic_bspline_basis(t, -15.0, 5.0, count, first)
+    np.testing.assert_allclose(b, _cardinal(t, -15.0, 5.0, count, first), atol=1e-13)
+    inner = slice(10, -10)
+    np.testing.assert_allclose(np.gradient(b, t, axis=1)[:, inner], d1[:, inner], atol=2e-6)
+    np.testing.assert_allclose(np.gradient(d1, t, axis=1)[:, inner], d2[:, inner], atol=2e-3)
+    if first == 0:
+        np.testing.assert_allclose(b.sum(axis=0), 1.0, atol=1e-12)
+
+
+def _setup(spacing=2.0):
+    spline = SpinSpline(-20.0, 20.0, spacing)
+    rng = np.random.default_rng(5)
+    params = CalibrationParams(
+        spin=SpinParams(theta0_rad=0.3, omega_radps=(9.0, -0.05, 1e-4, 1e-6)),
+        bench=BenchParams(np.deg2rad(40), 0.28, Rotation.from_euler_deg(10, 20, 30)),
+        sensor=SensorParams(offset_mps2=(0.1, -0.1, 0.2), gain=(1.01, 0.99, 1.02)),
+        effects={
+            spline.name: rng.normal(0, 0.02, spline.size),
+            "gyro": np.array([-0.3, 0.4, -0.86, 0.01, -0.02, 0.005]),
+        },
+    )
+    layout = ParameterLayout(effects=(spline, GyroReading()))
+    return params, layout
+
+
+def test_jacobian_with_a_spline_equals_finite_differences():
+    params, layout = _setup()
+    t = np.linspace(-20, 20, 801)
+    jac = evaluate(params, t, layout, jacobian=True).jacobian
+    x0 = layout.pack(params)
+    for k in range(layout.size):
+        if layout.names[k].startswith("gyro."):
+            continue  # the gyro does not act on the accelerometer
+        h = 1e-5 / max(1.0, float(np.abs(jac[k]).max()))  # moves v by ~1e-5 m/s²
+        up, down = x0.copy(), x0.copy()
+        up[k] += h
+        down[k] -= h
+        fd = (
+            predict(layout.unpack(up, params), t, layout)
+            - predict(layout.unpack(down, params), t, layout)
+        ) / (2 * h)
+        np.testing.assert_allclose(jac[k].T, fd, atol=2e-5 * max(1.0, np.abs(fd).max()))
+
+
+@pytest.mark.parametrize("ar", [np.array([1.0]), np.array([1.0, -0.6, 0.1])])
+def test_chunked_local_views_equal_the_dense_normal_equations(ar):
+    params, layout = _setup(spacing=1.0)  # 43 basis functions: the sparse path
+    t = np.linspace(-20, 20, 8001)
+    rng = np.random.default_rng(2)
+    v = predict(params, t, layout) + rng.normal(0, 0.08, (t.size, 3))
+    noise = NoiseModel.from_ar(ar, 0.05)
+    sparse = accumulate(params, t, v, layout, noise)
+    dense = accumulate(params, t, v, layout, noise, chunk=t.size + 1)
+    scale = np.abs(dense.hessian).max()
+    np.testing.assert_allclose(sparse.hessian, dense.hessian, rtol=1e-9, atol=1e-12 * scale)
+    np.testing.assert_allclose(sparse.gradient, dense.gradient, rtol=1e-9, atol=1e-9)
+    gyro = rng.normal(0, 0.002, (t.size, 3))
+    g_sparse = accumulate_gyro(params, t, gyro, layout, noise)
+    g_dense = accumulate_gyro(params, t, gyro, layout, noise, chunk=t.size + 1)
+    g_scale = np.abs(g_dense.hessian).max()
+    np.testing.assert_allclose(g_sparse.hessian, g_dense.hessian, rtol=1e-9, atol=1e-12 * g_scale)
+    np.testing.assert_allclose(g_sparse.gradient, g_dense.gradient, rtol=1e-9, atol=1e-9)
+    assert dataclasses.astuple(sparse)[0] == pytest.approx(dense.cost)
