@@ -217,9 +217,9 @@ def _phase_from_rate(
     span = max(float(np.max(np.abs(angle))), 1e-9)
     # b within ±6 % of ±1 on a grid that moves the phase < 0.3 rad over the window,
     # evaluated on a thinned copy (the peak is broad enough), then refined.
-    step = min(0.3 / span, 1e-3)
+    step = min(0.5 / span, 1e-3)
     grid = np.concatenate([np.arange(0.94, 1.06, step), -np.arange(0.94, 1.06, step)])
-    thin = max(1, z.size // 2000)
+    thin = max(1, z.size // 800)
     power = np.abs(np.exp(-1j * np.outer(grid, angle[::thin])) @ z[::thin])
     b = float(grid[int(np.argmax(power))])
     for _ in range(3):  # the demodulated phase's remaining drift refines b

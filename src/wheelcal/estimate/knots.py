@@ -9,7 +9,8 @@ squares), and the spacing with the smallest Bayesian information criterion
 
 wins: knots dense enough to follow a motor's steps or a push, no denser than
 the data support (a free spin-down needs few).  The candidates are powers of
-two between ``MIN_SPACING_S`` and ``MAX_SPACING_S``.
+two from ``MAX_SPACING_S`` down to ``MIN_SPACING_S``; the search stops once
+finer knots have raised the criterion twice in a row.
 """
 
 from __future__ import annotations
@@ -58,6 +59,10 @@ def choose_knot_spacing(t_s: np.ndarray, gyro_radps: np.ndarray) -> KnotChoice:
             bic[spacing] = t.size * np.log(max(rss, 1e-300) / t.size) + basis.shape[0] * np.log(
                 t.size
             )
+            # Finer knots cost more than they explain twice in a row: the minimum is behind.
+            values = list(bic.values())
+            if len(values) >= 3 and values[-1] > values[-2] > values[-3]:
+                break
         spacing /= 2
     best = min(bic, key=bic.get)
     return KnotChoice(spacing_s=float(best), bic=bic)

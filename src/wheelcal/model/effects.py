@@ -293,6 +293,36 @@ def cubic_bspline_basis(
     return b, d1 / spacing_s, d2 / spacing_s**2
 
 
+_BASIS_CACHE: dict = {}
+_BASIS_CACHE_SIZE = 256
+
+
+def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, first: int):
+    """:func:`cubic_bspline_basis`, remembered: a fit evaluates the same times many times.
+
+    The key holds the times' bytes (hashed with their length and ends), so a
+    different time array never hits; the arrays returned are read-only.
+    """
+    key = (
+        hash(t.tobytes()),
+        t.size,
+        float(t[0]) if t.size else 0.0,
+        start_s,
+        spacing_s,
+        count,
+        first,
+    )
+    hit = _BASIS_CACHE.get(key)
+    if hit is None:
+        hit = cubic_bspline_basis(t, start_s, spacing_s, count, first)
+        for array in hit:
+            array.setflags(write=False)
+        if len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE:
+            _BASIS_CACHE.pop(next(iter(_BASIS_CACHE)))
+        _BASIS_CACHE[key] = hit
+    return hit
+
+
 class SpinSpline(_SpinEffect):
     """A smooth correction of the wheel angle: Δϑ(t) = Σ c_k B_k(t) (rad).
 
@@ -346,8 +376,8 @@ class SpinSpline(_SpinEffect):
         )
 
     def spin_delta(self, values, t_s, kin, jacobian):
-        b, d1, d2 = cubic_bspline_basis(
-            t_s, self.start_s, self.spacing_s, self.size, first=self.first
+        b, d1, d2 = _cached_basis(
+            np.asarray(t_s, dtype=float), self.start_s, self.spacing_s, self.size, self.first
         )
         values = np.asarray(values, dtype=float)
         return SpinDelta(
