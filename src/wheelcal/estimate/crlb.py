@@ -62,3 +62,29 @@ def cramer_rao_bound(
     cov, fisher = fisher_covariance(jw)
     names, values, g = report_transform(params, layout)
     return Bound(names=names, values=values, covariance=transform_covariance(g, cov), fisher=fisher)
+
+
+def cramer_rao_bound_with_gyro(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    noise: NoiseModel,
+    layout: ParameterLayout,
+    gyro_noise: NoiseModel,
+) -> Bound:
+    """CRLB when the gyroscope is fitted too: the two streams' informations add.
+
+    ``layout`` holds a :class:`~wheelcal.model.effects.GyroReading` (and
+    usually a spline of the wheel angle); ``params`` carry its true values.
+    Both streams are sampled at ``t_s``.
+    """
+    from wheelcal.estimate.gyro_equations import accumulate_gyro, gyro_prediction
+    from wheelcal.estimate.information import covariance_from_fisher
+    from wheelcal.estimate.normal_equations import accumulate
+
+    exact = evaluate(params, t_s, layout).predicted_mps2  # zero residual: H = J̃ᵀJ̃
+    fisher = accumulate(params, t_s, exact, layout, noise).hessian
+    gyro = gyro_prediction(params, t_s, layout)
+    fisher = fisher + accumulate_gyro(params, t_s, gyro, layout, gyro_noise).hessian
+    names, values, g = report_transform(params, layout)
+    cov = transform_covariance(g, covariance_from_fisher(fisher))
+    return Bound(names=names, values=values, covariance=cov, fisher=fisher)

@@ -1,0 +1,58 @@
+"""The Cramér–Rao bound at the truth for gyro-aided fits (accelerometer + gyro streams).
+
+The gyro reading's truth is the simulator's: w = k_w·u from
+:meth:`GyroSpec.wheel_axis_response` and the bias; the gyro noise is the
+spec's white noise.  A driven wheel's true motion is represented in the
+fitted layout (cubic + spline at the fitted knots) by the least-squares
+projection of the true ϑ(t) — so the bound is the bound of the model fitted,
+at the truth.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wheelcal.estimate.crlb import Bound, cramer_rao_bound_with_gyro
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.model import SpinParams
+from wheelcal.model.effects import cubic_bspline_basis
+
+
+def _noise(scenario) -> NoiseModel:
+    rate = scenario.rate_hz
+    if scenario.vibration is None:
+        return NoiseModel.from_ar(
+            scenario.noise.ar_polynomial(rate), scenario.noise.innovation_std(rate)
+        )
+    rng = np.random.default_rng(12345)
+    n = 200_000
+    draw = scenario.noise.sample(n, rate, rng) + scenario.vibration.sample(n, rate, rng)
+    return NoiseModel.estimate(draw, max_order=10)
+
+
+def gyro_bound(scenario, truth, true_theta, t_centred, layout) -> Bound:
+    """CRLB of ``layout`` at the truth over ``t_centred``.
+
+    ``true_theta`` is ϑ(t) of the true motion at ``t_centred``; ``truth`` gives
+    the bench, the sensor and the effects other than the motion's.
+    """
+    spline = next((e for e in layout.effects if e.name == "spin_spline"), None)
+    degree = layout.spin_degree
+    poly = np.polynomial.polynomial.polyvander(t_centred, degree + 1)
+    columns = [poly]
+    if spline is not None:
+        b, _, _ = cubic_bspline_basis(t_centred, spline.start_s, spline.spacing_s, spline.size)
+        columns.append(b.T)
+    design = np.hstack(columns)
+    coef, *_ = np.linalg.lstsq(design, true_theta, rcond=None)
+    phase = coef[: degree + 2]
+    spin = SpinParams(theta0_rad=phase[0], omega_radps=phase[1:] * np.arange(1, degree + 2))
+    effects = dict(truth.effects)
+    if spline is not None:
+        effects[spline.name] = coef[degree + 2 :]
+    spec = scenario.gyro
+    k, u = spec.wheel_axis_response(truth.bench.misalignment.matrix)
+    effects["gyro"] = np.concatenate([k * u, spec.bias_radps])
+    params = truth.with_changes(spin=spin, effects=effects)
+    gyro_noise = NoiseModel.white(max(spec.noise_std_radps(scenario.rate_hz), 1e-9))
+    return cramer_rao_bound_with_gyro(params, t_centred, _noise(scenario), layout, gyro_noise)
