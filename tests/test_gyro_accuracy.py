@@ -217,3 +217,31 @@ def test_driven_motions_calibrate_within_5_sigma_crlb_full(name):
     for group, index in (("gain", [0, 1, 2]), ("offset", [3, 4, 5])):
         honest = float(np.mean(1.0 / np.std(z[:, index], axis=0, ddof=1)))
         assert 0.8 <= honest <= 1.25, (group, honest)
+
+
+def test_auto_keeps_the_accelerometer_answer_and_calibrates_the_gyro_as_a_by_product(tmp_path):
+    from wheelcal.io import read_recording, write_recording
+    from wheelcal.io.calibration_json import calibration_dict
+
+    session = hostile.clean(np.random.default_rng(21), gyro=SPEC)
+    path = tmp_path / "spin.mcap"
+    write_recording(session.recording, path)
+    recording = read_recording(path)
+    auto = SessionFit(gyro="auto").run(recording).result
+    off = SessionFit(gyro="off").run(recording).result
+    np.testing.assert_array_equal(auto.values, off.values)  # exactly the accelerometer's answer
+    block = calibration_dict(auto)["gyro"]
+    k, u = SPEC.wheel_axis_response(session.truth.bench.misalignment.matrix)
+    assert abs(block["scale"] - k) < 5 * block["scale_std"] + 1e-4
+    axis_error = np.abs(np.array(block["axis"]) - u)
+    assert np.all(axis_error < 5 * np.array(block["axis_std"]) + 1e-3), axis_error
+    # The bias is the reading at zero rate on this bench: the gyro's sensitivity to
+    # the specific force adds to it, within the systematic σ the block states.
+    error = np.abs(np.array(block["bias_radps"]) - SPEC.bias_radps)
+    allowed = 5 * np.array(block["bias_std_radps"]) + 3 * np.array(
+        block["bias_systematic_std_radps"]
+    )
+    assert np.all(error < allowed), (error, allowed)
+    assert np.all(np.array(block["bias_systematic_std_radps"]) > 1e-3)  # ~0.3 °/s at ~3 g
+    assert 0.3 < block["axis_angle_to_wheel_axis_deg"] < 3.0  # the spec's 1–2° misalignment
+    assert "regression" in block["source"]

@@ -30,6 +30,8 @@ from wheelcal.model import ParameterLayout
 from wheelcal.model.effects import GyroReading
 
 _NAMES = GyroReading.param_names
+#: A typical MEMS gyro's sensitivity to linear acceleration (MPU-9250: 0.1 °/s/g).
+G_SENSITIVITY_DPS_PER_G = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,6 +47,9 @@ class GyroCalibration:
     axis_angle_deg: float
     residual_rms_radps: np.ndarray
     source: str
+    #: Systematic σ of the bias: an unmodelled sensitivity to linear acceleration
+    #: (datasheet-typical G) times the mean specific force of this bench.
+    bias_systematic_std_radps: np.ndarray
 
     def to_dict(self) -> dict:
         """The calibration JSON's ``gyro`` block."""
@@ -55,16 +60,28 @@ class GyroCalibration:
             "axis_std": self.axis_std.tolist(),
             "bias_radps": self.bias_radps.tolist(),
             "bias_std_radps": self.bias_std_radps.tolist(),
+            "bias_systematic_std_radps": self.bias_systematic_std_radps.tolist(),
+            "g_sensitivity_assumed_dps_per_g": G_SENSITIVITY_DPS_PER_G,
             "axis_angle_to_wheel_axis_deg": self.axis_angle_deg,
             "residual_rms_radps": self.residual_rms_radps.tolist(),
             "source": self.source,
             "calibrated": "scale along the wheel axis, the axis direction, the three biases",
             "note": "u is free: it tilts from −R·e_Z by the gyro's own misalignment and "
-            "per-axis scale errors; the gyro's other scales are not excited by the wheel",
+            "per-axis scale errors; the gyro's other scales are not excited by the wheel. The "
+            "bias is the reading at zero rate on this bench: a gyro's sensitivity to linear "
+            "acceleration times the bench's mean specific force adds to it (systematic σ)",
         }
 
 
-def _calibration(values, cov, rotation, residual, source) -> GyroCalibration:
+def _mean_force_mps2(result: CalibrationResult) -> float:
+    """|mean specific force| over the fitted window, in the sensor's axes."""
+    from wheelcal.model import evaluate
+
+    sensed = evaluate(result.params, result.centred_time_s, result.layout).sensed_mps2
+    return float(np.linalg.norm(np.mean(sensed, axis=0)))
+
+
+def _calibration(values, cov, rotation, residual, source, mean_force) -> GyroCalibration:
     w, b = np.asarray(values[:3], float), np.asarray(values[3:], float)
     k = float(np.linalg.norm(w))
     u = w / k
@@ -82,6 +99,9 @@ def _calibration(values, cov, rotation, residual, source) -> GyroCalibration:
         axis_angle_deg=angle,
         residual_rms_radps=np.sqrt(np.mean(residual**2, axis=0)),
         source=source,
+        bias_systematic_std_radps=np.full(
+            3, G_SENSITIVITY_DPS_PER_G * np.pi / 180 / 9.80665 * mean_force
+        ),
     )
 
 
@@ -124,4 +144,5 @@ def gyro_by_product(
         result.params.bench.misalignment.matrix,
         residual,
         "regression on the fitted wheel rate (the free spin's cubic was kept)",
+        _mean_force_mps2(result),
     )

@@ -162,6 +162,11 @@ def calibration_dict(
             },
             "note": _SYSTEMATIC_NOTE,
         },
+        **(
+            {"gyro": _clean(result.assessment.gyro.to_dict())}
+            if result.assessment is not None and result.assessment.gyro is not None
+            else {}
+        ),
         "correction": {
             "bias_mps2": _vec(correction.bias_mps2),
             "matrix": correction.matrix.tolist(),
@@ -228,8 +233,6 @@ def _assessment(result: CalibrationResult) -> dict:
         out["noise_reference"] = _clean(a.noise.to_dict())
     if a.motion is not None:
         out["motion_check"] = _clean(a.motion.to_dict())
-    if a.gyro is not None:
-        out["gyro"] = _clean(a.gyro.to_dict())
     out["rest_checks"] = [_clean(c.to_dict()) for c in a.rest_checks]
     out["gates"] = a.gates.to_dict()
     return out
