@@ -21,7 +21,7 @@ _LAZY = {
     "calibrate": ("wheelcal.api", "calibrate"),
     "diagnose": ("wheelcal.api", "diagnose"),
     "read_recording": ("wheelcal.api", "read_recording"),
-    "Calibration": ("wheelcal.calibration", "Calibration"),
+    "Calibration": ("wheelcal.io.calibration", "Calibration"),
     "CalibrationRefused": ("wheelcal.recording", "CalibrationRefused"),
     "RecordingError": ("wheelcal.recording", "RecordingError"),
     "Recording": ("wheelcal.recording", "Recording"),

@@ -22,7 +22,7 @@ import os
 
 import numpy as np
 
-from wheelcal.calibration import Calibration
+from wheelcal.io.calibration import Calibration
 from wheelcal.recording import Recording
 
 

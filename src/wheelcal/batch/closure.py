@@ -15,38 +15,35 @@ from wheelcal.batch.pipeline import Pipeline
 from wheelcal.batch.sensors import SENSORS_FOLDER, sensor_file_stem
 from wheelcal.diagnose.sensor_closure import SessionInput, close_sensor
 from wheelcal.io.atomic import atomic_write_text
+from wheelcal.io.calibration import Calibration
 from wheelcal.model.effects import make_effect
 
 
-def _inputs(pipeline: Pipeline, members: list[dict]) -> list[SessionInput]:
+def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[SessionInput]:
     from wheelcal.io import read_recording
 
     options = pipeline.options
     out = []
     for cal in members:
-        src = cal["source"]
         recording = read_recording(
-            src["file"],
-            topic=src.get("topic") or options.topic,
+            cal.source_file,
+            topic=cal.document["source"].get("topic") or options.topic,
             info_overrides=options.info_overrides(),
             info_defaults=options.info_defaults(),
             accel_unit=options.accel_unit,
         )
-        start, end = src["window_s"]
-        effects = tuple(
-            make_effect(name, entry.get("settings"))
-            for name, entry in cal.get("effects", {}).items()
-        )
+        start, end = cal.window_s
+        effects = tuple(make_effect(name, settings) for name, settings in cal.effects.items())
         local = tuple(e for e in effects if not e.sensor_intrinsic)
-        out.append(SessionInput(recording.window(start, end), src.get("mounting_id", ""), local))
+        out.append(SessionInput(recording.window(start, end), cal.mounting_id, local))
     return out
 
 
-def run_closure(pipeline: Pipeline, calibrations: list[dict]) -> dict:
+def run_closure(pipeline: Pipeline, calibrations: list[Calibration]) -> dict:
     """``report.json``'s ``closure`` block (and one sensor JSON per sensor)."""
-    by_sensor: dict[str, list[dict]] = defaultdict(list)
+    by_sensor: dict[str, list[Calibration]] = defaultdict(list)
     for cal in calibrations:
-        by_sensor[cal["source"].get("sensor_id", "")].append(cal)
+        by_sensor[cal.sensor_id].append(cal)
     sensors, skipped = [], []
     for sensor_id, members in sorted(by_sensor.items()):
         if len(members) < 2:

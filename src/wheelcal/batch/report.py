@@ -34,6 +34,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from wheelcal.io.calibration import Calibration
 from wheelcal.model.parameters import AXES
 
 REPORT_PARAMETERS = (
@@ -144,26 +145,21 @@ def build_report(
     made from ``calibrations`` and ``failed``.
     """
     by_file = {d["source"]["file"]: d for d in diagnoses or []}
-    groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    calibrations = [c if isinstance(c, Calibration) else Calibration(c) for c in calibrations]
+    groups: dict[tuple[str, str], list[Calibration]] = defaultdict(list)
     for cal in calibrations:
-        src = cal.get("source", {})
-        groups[(src.get("sensor_id", ""), src.get("mounting_id", ""))].append(cal)
+        groups[(cal.sensor_id, cal.mounting_id)].append(cal)
     out_groups = []
     outliers: list[dict] = []
     for (sensor_id, mounting_id), members in sorted(groups.items()):
-        files = [m["source"]["file"] for m in members]
-        names = [p for p in REPORT_PARAMETERS if all(p in m.get("parameters", {}) for m in members)]
+        files = [m.source_file for m in members]
+        tables = [m.parameters for m in members]
+        names = [p for p in REPORT_PARAMETERS if all(p in table for table in tables)]
         params = {}
         systematic = {}
         for name in names:
-            values = np.array([m["parameters"][name]["value"] for m in members], dtype=float)
-            stds = np.array(
-                [
-                    np.nan if m["parameters"][name]["std"] is None else m["parameters"][name]["std"]
-                    for m in members
-                ],
-                dtype=float,
-            )
+            values = np.array([table[name][0] for table in tables], dtype=float)
+            stds = np.array([table[name][1] for table in tables], dtype=float)
             params[name] = group_statistics(values, stds)
             outliers += _outliers(files, name, values, len(names) * len(members))
         for member in members[:1]:
@@ -193,7 +189,7 @@ def build_report(
                     found[step["effect"]] += 1
             group["effects_found"] = dict(sorted(found.items()))
         out_groups.append(group)
-    by_cal = {c["source"]["file"]: c for c in calibrations}
+    by_cal = {c.source_file: c for c in calibrations}
     if per_session is None:
         per_session = [
             {"file": f, "status": "calibrated", "calibration": None} for f in sorted(by_cal)

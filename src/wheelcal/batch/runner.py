@@ -29,6 +29,7 @@ from wheelcal.batch.pipeline import Pipeline, PipelineError
 from wheelcal.batch.provenance import file_sha256, run_key, stored_run_key
 from wheelcal.batch.session import SessionOptions, calibrate_session
 from wheelcal.batch.stems import unique_stems
+from wheelcal.io.calibration import Calibration
 from wheelcal.runtime import tune_allocator
 
 
@@ -280,9 +281,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
         and all(Path(p).exists() for p in stored_outputs)
     ):
         return tuple(stored_outputs), False
-    calibrations = [
-        json.loads(Path(r.calibration_path).read_text(encoding="utf-8")) for r in records if r.ok
-    ]
+    calibrations = [Calibration.from_json(r.calibration_path) for r in records if r.ok]
     diagnoses = []
     if pipeline.diagnose:
         for r in records:

@@ -43,6 +43,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from wheelcal.io.calibration import Calibration
 from wheelcal.viz.rrd_file import rrd_file
 
 APPLICATION_ID = "wheelcal_batch"
@@ -95,18 +96,16 @@ def _groups(sessions: Sequence[Mapping]) -> tuple[list[_Group], list[str]]:
     files: list[str] = []
     for index, session in enumerate(sessions):
         try:
-            source = session.get("source", {})
-            key = (str(source.get("sensor_id") or ""), str(source.get("mounting_id") or ""))
-            files.append(str(source.get("file") or f"session {index}"))
-            parameters = session["parameters"]
+            cal = session if isinstance(session, Calibration) else Calibration(session)
+            key = (cal.sensor_id, cal.mounting_id)
+            files.append(cal.source_file or f"session {index}")
             group = groups.setdefault(key, _Group(*key))
             group.sessions.append(index)
-            for name, entry in parameters.items():
-                value, std = _number(entry["value"]), _number(entry["std"])
+            for name, (value, std) in cal.parameters.items():
                 group.parameters.setdefault(name, []).append((index, value, std))
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ValueError(
-                f"batch .rrd: session {index} is not a calibration dictionary "
+                f"batch .rrd: session {index} is not a calibration "
                 f"(needs source and parameters {{name: {{value, std}}}}): {exc!r}"
             ) from None
     for group in groups.values():
