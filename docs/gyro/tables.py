@@ -33,13 +33,20 @@ def ratios(a, b):
 
 
 def main() -> None:
-    print("| setup | gyro + spline (8 s / 2 s / 0.5 s knots) ÷ cubic | imbalance 0.4 rad/s², accelerometer only | imbalance, with the gyro |")
+    print(
+        "| setup | gyro + spline (8 s / 2 s / 0.5 s knots) ÷ cubic | imbalance 0.4 rad/s², accelerometer only | imbalance, with the gyro |"
+    )
     print("|---|---|---|---|")
     with threadpool_limits(1):
-        for name, scenario in (("Table I", table1()), ("Table II", table2(rng=np.random.default_rng(3)))):
+        for name, scenario in (
+            ("Table I", table1()),
+            ("Table II", table2(rng=np.random.default_rng(3))),
+        ):
             t = scenario.centred_times_s()
             rate = scenario.rate_hz
-            noise = NoiseModel.from_ar(scenario.noise.ar_polynomial(rate), scenario.noise.innovation_std(rate))
+            noise = NoiseModel.from_ar(
+                scenario.noise.ar_polynomial(rate), scenario.noise.innovation_std(rate)
+            )
             gyro_noise = NoiseModel.white(SPEC.noise_std_radps(rate))
             k, u = SPEC.wheel_axis_response(scenario.truth.bench.misalignment.matrix)
             reading = np.concatenate([k * u, SPEC.bias_radps])
@@ -47,7 +54,9 @@ def main() -> None:
             flexible = []
             for spacing in (8.0, 2.0, 0.5):
                 spline = SpinSpline(t[0], t[-1], spacing)
-                truth = scenario.truth.with_changes(effects={"gyro": reading, spline.name: np.zeros(spline.size)})
+                truth = scenario.truth.with_changes(
+                    effects={"gyro": reading, spline.name: np.zeros(spline.size)}
+                )
                 bound = cramer_rao_bound_with_gyro(
                     truth, t, noise, ParameterLayout(effects=(spline, GyroReading())), gyro_noise
                 )
@@ -66,7 +75,9 @@ def main() -> None:
                 ParameterLayout(effects=(Imbalance(), GyroReading())),
                 gyro_noise,
             )
-            print(f"| {name} | {' / '.join(flexible)} | {ratios(acc, base)} | {ratios(gyro, base)} |")
+            print(
+                f"| {name} | {' / '.join(flexible)} | {ratios(acc, base)} | {ratios(gyro, base)} |"
+            )
 
 
 if __name__ == "__main__":
