@@ -113,7 +113,8 @@ def gyro_from_fit(
     values = result.values[index]
     cov = result.covariance[np.ix_(index, index)]
     residual = gyro - gyro_prediction(result.params, gyro_t, result.layout)
-    return _calibration(values, cov, result.params.bench.misalignment.matrix, residual, "joint fit")
+    rotation = result.params.bench.misalignment.matrix
+    return _calibration(values, cov, rotation, residual, "joint fit", _mean_force_mps2(result))
 
 
 def gyro_by_product(
