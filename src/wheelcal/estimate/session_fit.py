@@ -256,21 +256,23 @@ def _without_disturbances(
     each side), and the fit is repeated once.
     """
     n = max(4, round(DISTURBANCE_BLOCK_S * window.rate_hz))
-    blocks = result.residual_mps2.shape[0] // n
-    if blocks < 8:
+    samples = result.residual_mps2.shape[0]
+    block = np.arange(samples) // n  # the last block may be partial: it is judged too
+    if block[-1] < 8:
         return result, window, ""
-    rms = np.sqrt(
-        np.mean(result.residual_mps2[: blocks * n].reshape(blocks, n, 3) ** 2, axis=(1, 2))
-    )
+    power = np.bincount(block, weights=np.sum(result.residual_mps2**2, axis=1))
+    rms = np.sqrt(power / (3 * np.bincount(block)))
     bad = rms > DISTURBANCE_FACTOR * np.median(rms)
     if not np.any(bad):
         return result, window, ""
     bad = bad | np.concatenate([[False], bad[:-1]]) | np.concatenate([bad[1:], [False]])
-    keep = np.ones(window.time_s.size, dtype=bool)
-    keep[: blocks * n] = ~np.repeat(bad, n)
+    keep = ~bad[block]
     kept = window.select(keep)
-    refit = fitter.fit(kept, initial=result.params)
-    seconds = float(bad.sum() * n / window.rate_hz)
+    # The same first and last sample keep the time origin and the spline's knots, so
+    # the fit restarts where it was; a window cut at an end starts afresh.
+    same_frame = bool(keep[0] and keep[-1])
+    refit = fitter.fit(kept, initial=result.params if same_frame else None)
+    seconds = float(np.sum(~keep) / window.rate_hz)
     note = (
         f"left out {seconds:.1f} s where the residual exceeded {DISTURBANCE_FACTOR:g}× the "
         "typical (a hand starting or braking the wheel, a knock)"
@@ -299,7 +301,8 @@ def _clear_of_rails(
     if not np.any(near):
         return result, window, ""
     kept = window.select(~near)
-    refit = fitter.fit(kept, initial=result.params)
+    same_frame = bool(not near[0] and not near[-1])  # see _without_disturbances
+    refit = fitter.fit(kept, initial=result.params if same_frame else None)
     note = (
         f"left out {int(near.sum())} samples that the model puts within "
         f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"
