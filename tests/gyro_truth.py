@@ -30,6 +30,21 @@ def _noise(scenario) -> NoiseModel:
     return NoiseModel.estimate(draw, max_order=10)
 
 
+def gyro_truth_values(spec, truth) -> np.ndarray:
+    """The true (w, b, G_X, G_Y) of the gyro reading for a sensor mounted with R.
+
+    The spec's sensitivity G acts on the sensed force R a: its columns along the
+    bench's X and Y are G R e_X and G R e_Y, and G R e_Z times the constant
+    g cosα belongs to the bias the reading shows on this bench.
+    """
+    rotation = truth.bench.misalignment.matrix
+    k, u = spec.wheel_axis_response(rotation)
+    g_sens = spec.g_sensitivity_radps_per_mps2
+    g_cos = truth.gravity_mps2 * np.cos(truth.bench.tilt_rad)
+    bias = np.asarray(spec.bias_radps) + g_sens @ rotation[:, 2] * g_cos
+    return np.concatenate([k * u, bias, g_sens @ rotation[:, 0], g_sens @ rotation[:, 1]])
+
+
 def gyro_bound(scenario, truth, true_theta, t_centred, layout) -> Bound:
     """CRLB of ``layout`` at the truth over ``t_centred``.
 
@@ -51,8 +66,7 @@ def gyro_bound(scenario, truth, true_theta, t_centred, layout) -> Bound:
     if spline is not None:
         effects[spline.name] = coef[degree + 2 :]
     spec = scenario.gyro
-    k, u = spec.wheel_axis_response(truth.bench.misalignment.matrix)
-    effects["gyro"] = np.concatenate([k * u, spec.bias_radps])
+    effects["gyro"] = gyro_truth_values(spec, truth)
     params = truth.with_changes(spin=spin, effects=effects)
     gyro_noise = NoiseModel.white(max(spec.noise_std_radps(scenario.rate_hz), 1e-9))
     return cramer_rao_bound_with_gyro(params, t_centred, _noise(scenario), layout, gyro_noise)

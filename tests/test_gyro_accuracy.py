@@ -26,7 +26,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from gyro_truth import gyro_bound
+from gyro_truth import gyro_bound, gyro_truth_values
 from wheelcal.estimate.crlb import cramer_rao_bound, cramer_rao_bound_with_gyro
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.noise_model import NoiseModel
@@ -51,8 +51,7 @@ def _noise(scenario):
 
 
 def _gyro_values(truth):
-    k, u = SPEC.wheel_axis_response(truth.bench.misalignment.matrix)
-    return np.concatenate([k * u, SPEC.bias_radps])
+    return gyro_truth_values(SPEC, truth)
 
 
 def _scenarios():

@@ -62,7 +62,9 @@ def _setup(spacing=2.0):
         sensor=SensorParams(offset_mps2=(0.1, -0.1, 0.2), gain=(1.01, 0.99, 1.02)),
         effects={
             spline.name: rng.normal(0, 0.02, spline.size),
-            "gyro": np.array([-0.3, 0.4, -0.86, 0.01, -0.02, 0.005]),
+            "gyro": np.array(
+                [-0.3, 0.4, -0.86, 0.01, -0.02, 0.005, 2e-4, -1e-4, 5e-5, 1e-4, 2e-4, -3e-5]
+            ),
         },
     )
     layout = ParameterLayout(effects=(spline, GyroReading()))
@@ -107,3 +109,33 @@ def test_chunked_local_views_equal_the_dense_normal_equations(ar):
     np.testing.assert_allclose(g_sparse.hessian, g_dense.hessian, rtol=1e-9, atol=1e-12 * g_scale)
     np.testing.assert_allclose(g_sparse.gradient, g_dense.gradient, rtol=1e-9, atol=1e-9)
     assert dataclasses.astuple(sparse)[0] == pytest.approx(dense.cost)
+
+
+def test_gyro_stream_jacobian_equals_finite_differences():
+    # H = JᵀJ of the gyro stream (unit white noise) against J from finite
+    # differences of the gyro's prediction: the spin, spline, tilt and the
+    # reading's own parameters (w, b and the sensitivity to linear acceleration).
+    from wheelcal.estimate.gyro_equations import gyro_prediction
+
+    params, layout = _setup()
+    t = np.linspace(-20, 20, 401)
+    x0 = layout.pack(params)
+    columns = []
+    for k in range(layout.size):
+        h = 1e-6 * max(1.0, abs(x0[k]))
+        if layout.names[k].startswith(("omega", "spin_spline")):
+            h = 1e-9  # ϑ grows like t⁴ ω₃: keep the step in the linear range
+        up, down = x0.copy(), x0.copy()
+        up[k] += h
+        down[k] -= h
+        diff = gyro_prediction(layout.unpack(up, params), t, layout) - gyro_prediction(
+            layout.unpack(down, params), t, layout
+        )
+        columns.append((diff / (2 * h)).T.reshape(-1))
+    jac = np.array(columns)
+    expected = jac @ jac.T
+    normal = accumulate_gyro(
+        params, t, gyro_prediction(params, t, layout), layout, NoiseModel.white(1.0)
+    )
+    scale = np.sqrt(np.outer(np.diag(expected), np.diag(expected))) + 1e-30
+    np.testing.assert_allclose(normal.hessian / scale, expected / scale, atol=1e-5)

@@ -30,7 +30,9 @@ def _params(tilt_deg: float) -> tuple[CalibrationParams, ParameterLayout]:
         spline.name: rng.normal(0, 0.05, spline.size),
         "spin_extension": np.array([1e-7, -2e-9]),
         "imbalance": np.array([0.2, -0.3]),
-        "gyro": np.array([-0.3, 0.5, -0.8, 0.01, -0.02, 0.003]),
+        "gyro": np.array(
+            [-0.3, 0.5, -0.8, 0.01, -0.02, 0.003, 2e-4, -1e-4, 5e-5, 1e-4, 2e-4, -3e-5]
+        ),
     }
     params = CalibrationParams(
         spin=SpinParams(theta0_rad=0.4, omega_radps=(9.0, -0.05, 2e-4, 1e-6)),

@@ -48,8 +48,15 @@ def main() -> None:
                 scenario.noise.ar_polynomial(rate), scenario.noise.innovation_std(rate)
             )
             gyro_noise = NoiseModel.white(SPEC.noise_std_radps(rate))
-            k, u = SPEC.wheel_axis_response(scenario.truth.bench.misalignment.matrix)
-            reading = np.concatenate([k * u, SPEC.bias_radps])
+            rotation = scenario.truth.bench.misalignment.matrix
+            k, u = SPEC.wheel_axis_response(rotation)
+            g_sens = SPEC.g_sensitivity_radps_per_mps2
+            bias = np.asarray(SPEC.bias_radps) + g_sens @ rotation[:, 2] * 9.80665 * np.cos(
+                scenario.truth.bench.tilt_rad
+            )
+            reading = np.concatenate(
+                [k * u, bias, g_sens @ rotation[:, 0], g_sens @ rotation[:, 1]]
+            )
             base = cramer_rao_bound(scenario.truth, t, noise, ParameterLayout())
             flexible = []
             for spacing in (8.0, 2.0, 0.5):

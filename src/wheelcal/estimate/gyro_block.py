@@ -1,7 +1,8 @@
 """The gyroscope's calibration, a by-product of the wheel: scale and axis along it, biases.
 
-The gyro reads ω_meas = w ω(t) + b (:class:`~wheelcal.model.effects.GyroReading`)
-with w = k u.  Reported: the scale k = |w| along the wheel axis, the axis u in
+The gyro reads ω_meas = w ω(t) + b + G_X a_X + G_Y a_Y
+(:class:`~wheelcal.model.effects.GyroReading`) with w = k u.  Reported: the
+scale k = |w| along the wheel axis, the axis u in
 the gyro's own frame, the biases b, each with σ (k and u by the delta
 method: ∂k/∂w = u, ∂u/∂w = (I − u uᵀ)/k), and the angle between u and the
 ideal −R e_Z — a diagnostic of the gyro-to-accelerometer misalignment and
@@ -22,14 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.gyro_equations import accumulate_gyro, gyro_prediction
+from wheelcal.estimate.gyro_equations import accumulate_gyro, gyro_effect, gyro_prediction
 from wheelcal.estimate.information import scaled_pinv
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import ParameterLayout
 from wheelcal.model.effects import GyroReading
 
-_NAMES = GyroReading.param_names
 #: A typical MEMS gyro's sensitivity to linear acceleration (MPU-9250: 0.1 °/s/g).
 G_SENSITIVITY_DPS_PER_G = 0.1
 
@@ -50,6 +50,9 @@ class GyroCalibration:
     #: Systematic σ of the bias: an unmodelled sensitivity to linear acceleration
     #: (datasheet-typical G) times the mean specific force of this bench.
     bias_systematic_std_radps: np.ndarray
+    #: G R e_X and G R e_Y (rad/s per m/s², gyro axes) with σ, when fitted.
+    g_sensitivity: np.ndarray | None = None
+    g_sensitivity_std: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         """The calibration JSON's ``gyro`` block."""
@@ -62,6 +65,20 @@ class GyroCalibration:
             "bias_std_radps": self.bias_std_radps.tolist(),
             "bias_systematic_std_radps": self.bias_systematic_std_radps.tolist(),
             "g_sensitivity_assumed_dps_per_g": G_SENSITIVITY_DPS_PER_G,
+            **(
+                {
+                    "g_sensitivity_radps_per_mps2": {
+                        "along_X": self.g_sensitivity[:3].tolist(),
+                        "along_Y": self.g_sensitivity[3:].tolist(),
+                    },
+                    "g_sensitivity_std_radps_per_mps2": {
+                        "along_X": self.g_sensitivity_std[:3].tolist(),
+                        "along_Y": self.g_sensitivity_std[3:].tolist(),
+                    },
+                }
+                if self.g_sensitivity is not None
+                else {}
+            ),
             "axis_angle_to_wheel_axis_deg": self.axis_angle_deg,
             "residual_rms_radps": self.residual_rms_radps.tolist(),
             "source": self.source,
@@ -82,7 +99,8 @@ def _mean_force_mps2(result: CalibrationResult) -> float:
 
 
 def _calibration(values, cov, rotation, residual, source, mean_force) -> GyroCalibration:
-    w, b = np.asarray(values[:3], float), np.asarray(values[3:], float)
+    values = np.asarray(values, float)
+    w, b = values[:3], values[3:6]
     k = float(np.linalg.norm(w))
     u = w / k
     cov_w = cov[:3, :3]
@@ -95,12 +113,16 @@ def _calibration(values, cov, rotation, residual, source, mean_force) -> GyroCal
         axis=u,
         axis_std=np.sqrt(np.maximum(np.diag(j_axis @ cov_w @ j_axis.T), 0.0)),
         bias_radps=b,
-        bias_std_radps=np.sqrt(np.maximum(np.diag(cov[3:, 3:]), 0.0)),
+        bias_std_radps=np.sqrt(np.maximum(np.diag(cov[3:6, 3:6]), 0.0)),
         axis_angle_deg=angle,
         residual_rms_radps=np.sqrt(np.mean(residual**2, axis=0)),
         source=source,
         bias_systematic_std_radps=np.full(
             3, G_SENSITIVITY_DPS_PER_G * np.pi / 180 / 9.80665 * mean_force
+        ),
+        g_sensitivity=values[6:12] if values.size == 12 else None,
+        g_sensitivity_std=(
+            np.sqrt(np.maximum(np.diag(cov[6:12, 6:12]), 0.0)) if values.size == 12 else None
         ),
     )
 
@@ -109,7 +131,8 @@ def gyro_from_fit(
     result: CalibrationResult, gyro_t: np.ndarray, gyro: np.ndarray
 ) -> GyroCalibration:
     """The gyro block of a joint fit that included the gyro."""
-    index = [result.names.index(f"gyro.{n}") for n in _NAMES]
+    effect = gyro_effect(result.layout)
+    index = [result.names.index(f"gyro.{n}") for n in effect.param_names]
     values = result.values[index]
     cov = result.covariance[np.ix_(index, index)]
     residual = gyro - gyro_prediction(result.params, gyro_t, result.layout)
@@ -133,11 +156,12 @@ def gyro_by_product(
     residual = gyro - gyro_prediction(params, gyro_t, layout)
     noise = NoiseModel.estimate(residual, max_ar_order)
     normal = accumulate_gyro(params, gyro_t, gyro, layout, noise)
-    block = layout.blocks[f"effect:{GyroReading.name}"]
+    effect = gyro_effect(layout)
+    block = layout.blocks[f"effect:{effect.name}"]
     h = normal.hessian[block, block]
     cov = scaled_pinv(h)
-    values = params.effect(GyroReading.name, len(_NAMES)) - cov @ normal.gradient[block]
-    params = params.with_changes(effects={**params.effects, GyroReading.name: values})
+    values = params.effect(effect.name, effect.size) - cov @ normal.gradient[block]
+    params = params.with_changes(effects={**params.effects, effect.name: values})
     residual = gyro - gyro_prediction(params, gyro_t, layout)
     return _calibration(
         values,

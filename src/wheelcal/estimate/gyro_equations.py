@@ -6,10 +6,12 @@ accelerometer's.  Their partial derivatives are
 
 * spin coefficients and spin effects p:  w · ∂ω/∂p  (the rows of the
   kinematics, :func:`~wheelcal.model.forward.wheel_kinematics`);
-* the reading's own parameters:  ∂/∂w_i = ω e_i,  ∂/∂b_i = e_i;
+* the reading's own parameters:  ∂/∂w_i = ω e_i,  ∂/∂b_i = e_i, and with the
+  sensitivity to linear acceleration ∂/∂G_X = a_X e_i, ∂/∂G_Y = a_Y e_i;
+* through G·a also the spin (∂a/∂p of eq. 1), the tilt and a fitted radius;
 
-and nothing else (the gyro does not see tilt, R, gains or offsets — on a
-fixed bench it measures the motion only).  The gyro noise model (AR colour per
+and nothing else (the gyro does not see R, gains or offsets — on a fixed
+bench it measures the motion, and the force through G).  The gyro noise model (AR colour per
 axis, from the gyro residual) whitens them as the accelerometer's model
 whitens its residual; the two streams are independent, so their Fisher
 informations add.  Accumulated in chunks like
@@ -23,6 +25,7 @@ import numpy as np
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.normal_equations import NormalEquations, add_gram, chunking, local_view
 from wheelcal.model import CalibrationParams, ParameterLayout
+from wheelcal.model.bench import BenchForce, bench_force
 from wheelcal.model.forward import wheel_kinematics
 
 
@@ -37,7 +40,13 @@ def gyro_prediction(
     """Predicted gyro samples (N, 3) at centred times ``t_s``."""
     effect = gyro_effect(layout)
     kin = wheel_kinematics(params, t_s, layout.effects)
-    return effect.reading(params.effect(effect.name, effect.size), kin.omega_radps)
+    force = _force(params, kin).accel_mps2 if effect.g_sensitivity else None
+    return effect.reading(params.effect(effect.name, effect.size), kin.omega_radps, force)
+
+
+def _force(params: CalibrationParams, kin) -> BenchForce:
+    bench = params.bench
+    return bench_force(kin, bench.tilt_rad, bench.radius_m, params.gravity_mps2)
 
 
 def _rows(layout: ParameterLayout) -> list[slice]:
@@ -71,6 +80,7 @@ def accumulate_gyro(
     grad = np.zeros(layout.size) if jacobian else None
     values = params.effect(effect.name, effect.size)
     w = values[:3]
+    gx, gy = (values[6:9], values[9:12]) if effect.g_sensitivity else (None, None)
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         lo = max(0, start - p)
@@ -78,7 +88,9 @@ def accumulate_gyro(
         view = local_view(params, layout, t[0], t[-1]) if sparse else None
         here, at = (view.layout, view.params) if view else (layout, params)
         kin = wheel_kinematics(at, t, here.effects, jacobian)
-        residual = effect.reading(values, kin.omega_radps) - gyro_radps[lo:stop]
+        force = _force(at, kin) if effect.g_sensitivity else None
+        accel = None if force is None else force.accel_mps2
+        residual = effect.reading(values, kin.omega_radps, accel) - gyro_radps[lo:stop]
         if not jacobian:
             rw, _ = noise.whiten(residual)
             cost += float(np.sum(rw * rw))
@@ -90,11 +102,32 @@ def accumulate_gyro(
             size = target.stop - target.start
             d_omega = kin.d_omega[row : row + size]  # (size, N)
             jac[target] = d_omega[:, None, :] * w[None, :, None]
+            if force is not None:  # G_X ∂a_X/∂p + G_Y ∂a_Y/∂p (eq. 1)
+                d_theta = kin.d_theta[row : row + size]
+                dax = d_theta * (-force.g_sin_tilt * force.sin_theta)
+                dax += d_omega * (2 * at.bench.radius_m * kin.omega_radps)
+                day = d_theta * (force.g_sin_tilt * force.cos_theta)
+                day += at.bench.radius_m * kin.d_omega_dot[row : row + size]
+                jac[target] += dax[:, None, :] * gx[None, :, None]
+                jac[target] += day[:, None, :] * gy[None, :, None]
             row += size
+        if force is not None:
+            blocks = here.blocks
+            if here.fit_tilt:  # ∂a/∂α = g cosα (cosϑ, sinϑ, ·)
+                tilt = blocks["tilt"].start
+                jac[tilt] += np.outer(gx, force.g_cos_tilt * force.cos_theta)
+                jac[tilt] += np.outer(gy, force.g_cos_tilt * force.sin_theta)
+            if here.fit_radius:  # ∂a/∂r = (ω², ω̇, 0)
+                radius = blocks["radius"].start
+                jac[radius] += np.outer(gx, kin.omega_radps**2)
+                jac[radius] += np.outer(gy, kin.omega_dot_radps2)
         gyro_block = here.blocks[f"effect:{effect.name}"]
         for i in range(3):
             jac[gyro_block.start + i, i] = kin.omega_radps
             jac[gyro_block.start + 3 + i, i] = 1.0
+            if force is not None:
+                jac[gyro_block.start + 6 + i, i] = accel[:, 0]
+                jac[gyro_block.start + 9 + i, i] = accel[:, 1]
         rw, jw = noise.whiten(residual, jac)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)

@@ -47,6 +47,7 @@ from wheelcal.estimate.systematic import (
 )
 from wheelcal.estimate.twins import TwinChoice, choose_twin, twin_of
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
+from wheelcal.model.bench import bench_force
 from wheelcal.model.effects import GyroReading, SpinSpline
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.recording import Recording, RecordingError
@@ -382,9 +383,14 @@ def with_gyro_start(
     params: CalibrationParams, layout: ParameterLayout, gyro_t: np.ndarray, gyro: np.ndarray
 ) -> CalibrationParams:
     """``params`` with the gyro reading's w and b from a regression of the gyro on ω(t)."""
-    omega = wheel_kinematics(params, gyro_t, layout.effects).omega_radps
-    design = np.column_stack([omega, np.ones_like(omega)])
-    coef, *_ = np.linalg.lstsq(design, gyro, rcond=None)  # rows: w, b
+    reading = next(e for e in layout.effects if e.stage == "gyro")
+    kin = wheel_kinematics(params, gyro_t, layout.effects)
+    columns = [kin.omega_radps, np.ones_like(kin.omega_radps)]
+    if reading.g_sensitivity:
+        bench = params.bench
+        force = bench_force(kin, bench.tilt_rad, bench.radius_m, params.gravity_mps2)
+        columns += [force.accel_mps2[:, 0], force.accel_mps2[:, 1]]
+    coef, *_ = np.linalg.lstsq(np.column_stack(columns), gyro, rcond=None)  # rows: w, b, G_X, G_Y
     effects = dict(params.effects)
-    effects[GyroReading.name] = np.concatenate([coef[0], coef[1]])
+    effects[reading.name] = coef.reshape(-1)
     return params.with_changes(effects=effects)

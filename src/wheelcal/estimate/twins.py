@@ -76,7 +76,8 @@ def _mirrored_effects(effects, negate: bool = False, half_turn: bool = False) ->
             if half_turn:
                 v = -v
         elif name == "gyro" and negate:
-            v[:3] = -v[:3]
+            v[:3] = -v[:3]  # w·ω keeps its reading
+            v[9:12] = -v[9:12]  # G_Y·a_Y too: the turned frame has Y → −Y
         out[name] = v
     return out
 

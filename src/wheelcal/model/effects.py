@@ -222,34 +222,55 @@ class Imbalance(_SpinEffect):
 
 
 class GyroReading(Effect):
-    """The gyroscope on the wheel: ω_meas(t) = w·ω(t) + b (rad/s, gyro axes).
+    """The gyroscope on the wheel: ω_meas(t) = w·ω(t) + b + G_X a_X(t) + G_Y a_Y(t) (rad/s).
 
     On a fixed bench the gyro sees only the wheel's rotation, about the wheel
     axis: an ideal gyro reads −ω R e_Z (the wheel's angular velocity is −ω e_Z in
     the bench frame, README "Conventions").  A real one reads w ω + b with
     w = k u: scale k along the axis and a unit direction u that per-axis scale
     errors and the gyro-to-accelerometer misalignment tilt by 1–2° from −R e_Z —
-    so u is free here and never constrains R.  Only the scale along the wheel
-    axis (|w|), the axis u and the three biases are calibrated.  Zero values
-    are not "absent" for this effect: it is a measurement, not an extension.
+    so u is free here and never constrains R.
+
+    A MEMS gyro also responds to linear acceleration (~0.1 °/s/g): G·(R a).  On
+    the wheel the specific force a(t) of eq. (1) turns once per turn and grows
+    with ω², so G R e_X and G R e_Y — the columns G_X, G_Y (gyro axes, rad/s per
+    m/s²) that multiply a_X and a_Y — are seen and fitted with
+    ``g_sensitivity=True``; G R e_Z multiplies the constant a_Z = g cosα and is
+    inseparable from the bias, which is therefore the reading at zero rate *on
+    this bench*.  Left out, G's once-per-turn ripple poses as an imbalance.
+
+    Calibrated: the scale along the wheel axis (|w|), the axis u, the biases (and
+    G_X, G_Y).  Zero values are not "absent": this is a measurement, not an
+    extension.
     """
 
     name = "gyro"
-    param_names = (
-        "w_x",
-        "w_y",
-        "w_z",
-        "bias_x_radps",
-        "bias_y_radps",
-        "bias_z_radps",
-    )
     stage = "gyro"
-    description = "gyroscope reading w·ω + b (w = scale × axis)"
+    description = "gyroscope reading w·ω + b + G·a (w = scale × axis)"
+    _BASE = ("w_x", "w_y", "w_z", "bias_x_radps", "bias_y_radps", "bias_z_radps")
+    _SENSITIVITY = ("gx_x", "gx_y", "gx_z", "gy_x", "gy_y", "gy_z")
 
-    def reading(self, values: np.ndarray, omega_radps: np.ndarray) -> np.ndarray:
-        """Predicted gyro samples (N, 3) for the wheel rate ω(t)."""
+    def __init__(self, g_sensitivity: bool = True) -> None:
+        self.g_sensitivity = bool(g_sensitivity)
+        self.param_names = self._BASE + (self._SENSITIVITY if self.g_sensitivity else ())
+
+    def settings(self) -> dict:
+        return {"g_sensitivity": self.g_sensitivity}
+
+    def reading(
+        self,
+        values: np.ndarray,
+        omega_radps: np.ndarray,
+        force_mps2: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Predicted gyro samples (N, 3) for ω(t) and the bench-frame force a(t) (N, 3)."""
         values = np.asarray(values, dtype=float)
-        return np.outer(omega_radps, values[:3]) + values[3:]
+        out = np.outer(omega_radps, values[:3]) + values[3:6]
+        if self.g_sensitivity:
+            out += np.outer(force_mps2[:, 0], values[6:9]) + np.outer(
+                force_mps2[:, 1], values[9:12]
+            )
+        return out
 
 
 def cubic_bspline_basis(
@@ -623,7 +644,7 @@ def make_effect(name: str, settings: dict | None = None) -> Effect:
     if name == "spin_extension":
         return SpinPolynomialExtension(int(settings.get("extra_degrees", 2)))
     if name == "gyro":
-        return GyroReading()
+        return GyroReading(bool(settings.get("g_sensitivity", False)))
     if name == "spin_spline":
         return SpinSpline(
             float(settings["start_s"]), float(settings["end_s"]), float(settings["spacing_s"])
