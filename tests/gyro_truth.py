@@ -12,22 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from truth_bound import scenario_noise
 from wheelcal.estimate.crlb import Bound, cramer_rao_bound_with_gyro
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.model import SpinParams
 from wheelcal.model.effects import cubic_bspline_basis
-
-
-def _noise(scenario) -> NoiseModel:
-    rate = scenario.rate_hz
-    if scenario.vibration is None:
-        return NoiseModel.from_ar(
-            scenario.noise.ar_polynomial(rate), scenario.noise.innovation_std(rate)
-        )
-    rng = np.random.default_rng(12345)
-    n = 200_000
-    draw = scenario.noise.sample(n, rate, rng) + scenario.vibration.sample(n, rate, rng)
-    return NoiseModel.estimate(draw, max_order=10)
 
 
 def gyro_truth_values(spec, truth) -> np.ndarray:
@@ -69,4 +58,6 @@ def gyro_bound(scenario, truth, true_theta, t_centred, layout) -> Bound:
     effects["gyro"] = gyro_truth_values(spec, truth)
     params = truth.with_changes(spin=spin, effects=effects)
     gyro_noise = NoiseModel.white(max(spec.noise_std_radps(scenario.rate_hz), 1e-9))
-    return cramer_rao_bound_with_gyro(params, t_centred, _noise(scenario), layout, gyro_noise)
+    return cramer_rao_bound_with_gyro(
+        params, t_centred, scenario_noise(scenario), layout, gyro_noise
+    )

@@ -31,7 +31,8 @@ def _truth_spin(session, t_centred: np.ndarray, centre_s: float) -> SpinParams:
     return SpinParams(theta0_rad=coef[0], omega_radps=coef[1:] * np.arange(1, 5))
 
 
-def _noise(scenario) -> NoiseModel:
+def scenario_noise(scenario) -> NoiseModel:
+    """The simulator's noise as a NoiseModel (vibration included, from a long draw)."""
     rate = scenario.rate_hz
     if scenario.vibration is None:
         return NoiseModel.from_ar(
@@ -55,7 +56,7 @@ def bound_at_truth(session, result) -> Bound:
         effects=truth.effects,
     )
     assert result.layout.spin_degree == params.spin.degree
-    return cramer_rao_bound(params, t_centred, _noise(session.scenario), result.layout)
+    return cramer_rao_bound(params, t_centred, scenario_noise(session.scenario), result.layout)
 
 
 def sigmas_off(session, result, names=SENSOR_NAMES) -> dict[str, float]:
