@@ -415,3 +415,24 @@ def test_batch_bad_input(batch_sessions, tmp_path):
     with pytest.raises(ValueError, match="session 1"):
         write_batch_rrd(tmp_path / "broken.rrd", broken)
     assert os.listdir(tmp_path) == []
+
+
+def test_a_gyro_session_shows_measured_and_modelled_omega(tmp_path):
+    # A motor-driven wheel through the gyro-aided fit: the .rrd carries ω of the
+    # model (cubic + spline) and ω as the gyro measures it; they agree to the gyro's
+    # noise, while the driven motion is far from any cubic.
+    from wheelcal.estimate.session_fit import SessionFit
+    from wheelcal.simulate import hostile
+    from wheelcal.simulate.gyro import GyroSpec
+
+    session = hostile.wandering(np.random.default_rng(300), gyro=GyroSpec())
+    out = SessionFit(gyro="on").run(session.recording)
+    path = write_session_rrd(tmp_path / "gyro.rrd", out.result, session.recording, None)
+    chunks = read_store(path)
+    t_model, model = temporal(chunks, "/spin/omega_radps", "Scalars:scalars", "time")
+    t_gyro, gyro = temporal(chunks, "/spin/omega_gyro_radps", "Scalars:scalars", "time")
+    model = np.interp(t_gyro, t_model, np.array(model)[:, 0])
+    gyro = np.array(gyro)[:, 0]
+    assert t_gyro.size > 100
+    assert np.sqrt(np.mean((gyro - model) ** 2)) < 0.01  # rad/s: the gyro's noise, ~2e-3
+    assert np.ptp(model) > 0.5  # the motor's ±5 % of 10 rad/s is in the modelled ω

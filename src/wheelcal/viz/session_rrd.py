@@ -13,8 +13,10 @@ for this calibration, more can be added, see below; ``<a>`` is an axis):
   timelines ``time`` and ``wheel_angle_mdeg`` (the same rows);
 * ``/residual_angle_mean/<a>/<set>`` — static bar chart: the residual averaged
   in 72 bins of 5° of ϑ mod 360°, abscissa in degrees;
-* ``/spin/omega_radps`` — ω(t) of eq. (2) over the window, rad/s (a cubic:
-  at most :data:`OMEGA_POINTS` exact samples of it are logged);
+* ``/spin/omega_radps`` — ω(t) of eq. (2) over the window, rad/s (the cubic,
+  plus the spline of a gyro-aided fit; at most :data:`OMEGA_POINTS` samples);
+* ``/spin/omega_gyro_radps`` — with a gyroscope, ω as it measures it,
+  (ω_meas − b)·w/|w|² (its scale and bias from the calibration's gyro block);
 * ``/report`` — static markdown: source, window, fit summary, every parameter
   with value, statistical σ and systematic σ, the warnings.
 
@@ -85,6 +87,7 @@ from wheelcal.estimate.residual_profile import binned_mean_by_angle
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import FreeSpinWindow
 from wheelcal.model import predict
+from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
 from wheelcal.viz.rrd_file import rrd_file
@@ -146,7 +149,7 @@ def _check_series(time_s, values, what: str) -> tuple[np.ndarray, np.ndarray]:
 
 def wheel_angle_rad(result: CalibrationResult) -> np.ndarray:
     """ϑ(t) of eq. (2) at the fitted samples (not wrapped), rad."""
-    return result.params.spin.theta_at(result.centred_time_s)
+    return wheel_kinematics(result.params, result.centred_time_s, result.layout.effects).theta_rad
 
 
 def log_signal(
@@ -469,12 +472,14 @@ def session_rrd(
         log_window(stream, start_s, end_s, float(recording.time_s[0]), float(recording.time_s[-1]))
         every = max(1, math.ceil(fit_time_s.size / OMEGA_POINTS))
         omega_t = result.centred_time_s[::every]
+        kin = wheel_kinematics(result.params, omega_t, result.layout.effects)  # Eq. (2) (+ spline)
         stream.log("spin/omega_radps", rr.SeriesLines(names=["ω (model)"]), static=True)
         stream.send_columns(
             "spin/omega_radps",
             indexes=[_time_column(fit_time_s[::every])],
-            columns=rr.Scalars.columns(scalars=result.params.spin.omega_at(omega_t)),  # Eq. (2)
+            columns=rr.Scalars.columns(scalars=kin.omega_radps),
         )
+        _log_gyro_rate(stream, result, recording, shift_s, every)
         markdown = report_markdown(result, window, start_s, end_s)
         stream.log(
             "report", rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True
@@ -483,6 +488,26 @@ def session_rrd(
         rrd.log_residuals(FIT_SET, fit_time_s, result.residual_mps2, wheel_angle_rad(result))
         yield rrd
         stream.send_blueprint(session_blueprint(start_s, end_s, tuple(rrd.residual_sets)))
+
+
+def _log_gyro_rate(stream, result, recording, shift_s: float, every: int) -> None:
+    """``/spin/omega_gyro_radps``: ω as the gyro measures it, (ω_meas − b)·w/|w|²."""
+    gyro = getattr(recording, "gyro_radps", None)
+    block = None if result.assessment is None else result.assessment.gyro
+    if gyro is None or block is None:
+        return
+    w = block.scale * block.axis
+    fitted = np.searchsorted(recording.time_s, result.time_s + shift_s)[::every]
+    fitted = fitted[fitted < recording.time_s.size]
+    rows = gyro[fitted]
+    ok = np.all(np.isfinite(rows), axis=1)
+    omega = (rows[ok] - block.bias_radps) @ w / (w @ w)
+    stream.log("spin/omega_gyro_radps", rr.SeriesLines(names=["ω (gyro)"]), static=True)
+    stream.send_columns(
+        "spin/omega_gyro_radps",
+        indexes=[_time_column(recording.time_s[fitted][ok])],
+        columns=rr.Scalars.columns(scalars=omega),
+    )
 
 
 def write_session_rrd(
