@@ -159,3 +159,17 @@ def test_an_axis_exactly_radial_leaves_the_other_two_gains_undetermined():
     session = H.axis_exactly_radial(_rng(12))
     result = _run(session.recording)
     _right(session, result, undetermined=("gain_y", "gain_z", "offset_y_mps2", "offset_z_mps2"))
+
+
+def test_a_signal_the_model_cannot_describe_is_refused_as_a_misfit():
+    # 1 m/s² at twice the wheel frequency on one axis (a loose mount rattling with the
+    # turn): no parameter of the model makes it, and a fit that converges anyway leaves
+    # it at the wheel's harmonics, 9× the sensor's noise.
+    session = H.clean(_rng(13))
+    rec = session.recording
+    t = rec.time_s
+    omega = session.omega_radps
+    theta = np.concatenate([[0.0], np.cumsum(0.5 * (omega[1:] + omega[:-1]) * np.diff(t))])
+    extra = np.zeros_like(rec.accel_mps2)
+    extra[:, 1] = 1.0 * np.sin(2 * theta)
+    _refused(replace(rec, accel_mps2=rec.accel_mps2 + extra), "misfit", "harmonics")

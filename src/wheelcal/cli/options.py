@@ -77,6 +77,8 @@ GATE_FLAGS = {
     "offset_tolerance_g": "warn when an offset exceeds this many g (default 0.1)",
     "mean_gain_tolerance": "warn when the mean gain is further than this from 1 (default 0.05)",
     "unexplained_ratio": "warn when the residual exceeds this × the noise floor (default 1.5)",
+    "max_harmonic_ratio": "refuse when the residual at the wheel harmonics exceeds this × "
+    "the noise floor (default 5)",
 }
 
 

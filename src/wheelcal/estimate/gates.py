@@ -23,7 +23,10 @@ driven rather than free.  Two bands (defaults justified in the README,
   spline of ϑ) would move a gain or offset significantly and by more than its
   σ (:mod:`wheelcal.estimate.motion_check`), even on a shortened window, and
   there is no gyroscope to follow the motion;
-* ``turns`` — fewer than 10 turns in the window.
+* ``turns`` — fewer than 10 turns in the window;
+* ``misfit`` — the residual at the wheel's harmonics (what the model should
+  have explained) exceeds ``max_harmonic_ratio`` × the independent noise
+  floor: the fit does not describe the data at all, whatever it converged to.
 
 **Warn** (exit 0, the warning names the cause and the fix): a gain or offset
 outside datasheet tolerances; the mean gain γ̄ far from 1 (a radius error
@@ -65,6 +68,7 @@ class Gates:
     motion_shift_sigma: float = 1.0
     max_window_s: float = 300.0
     min_window_s: float = 20.0
+    max_harmonic_ratio: float = 5.0
     # warn
     gain_tolerance: float = 0.05
     offset_tolerance_g: float = 0.1
@@ -87,6 +91,7 @@ class Gates:
             "mean_gain_tolerance",
             "max_window_s",
             "min_window_s",
+            "max_harmonic_ratio",
         ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -293,6 +298,22 @@ def noise_warnings(noise: NoiseReference, gates: Gates) -> list[str]:
         f"{ratio:.1f}× the sensor's noise {source} ({noise.floor_mps2[axis]:.3g} m/s²): "
         f"{unexplained:.3g} m/s² is left unexplained; {cause}"
     ]
+
+
+def refuse_misfit(source: str, noise: NoiseReference, gates: Gates) -> None:
+    """The ``misfit`` gate: structure the model leaves at the wheel harmonics, ≫ the noise."""
+    ratio = noise.harmonic_mps2 / np.maximum(noise.floor_mps2, 1e-12)
+    axis = int(np.argmax(ratio))
+    if ratio[axis] > gates.max_harmonic_ratio:
+        raise CalibrationRefused(
+            source,
+            "misfit",
+            f"the model does not describe the data: on {AXES[axis]} it leaves "
+            f"{noise.harmonic_mps2[axis]:.3g} m/s² at the wheel's harmonics, "
+            f"{ratio[axis]:.0f}× the sensor's noise ({noise.floor_mps2[axis]:.3g} m/s²)",
+            "check the window (--start-s/--end-s) and the setup; `wheelcal diagnose` "
+            "looks for the effect the model lacks",
+        )
 
 
 def rest_warnings(checks: tuple[RestCheck, ...], gates: Gates) -> list[str]:

@@ -130,11 +130,18 @@ class JointFit:
             return None
         return SpinSpline(float(tc[0]), float(tc[-1]), self.spline_spacing_s)
 
-    def layout_for(self, recording: Recording) -> ParameterLayout:
-        """Free parameters for this configuration and window (spline, gyro included)."""
-        t = recording.time_s
+    def layout_for(
+        self, recording: Recording, frame: tuple[float, float] | None = None
+    ) -> ParameterLayout:
+        """Free parameters for this configuration and window (spline, gyro included).
+
+        ``frame`` (start, end in recording time) is the window that sets the time
+        origin and the spline's knots; default: the recording's first and last sample.
+        """
+        start, end = frame or (float(recording.time_s[0]), float(recording.time_s[-1]))
+        centre = 0.5 * (start + end)
         motion = []
-        spline = self._spline(t - 0.5 * (t[0] + t[-1]))
+        spline = self._spline(np.array([start - centre, end - centre]))
         if spline is not None:
             motion.append(spline)
         if self.use_gyro:
@@ -187,19 +194,23 @@ class JointFit:
         recording: Recording,
         initial: CalibrationParams | None = None,
         guess: InitialGuess | None = None,
+        frame: tuple[float, float] | None = None,
     ) -> CalibrationResult:
         """Calibrate one recording (already cut to its free-spin window).
 
         ``initial`` starts from given parameters; ``guess`` reuses a
-        :meth:`start` already computed for this window.
+        :meth:`start` already computed for this window.  ``frame`` (start,
+        end in recording time) keeps the time origin and the spline's knots of a
+        larger window when refitting a subset of it from its ``initial``.
         """
         info = self._checked_info(recording)
         t = recording.time_s
-        centre = 0.5 * (t[0] + t[-1])
+        frame = frame or (float(t[0]), float(t[-1]))
+        centre = 0.5 * (frame[0] + frame[1])
         tc = t - centre
         v = recording.accel_mps2
         gravity = info.gravity_or_standard_mps2
-        layout = self.layout_for(recording)
+        layout = self.layout_for(recording, frame)
         gyro_t, gyro = gyro_samples(recording, tc) if self.use_gyro else (None, None)
         notes: list[str] = []
         if initial is None and self.effects:

@@ -35,6 +35,7 @@ from wheelcal.estimate.gates import (
     refuse_few_turns,
     refuse_gain_scale,
     refuse_implausible,
+    refuse_misfit,
     refuse_undersampled,
     rest_warnings,
     tolerance_warnings,
@@ -268,10 +269,9 @@ def _without_disturbances(
     bad = bad | np.concatenate([[False], bad[:-1]]) | np.concatenate([bad[1:], [False]])
     keep = ~bad[block]
     kept = window.select(keep)
-    # The same first and last sample keep the time origin and the spline's knots, so
-    # the fit restarts where it was; a window cut at an end starts afresh.
-    same_frame = bool(keep[0] and keep[-1])
-    refit = fitter.fit(kept, initial=result.params if same_frame else None)
+    # The refit keeps the window's time origin and knots: it restarts where it was.
+    frame = (float(window.time_s[0]), float(window.time_s[-1]))
+    refit = fitter.fit(kept, initial=result.params, frame=frame)
     seconds = float(np.sum(~keep) / window.rate_hz)
     note = (
         f"left out {seconds:.1f} s where the residual exceeded {DISTURBANCE_FACTOR:g}× the "
@@ -301,8 +301,8 @@ def _clear_of_rails(
     if not np.any(near):
         return result, window, ""
     kept = window.select(~near)
-    same_frame = bool(not near[0] and not near[-1])  # see _without_disturbances
-    refit = fitter.fit(kept, initial=result.params if same_frame else None)
+    frame = (float(window.time_s[0]), float(window.time_s[-1]))  # see _without_disturbances
+    refit = fitter.fit(kept, initial=result.params, frame=frame)
     note = (
         f"left out {int(near.sum())} samples that the model puts within "
         f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"
@@ -361,6 +361,7 @@ def assess(
     refuse_implausible(result, gates, undetermined)
     bad = {name for name, _ in undetermined}
     noise = noise_reference(result.residual_mps2, _theta(result), rests)
+    refuse_misfit(result.source, noise, gates)
     checks = () if bad else check_rests(result, rests, gates.rest_alpha)
     warnings = (
         tolerance_warnings(result, gates, bad)
