@@ -33,7 +33,13 @@ def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[SessionInput
             accel_unit=options.accel_unit,
         )
         start, end = cal.window_s
-        effects = tuple(make_effect(name, settings) for name, settings in cal.effects.items())
+        # A temperature-following offset needs its recording's temperature series, not
+        # just its settings: the sensor closure leaves it out (it is session-local anyway).
+        effects = tuple(
+            make_effect(name, settings)
+            for name, settings in cal.effects.items()
+            if name != "temperature_offset"
+        )
         local = tuple(e for e in effects if not e.sensor_intrinsic)
         out.append(SessionInput(recording.window(start, end), cal.mounting_id, local))
     return out

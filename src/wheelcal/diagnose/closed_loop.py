@@ -23,6 +23,7 @@ from wheelcal.diagnose.score import ScoreTest, score_tests
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model.effects import Effect, default_candidates
+from wheelcal.model.temperature_offset import temperature_candidates
 from wheelcal.recording import Recording
 
 #: Parameters whose base-model bias is reported in σ units.
@@ -64,8 +65,12 @@ class ClosedLoop:
         current = base
         steps: list[Step] = []
         tests: list[ScoreTest] = []
+        # A measured temperature is a covariate the offsets may follow (model/temperature_offset).
+        candidates = self.candidates + temperature_candidates(
+            recording.time_s - base.centre_s, getattr(recording, "temperature_c", None)
+        )
         for _ in range(self.max_steps):
-            tests = score_tests(current, recording, self.candidates)
+            tests = score_tests(current, recording, candidates)
             usable = [t for t in tests if t.identifiable]
             if not usable:
                 break
