@@ -1,0 +1,286 @@
+"""Mutation check: do the CI tests notice deliberate errors in the physics and the σ.
+
+Applies each deliberate error of issue 12's audit to a temporary copy of the
+repository (the tracked files of the working tree), runs the CI test selection
+(``pytest`` with the project's default options, i.e. everything not ``slow``)
+against that copy, and reports which tests fail.  A mutation that no test
+catches is a hole in the suite: the script exits 1 when any survives.
+
+    python tools/mutation_check.py                    # all mutations, stop each run at 1st failure
+    python tools/mutation_check.py --all-failures     # full runs: every failing test is listed
+    python tools/mutation_check.py --only sigma_x1.25 --tests tests/test_accuracy.py
+    python tools/mutation_check.py --baseline         # the unmutated copy must pass first
+
+Each mutation is a set of exact text replacements; each replacement must match
+exactly once, so a refactor that moves the code makes the check fail loudly
+instead of testing nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Replacement:
+    """Replace ``old`` (which must occur exactly once) by ``new`` in ``path``."""
+
+    path: str
+    old: str
+    new: str
+
+
+@dataclass(frozen=True)
+class Mutation:
+    """A named deliberate error: one or more replacements applied together."""
+
+    name: str
+    description: str
+    replacements: tuple[Replacement, ...]
+
+
+_INFO = "src/wheelcal/estimate/information.py"
+_BENCH = "src/wheelcal/model/bench.py"
+_FORWARD = "src/wheelcal/model/forward.py"
+_COV_LINE = "    cov = (v[:, keep] / w[keep]) @ v[:, keep].T / np.outer(scale, scale)\n"
+
+
+def _scale_sigma(factor: float) -> tuple[Replacement, ...]:
+    variance = factor * factor
+    return (Replacement(_INFO, _COV_LINE, _COV_LINE.rstrip("\n") + f" * {variance!r}\n"),)
+
+
+MUTATIONS: tuple[Mutation, ...] = (
+    Mutation(
+        "sigma_x1.25",
+        "every reported σ and the CRLB at the truth ×1.25 (information.py, one line)",
+        _scale_sigma(1.25),
+    ),
+    Mutation(
+        "sigma_x0.8",
+        "every reported σ and the CRLB at the truth ×0.8 (information.py, one line)",
+        _scale_sigma(0.8),
+    ),
+    Mutation(
+        "tangential_sign",
+        "sign of the tangential term r·ω̇ (model and forward Jacobian, consistently)",
+        (
+            Replacement(
+                _BENCH,
+                "a[:, 1] = radius_m * kin.omega_dot_radps2 + g_sin * s",
+                "a[:, 1] = -radius_m * kin.omega_dot_radps2 + g_sin * s",
+            ),
+            Replacement(
+                _BENCH, "out[:, 1] = kin.omega_dot_radps2", "out[:, 1] = -kin.omega_dot_radps2"
+            ),
+            Replacement(
+                _FORWARD,
+                "day += radius_m * d_omega_dot",
+                "day -= radius_m * d_omega_dot",
+            ),
+        ),
+    ),
+    Mutation(
+        "centripetal_sign",
+        "sign of the centripetal term r·ω² (model and forward Jacobian, consistently)",
+        (
+            Replacement(
+                _BENCH,
+                "a[:, 0] = radius_m * kin.omega_radps**2 + g_sin * c",
+                "a[:, 0] = -radius_m * kin.omega_radps**2 + g_sin * c",
+            ),
+            Replacement(
+                _BENCH, "out[:, 0] = kin.omega_radps**2", "out[:, 0] = -kin.omega_radps**2"
+            ),
+            Replacement(
+                _FORWARD,
+                "dax += d_omega * ((2 * radius_m) * omega)",
+                "dax -= d_omega * ((2 * radius_m) * omega)",
+            ),
+        ),
+    ),
+    Mutation(
+        "gravity_sin_sign",
+        "sign of g·sinα·sinϑ in a_Y (model and forward Jacobian, consistently)",
+        (
+            Replacement(
+                _BENCH,
+                "a[:, 1] = radius_m * kin.omega_dot_radps2 + g_sin * s",
+                "a[:, 1] = radius_m * kin.omega_dot_radps2 - g_sin * s",
+            ),
+            Replacement(
+                _BENCH,
+                "out[:, 1] = force.g_cos_tilt * force.sin_theta",
+                "out[:, 1] = -force.g_cos_tilt * force.sin_theta",
+            ),
+            Replacement(
+                _BENCH,
+                "out[:, 1] = np.sin(tilt_rad) * force.sin_theta",
+                "out[:, 1] = -np.sin(tilt_rad) * force.sin_theta",
+            ),
+            Replacement(
+                _FORWARD,
+                "day = d_theta * (force.g_sin_tilt * force.cos_theta)",
+                "day = d_theta * (-force.g_sin_tilt * force.cos_theta)",
+            ),
+        ),
+    ),
+)
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """Outcome of one pytest run on a (possibly mutated) copy."""
+
+    name: str
+    returncode: int
+    failed: tuple[str, ...]
+    summary: str
+    seconds: float
+
+
+def _copy_tree(destination: Path) -> None:
+    """Copy the tracked files of the working tree (as they are now) to ``destination``."""
+    listed = subprocess.run(
+        ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+        cwd=REPO,
+        check=True,
+        capture_output=True,
+    ).stdout.split(b"\0")
+    for raw in listed:
+        if not raw:
+            continue
+        relative = raw.decode()
+        source = REPO / relative
+        if not source.is_file():
+            continue
+        target = destination / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(source, target)
+
+
+def _apply(copy: Path, mutation: Mutation) -> None:
+    for rep in mutation.replacements:
+        path = copy / rep.path
+        text = path.read_text()
+        count = text.count(rep.old)
+        if count != 1:
+            raise SystemExit(
+                f"mutation {mutation.name}: {rep.path} holds {count} copies of {rep.old!r} "
+                "(expected exactly 1) — update tools/mutation_check.py to the current code"
+            )
+        path.write_text(text.replace(rep.old, rep.new))
+
+
+_FAILED = re.compile(r"^(?:FAILED|ERROR) (\S+)", re.MULTILINE)
+_SUMMARY = re.compile(r"^=+ (.*(?:passed|failed|error).*) =+$", re.MULTILINE)
+
+
+def _run_pytest(copy: Path, name: str, tests: list[str], stop_first: bool) -> RunResult:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(copy / "src") + os.pathsep + env.get("PYTHONPATH", "")
+    env["PYTHONDONTWRITEBYTECODE"] = "1"
+    where = subprocess.run(
+        [sys.executable, "-c", "import wheelcal; print(wheelcal.__file__)"],
+        cwd=copy,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    if not where.startswith(str(copy)):
+        raise SystemExit(f"the copy's wheelcal is not the one imported ({where})")
+    command = [sys.executable, "-m", "pytest", "-q", "-rfE", "-p", "no:cacheprovider", *tests]
+    if stop_first:
+        command.append("-x")
+    start = time.perf_counter()
+    done = subprocess.run(command, cwd=copy, env=env, capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    failed = tuple(dict.fromkeys(_FAILED.findall(done.stdout)))
+    summaries = _SUMMARY.findall(done.stdout)
+    tail = (done.stdout.strip().splitlines() or ["(no output)"])[-1]
+    summary = summaries[-1] if summaries else tail
+    return RunResult(name, done.returncode, failed, summary, seconds)
+
+
+def _check(name: str, mutation: Mutation | None, tests: list[str], stop_first: bool) -> RunResult:
+    with tempfile.TemporaryDirectory(prefix=f"wheelcal-mutant-{name}-") as tmp:
+        copy = Path(tmp)
+        _copy_tree(copy)
+        if mutation is not None:
+            _apply(copy, mutation)
+        return _run_pytest(copy, name, tests, stop_first)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the chosen mutations; exit status 1 when one survives."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--only", action="append", default=[], help="run only this mutation")
+    parser.add_argument("--tests", nargs="*", default=[], help="pytest arguments (default: CI)")
+    parser.add_argument(
+        "--all-failures", action="store_true", help="run each suite fully and list every failure"
+    )
+    parser.add_argument(
+        "--baseline", action="store_true", help="first check that the unmutated copy passes"
+    )
+    parser.add_argument("--list", action="store_true", help="list the mutations and exit")
+    args = parser.parse_args(argv)
+    if args.list:
+        for m in MUTATIONS:
+            print(f"{m.name:18s} {m.description}")
+        return 0
+    chosen = [m for m in MUTATIONS if not args.only or m.name in args.only]
+    unknown = set(args.only) - {m.name for m in MUTATIONS}
+    if unknown:
+        parser.error(f"unknown mutation(s): {', '.join(sorted(unknown))}")
+    stop_first = not args.all_failures
+    if args.baseline:
+        base = _check("baseline", None, args.tests, stop_first)
+        print(f"baseline: {base.summary} in {base.seconds:.0f} s", flush=True)
+        if base.returncode != 0:
+            print("the unmutated copy fails: fix that first", file=sys.stderr)
+            return 1
+    rows = []
+    for mutation in chosen:
+        result = _check(mutation.name, mutation, args.tests, stop_first)
+        rows.append((mutation, result))
+        caught = "caught" if result.failed else "SURVIVED"
+        print(
+            f"{mutation.name}: {caught} — {result.summary} in {result.seconds:.0f} s",
+            flush=True,
+        )
+        for test in result.failed[:12]:
+            print(f"    {test}", flush=True)
+    print()
+    scope = "first failure" if stop_first else "failing CI tests"
+    print(f"| deliberate error | {scope} | run time (s) |")
+    print("|---|---|---|")
+    for mutation, result in rows:
+        shown = (
+            f"{len(result.failed)}: " + ", ".join(t.split("::")[-1] for t in result.failed[:3])
+            if result.failed
+            else "**none**"
+        )
+        if not stop_first and len(result.failed) > 3:
+            shown += ", …"
+        print(f"| {mutation.description} | {shown} | {result.seconds:.0f} |")
+    survivors = [m.name for m, r in rows if not r.failed]
+    if survivors:
+        print(f"\nsurvived: {', '.join(survivors)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
