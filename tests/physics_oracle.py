@@ -46,8 +46,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation as SciRotation
 
 #: Step of the central differences in time (s).  With the 4th-order stencil the
-#: truncation error is ~h⁴ r ω⁶/90 (≈ 1e-10 m/s² at r = 0.3 m, ω = 15 rad/s) and
-#: the round-off ~ε r / h² (≈ 1e-10 m/s²).
+#: truncation error is ~h⁴ r ω⁶/90 (≈ 4e-8 m/s² at r = 0.28 m, ω = 15 rad/s) and
+#: the round-off ~ε r ϑ / h² (≈ 1e-8 m/s² after 300 rad of spin): ~1e-9 of the signal.
 STEP_S = 1e-3
 
 
