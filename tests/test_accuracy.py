@@ -22,13 +22,14 @@ are fixed, so a pass is reproducible.
 Medium tier (default selection, ~20 s on 2 cores): 120 runs per noise colour
 (disjoint seeds: the 20 Hz noise is the white innovations filtered, so equal
 seeds would give correlated runs).  Resolution, the interval's half-width on
-a σ ratio: ±4.6 % for all 15 parameters of both colours (D = 3570), ±6.5 % per
+a σ ratio: ±4.6 % for all 15 parameters of both colours (D = 3570), ±6.6 % per
 colour (D = 1785), ±10.4 % per group of 3 over both colours (D = 714), ±18 %
 for the tilt alone (D = 238).  Every σ ×1.25 or ×0.8 (a scaled covariance in
 ``information.py``) is therefore far outside; a ±10 % error fails the pooled
-checks.  Measured (this code, 120 + 120 runs): all parameters std/CRLB 1.02,
-reported/observed 0.98.  Per parameter, |bias| < 5/√n σ_CRLB (z = 5: 99.99 %
-over 30 parameters) and std/σ_CRLB inside the χ²_{n−1} interval at 1e-4/15.
+checks.  Measured (this code, 120 + 120 runs): all parameters std/CRLB 1.012,
+reported/observed 0.988; per group 0.99–1.03 and 0.97–1.01.  Per parameter,
+|bias| < 5/√n σ_CRLB (z = 5: 99.99 % over 30 parameters) and std/σ_CRLB inside
+the χ²_{n−1} interval at 1e-4/15.
 
 The slow version runs the same checks with 200 runs per case at σ_n = 0.08 and
 0.2, white and 20 Hz.
