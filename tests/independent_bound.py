@@ -18,7 +18,7 @@ principles:
   the first p samples with their stationary covariance (autocovariance from the
   impulse response of 1/A), the rest through the innovation filter A(z), whose
   output is white with σ_e² = σ²/Σh_j²;
-* the covariance is numpy's inverse of the diagonally scaled Fisher matrix.
+* the covariance is numpy's (pseudo-)inverse of the diagonally scaled Fisher matrix.
 
 The scenario's bounds are cached (one per truth, sampling plan and noise).
 """
@@ -108,21 +108,71 @@ def _steps(x: np.ndarray, half_window_s: float) -> np.ndarray:
     return np.array([*spin, 1e-4, 1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6, 1e-5, 1e-5, 1e-5])
 
 
+def _effect_steps(effect) -> np.ndarray:
+    """Steps for an effect's parameters (all enter linearly or nearly so)."""
+    if effect.name == "gyro":  # w (~1), bias (rad/s), G (rad/s per m/s², ~2e-4)
+        return np.array([1e-6] * 6 + [1e-8] * (effect.size - 6))
+    if effect.name == "imbalance":
+        return np.full(effect.size, 1e-4)
+    return np.full(effect.size, 1e-5)  # spline coefficients (rad) and others
+
+
 def finite_difference_jacobian(
-    truth: CalibrationParams, t_s: np.ndarray, effects: tuple = (), predict=model_predict
+    truth: CalibrationParams,
+    t_s: np.ndarray,
+    effects: tuple = (),
+    free_effects: tuple = (),
+    predict=model_predict,
 ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
-    """Names, truth values and ∂v/∂x (P, N, 3) by central differences of the prediction."""
-    x0 = truth_vector(truth)
-    steps = _steps(x0, float(np.max(np.abs(t_s))))
-    jac = np.empty((x0.size, t_s.size, 3))
+    """Names, truth values and ∂v/∂x (P, N, 3 or 6) by central differences of the prediction.
+
+    ``effects`` are held at their true values; ``free_effects`` are fitted (their
+    parameters follow the paper's, named ``<effect>.<parameter>``).  A free
+    :class:`~wheelcal.model.effects.GyroReading` adds the gyro stream: columns
+    3–5 of the last axis are its predicted reading w ω + b + G_X a_X + G_Y a_Y,
+    with ω and a of the model at the perturbed parameters.
+    """
+    from wheelcal.model import evaluate
+
+    x_paper = truth_vector(truth)
+    size = x_paper.size
+    gyro = next((e for e in free_effects if e.name == "gyro"), None)
+    in_model = tuple(e for e in (*effects, *free_effects) if e.name != "gyro")
+    x0 = np.concatenate([x_paper, *(truth.effect(e.name, e.size) for e in free_effects)])
+    steps = np.concatenate(
+        [_steps(x_paper, float(np.max(np.abs(t_s)))), *(_effect_steps(e) for e in free_effects)]
+    )
+    names = reported_names(truth.spin.degree) + tuple(
+        f"{e.name}.{p}" for e in free_effects for p in e.param_names
+    )
+
+    def stream(x: np.ndarray) -> np.ndarray:
+        values, start = dict(truth.effects), size
+        for e in free_effects:
+            values[e.name] = x[start : start + e.size]
+            start += e.size
+        params = _params(x[:size], truth).with_changes(effects=values)
+        if gyro is None:
+            return predict(params, t_s, effects=in_model)
+        out = evaluate(params, t_s, effects=in_model)
+        reading = gyro.reading(values["gyro"], out.kinematics.omega_radps, out.force.accel_mps2)
+        return np.concatenate([out.predicted_mps2, reading], axis=1)
+
+    jac = np.empty((x0.size, t_s.size, 3 if gyro is None else 6))
     for p, h in enumerate(steps):
         v = {}
-        for m in (-2, -1, 1, 2):
+        # 4th order for the paper's parameters; 2nd order (error ~h², 1e-10 here) for the
+        # effects', which enter (nearly) linearly and may be many (a spline's).
+        stencil = (-2, -1, 1, 2) if p < size else (-1, 1)
+        for m in stencil:
             x = x0.copy()
             x[p] += m * h
-            v[m] = predict(_params(x, truth), t_s, effects=effects)
-        jac[p] = (v[-2] - 8 * v[-1] + 8 * v[1] - v[2]) / (12 * h)
-    return reported_names(truth.spin.degree), x0, jac
+            v[m] = stream(x)
+        if p < size:
+            jac[p] = (v[-2] - 8 * v[-1] + 8 * v[1] - v[2]) / (12 * h)
+        else:
+            jac[p] = (v[1] - v[-1]) / (2 * h)
+    return names, x0, jac
 
 
 def impulse_response(ar_polynomial: np.ndarray, length: int = 20_000) -> np.ndarray:
@@ -158,23 +208,36 @@ def independent_crlb(
     std_mps2,
     ar_polynomial=None,
     effects: tuple = (),
+    free_effects: tuple = (),
+    gyro_std_radps: float | None = None,
 ) -> IndependentBound:
-    """CRLB of the paper's parameters (+ nothing else free) at ``truth`` for samples at ``t_s``.
+    """CRLB of the paper's parameters (and ``free_effects``') at ``truth`` for samples at ``t_s``.
 
     ``std_mps2``: marginal noise std per axis (or one number); ``ar_polynomial``:
     ``None`` (white) or A(z) = [1, a₁, …] of each axis's stationary AR noise.
     ``effects`` present in the truth (their values in ``truth.effects``) are
-    held at their true values, not fitted.
+    held at their true values, not fitted.  With a GyroReading among
+    ``free_effects`` the gyro stream (white noise ``gyro_std_radps`` per axis,
+    independent of the accelerometer's) adds its information.
     """
     t = np.asarray(t_s, dtype=float)
-    names, x0, jac = finite_difference_jacobian(truth, t, effects)
+    names, x0, jac = finite_difference_jacobian(truth, t, effects, free_effects)
     std = np.broadcast_to(np.asarray(std_mps2, dtype=float), (3,))
     fisher = np.zeros((x0.size, x0.size))
     for axis in range(3):
         jw = whiten_columns(jac[:, :, axis], std[axis], ar_polynomial)
         fisher += jw @ jw.T
+    if jac.shape[2] == 6:
+        if gyro_std_radps is None:
+            raise ValueError("a fitted gyro needs gyro_std_radps")
+        g = jac[:, :, 3:].reshape(x0.size, -1) / gyro_std_radps
+        fisher += g @ g.T
+    # numpy's (pseudo-)inverse of the diagonally scaled matrix: the inverse when F is
+    # regular; with a free spline the polynomial's low coefficients are redundant with it,
+    # and the bound of the identifiable parameters is the pseudo-inverse's.
     scale = np.sqrt(np.diag(fisher))
-    cov = np.linalg.inv(fisher / np.outer(scale, scale)) / np.outer(scale, scale)
+    cov = np.linalg.pinv(fisher / np.outer(scale, scale), rcond=1e-12, hermitian=True)
+    cov /= np.outer(scale, scale)
     return IndependentBound(names=names, values=x0, covariance=cov, fisher=fisher)
 
 

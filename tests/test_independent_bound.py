@@ -91,3 +91,52 @@ def test_offset_information_is_the_closed_form(name):
             # Other free parameters can only add to the bound of a constant term.
             assert independent.std_of(name_o) >= std[axis] / np.sqrt(n)
             assert analytic.std_of(name_o) >= std[axis] / np.sqrt(n)
+
+
+def _gyro_case(name: str, kind: str):
+    from gyro_truth import gyro_truth_values
+    from wheelcal.estimate.noise_model import NoiseModel
+    from wheelcal.model.effects import GyroReading, Imbalance, SpinSpline
+    from wheelcal.simulate import GyroSpec, table2
+
+    spec = GyroSpec()
+    scenario = table1() if name == "table1" else table2(rng=np.random.default_rng(3))
+    t = scenario.centred_times_s()
+    if kind == "spline":
+        effect = SpinSpline(t[0], t[-1], 2.0)
+        values = np.zeros(effect.size)
+    else:
+        effect, values = Imbalance(), np.array([0.4 * np.cos(0.7), 0.4 * np.sin(0.7)])
+    truth = scenario.truth.with_changes(
+        effects={"gyro": gyro_truth_values(spec, scenario.truth), effect.name: values}
+    )
+    noise = NoiseModel.white(scenario.noise.std)
+    gyro_std = spec.noise_std_radps(scenario.rate_hz)
+    return scenario, truth, (effect, GyroReading()), noise, gyro_std
+
+
+@pytest.mark.parametrize(
+    ("name", "kind"), [("table1", "imbalance"), ("table2", "imbalance"), ("table1", "spline")]
+)
+def test_analytic_crlb_with_gyro_equals_the_independent_one(name, kind):
+    """Accelerometer + gyro streams, with an imbalance or a spline wheel angle fitted.
+
+    With a spline the polynomial's ϑ₀, ω₀–ω₂ are redundant with it (∞ in the
+    analytic bound); every other parameter must agree.
+    """
+    from independent_bound import independent_crlb
+    from wheelcal.estimate.crlb import cramer_rao_bound_with_gyro
+    from wheelcal.estimate.noise_model import NoiseModel
+
+    scenario, truth, effects, noise, gyro_std = _gyro_case(name, kind)
+    t = scenario.centred_times_s()
+    layout = ParameterLayout(effects=effects)
+    analytic = cramer_rao_bound_with_gyro(truth, t, noise, layout, NoiseModel.white(gyro_std))
+    independent = independent_crlb(
+        truth, t, scenario.noise.std, free_effects=effects, gyro_std_radps=gyro_std
+    )
+    assert set(analytic.names) == set(independent.names)
+    finite = [n for n in analytic.names if np.isfinite(analytic.std_of(n))]
+    assert len(finite) >= (23 if kind == "spline" else len(analytic.names))
+    ratio = {n: analytic.std_of(n) / independent.std_of(n) for n in finite}
+    assert all(abs(r - 1) < 0.01 for r in ratio.values()), ratio
