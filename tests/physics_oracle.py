@@ -159,3 +159,41 @@ def sensor_output(
         + np.outer(1 - np.exp(-t / warmup_tau_s), warmup_mps2)
     )
     return offset_t + gain_t * s
+
+
+def torqued_theta(
+    theta0_rad: float,
+    omega_coefficients,
+    sin_radps2: float,
+    cos_radps2: float,
+    t_start_s: float,
+    t_end_s: float,
+) -> Callable[[np.ndarray], np.ndarray]:
+    """ϑ(t) of a wheel whose base spin-down (eq. 2) is disturbed by a once-per-turn torque.
+
+    Newton for a rigid wheel: ϑ̈ = ω̇_base(t) + a sinϑ + b cosϑ (an off-centre mass
+    in gravity gives such a torque).  Integrated by scipy from ``t_start_s``,
+    starting on the steady forced response of a free rotor turning at ω:
+    Δϑ = −(a sinϑ + b cosϑ)/ω², Δω = −(a cosϑ − b sinϑ)/ω (differentiate the first
+    to get the second; its second derivative is the torque), so no spurious
+    constant change of speed is put in at the start.
+    """
+    from scipy.integrate import solve_ivp
+
+    base = polynomial_theta(theta0_rad, omega_coefficients)
+    coeffs = np.asarray(omega_coefficients, dtype=float)
+    dot = coeffs[1:] * np.arange(1, coeffs.size)  # ω̇_base(t) polynomial
+
+    def rhs(t, y):
+        torque = sin_radps2 * np.sin(y[0]) + cos_radps2 * np.cos(y[0])
+        return [y[1], np.polynomial.polynomial.polyval(t, dot) + torque]
+
+    th = float(base(np.array([t_start_s]))[0])
+    w = float(np.polynomial.polynomial.polyval(t_start_s, coeffs))
+    u = sin_radps2 * np.sin(th) + cos_radps2 * np.cos(th)
+    du = sin_radps2 * np.cos(th) - cos_radps2 * np.sin(th)
+    y0 = [th - u / w**2, w - du / w]
+    sol = solve_ivp(
+        rhs, (t_start_s, t_end_s), y0, method="DOP853", rtol=1e-12, atol=1e-12, dense_output=True
+    )
+    return lambda t: sol.sol(np.asarray(t, dtype=float))[0]
