@@ -140,3 +140,38 @@ def test_analytic_crlb_with_gyro_equals_the_independent_one(name, kind):
     assert len(finite) >= (23 if kind == "spline" else len(analytic.names))
     ratio = {n: analytic.std_of(n) / independent.std_of(n) for n in finite}
     assert all(abs(r - 1) < 0.01 for r in ratio.values()), ratio
+
+
+@pytest.mark.parametrize("bandwidth_hz", [None, 20.0])
+def test_analytic_crlb_with_sensor_and_spin_effects_equals_the_independent_one(bandwidth_hz):
+    """Free effects of the closed loop (warm-up, nonlinearity, gain drift, imbalance)."""
+    from independent_bound import independent_crlb
+    from wheelcal.estimate.crlb import cramer_rao_bound
+    from wheelcal.estimate.noise_model import NoiseModel
+    from wheelcal.model.effects import GainDrift, Imbalance, OffsetWarmup, QuadraticNonlinearity
+
+    scenario = _reversed(table1(NoiseSpec(0.08, bandwidth_hz=bandwidth_hz)))
+    effects = (OffsetWarmup(25.0), QuadraticNonlinearity(0), GainDrift(), Imbalance())
+    values = {
+        "offset_warmup": [0.05, -0.02, 0.03],
+        "nonlinearity_x": [1e-3],
+        "gain_drift": [1e-5, -2e-5, 0.0],
+        "imbalance": [0.05, -0.03],
+    }
+    truth = scenario.truth.with_changes(effects=values)
+    t = scenario.centred_times_s()
+    rate = scenario.rate_hz
+    noise = NoiseModel.from_ar(
+        scenario.noise.ar_polynomial(rate), scenario.noise.innovation_std(rate)
+    )
+    analytic = cramer_rao_bound(truth, t, noise, ParameterLayout(effects=effects))
+    independent = independent_crlb(
+        truth,
+        t,
+        scenario.noise.std,
+        butterworth_ar(bandwidth_hz, rate),
+        free_effects=effects,
+    )
+    assert analytic.names == independent.names
+    ratio = analytic.std / independent.std
+    assert np.all(np.abs(ratio - 1) < 0.01), dict(zip(analytic.names, ratio.round(4), strict=True))
