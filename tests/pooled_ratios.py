@@ -19,7 +19,7 @@ two-sided acceptance interval of :func:`acceptance`; a sampling scale factor c
 on every σ moves the ratio to c, so the interval's half-width is the
 deviation the test resolves (≈ z/√(2D): ±8 % for D = 1170 at 99.99 %).
 Reported covariances vary a little between runs (each fit estimates its own
-noise from ~54 000 residuals, 0.4 % relative), which the χ² ignores.
+noise from ~18 000 residuals per axis, ~0.5 % relative), which the χ² ignores.
 """
 
 from __future__ import annotations

@@ -5,7 +5,8 @@ model's whitening, ``information.covariance_from_fisher``, the reporting
 transform) must equal the bound rebuilt from finite differences of the
 prediction, the exact AR likelihood and numpy's inverse.  Measured agreement:
 1e-5 for white noise, ≤ 0.15 % for AR(2) noise (the analytic whitening drops
-the first p samples' information); asserted within 1 %.  A σ scaled by 1.25
+the first p samples' information), 1e-4 with the gyro stream and a spline
+wheel angle, 2e-9 with the gyro and an imbalance; asserted within 1 %.  A σ scaled by 1.25
 or 0.8 anywhere on the analytic path fails here at once.
 
 Closed forms: an offset multiplies a constant regressor, so its Fisher
