@@ -47,18 +47,19 @@ class FitSet:
 
 
 def _one_fit(task):
-    scenario, seed = task
+    scenario, seed, fitter = task
     recording = simulate(scenario, np.random.default_rng(seed)).recording
     try:
-        result = JointFit().fit(recording)
+        result = fitter.fit(recording)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError):
         return None
     return result.names, result.values, result.covariance
 
 
-def run_joint_fits(scenario, seeds, workers: int | None = None) -> FitSet:
-    """Fit one noisy recording of ``scenario`` per seed with the default JointFit."""
-    tasks = [(scenario, int(s)) for s in seeds]
+def run_joint_fits(scenario, seeds, workers: int | None = None, fitter=None) -> FitSet:
+    """Fit one noisy recording of ``scenario`` per seed (default: ``JointFit()``)."""
+    fitter = fitter if fitter is not None else JointFit()
+    tasks = [(scenario, int(s), fitter) for s in seeds]
     workers = workers or min(2, os.cpu_count() or 1)
     if workers > 1:
         with ProcessPoolExecutor(workers, initializer=worker_init) as pool:
