@@ -55,7 +55,7 @@ def _scenario(case: str):
     raise ValueError(case)
 
 
-def _truth_point(scenario, layout):
+def truth_point(scenario, layout):
     """The simulator's truth in ``layout``'s parametrisation (never the estimate's values).
 
     A drag spin-down is the polynomial of ϑ(t) closest to the true ϑ(t) over the
@@ -91,10 +91,10 @@ def _truth_point(scenario, layout):
     return truth.with_changes(spin=spin, effects=values)
 
 
-def _truth_bound(scenario, layout):
+def truth_bound_of(scenario, layout):
     """CRLB at the simulator's truth for ``layout`` (the found effects in the model)."""
     layout = ParameterLayout(effects=layout.effects)
-    point = _truth_point(scenario, layout)
+    point = truth_point(scenario, layout)
     return cramer_rao_bound(point, scenario.centred_times_s(), scenario_noise(scenario), layout)
 
 
@@ -106,14 +106,14 @@ def test_undeclared_effect_is_found_and_fixed(case):
     names = [s.test.effect.name for s in diagnosis.steps]
     assert names and names[0] == expected, names
     assert diagnosis.steps[0].test.p_corrected < 1e-3
-    bound = _truth_bound(scenario, diagnosis.final.layout)
+    bound = truth_bound_of(scenario, diagnosis.final.layout)
     truth = dict(zip(bound.names, bound.values, strict=True))
     final = diagnosis.final
     z = {n: (final.value_of(n) - truth[n]) / bound.std_of(n) for n in SENSOR}
     assert max(abs(v) for v in z.values()) < 4.0, z
     # The paper's model was really wrong (its fit lies > 3.5 σ_CRLB from the truth for some
     # parameter), and the reported base bias (base − final, in the final σ) points at it.
-    paper = _truth_bound(scenario, ParameterLayout())
+    paper = truth_bound_of(scenario, ParameterLayout())
     paper_truth = dict(zip(paper.names, paper.values, strict=True))
     base_off = {
         n: (diagnosis.base.value_of(n) - paper_truth[n]) / paper.std_of(n)
@@ -142,7 +142,7 @@ def test_two_effects_are_both_found():
     assert {"nonlinearity_x", "offset_warmup"} <= found
     assert all(s.test.p_corrected < 1e-3 for s in diagnosis.steps)
     name = "nonlinearity_x.k_per_mps2"
-    bound = _truth_bound(scenario, diagnosis.final.layout)
+    bound = truth_bound_of(scenario, diagnosis.final.layout)
     assert bound.values[bound.names.index(name)] == 1e-3
     k = diagnosis.final.value_of(name)
     assert abs(k - 1e-3) < 4 * bound.std_of(name), (k, bound.std_of(name))
