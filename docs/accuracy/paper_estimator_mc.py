@@ -9,8 +9,8 @@ per parameter, the observed std over σ_CRLB at the truth (the inefficiency
 factor F that ``tests/test_paper_estimator.py`` states in ``PAPER_OVER_CRLB``),
 the bias over σ_CRLB, and the bias's t statistic, bias / (std/√n).
 
-Run:  python docs/accuracy/paper_estimator_mc.py [--runs 60] [--workers 2]
-      (about 11 s per fit)
+Run:  python docs/accuracy/paper_estimator_mc.py [--runs 200] [--workers 2]
+      (about 1 s per fit)
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ def paper_monte_carlo(seeds, workers: int | None = None):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=60)
+    parser.add_argument("--runs", type=int, default=200)
     parser.add_argument("--first-seed", type=int, default=30000)
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
