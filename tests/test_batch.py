@@ -2,8 +2,10 @@
 
 import json
 import math
+import re
 import shutil
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -107,7 +109,14 @@ def test_batch_cli_exit_status_and_progress_lines(tmp_path, recordings, capsys):
     captured = capsys.readouterr()
     assert status == 1
     assert "zz_corrupt.mcap" in captured.err and "FAILED" in captured.err
-    assert "[" in captured.err and "ok" in captured.err  # plain log lines when not a terminal
+    # Plain log lines when not a terminal: one per session, counted 1/6 … 6/6, five `ok` lines
+    # naming each good recording and one FAILED line; no progress bar.
+    lines = [ln for ln in captured.err.splitlines() if re.match(r"\[\d+/\d+\] ", ln)]
+    assert sorted(int(re.match(r"\[(\d+)/6\] ", ln).group(1)) for ln in lines) == [1, 2, 3, 4, 5, 6]
+    ok = sorted(re.match(r"\[\d/6\] ok (\S+)", ln).group(1) for ln in lines if " ok " in ln)
+    assert [Path(s).name for s in ok] == [f"r{i}.mcap" for i in range(5)], lines
+    assert sum(" FAILED " in ln and "zz_corrupt.mcap" in ln for ln in lines) == 1, lines
+    assert "\r" not in captured.err and "sessions, " not in captured.err
     # The summary and report.md say the same (a failed session is not "calibrated now").
     assert "6 sessions: 5 calibrated, 1 failed" in captured.out
     assert "6 sessions: 5 calibrated, 1 failed." in (tmp_path / "out" / "report.md").read_text()

@@ -12,10 +12,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from truth_bound import scenario_noise
 from wheelcal.diagnose.closed_loop import ClosedLoop
 from wheelcal.estimate.crlb import cramer_rao_bound
-from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.model import ParameterLayout
+from wheelcal.model import ParameterLayout, SpinParams
 from wheelcal.model.effects import GainDrift, OffsetWarmup, QuadraticNonlinearity
 from wheelcal.simulate import NoiseSpec, simulate, table1
 from wheelcal.simulate.motion import DragSpin, ImbalancedSpin
@@ -55,24 +55,47 @@ def _scenario(case: str):
     raise ValueError(case)
 
 
-def _truth_bound(scenario, diagnosis):
-    """CRLB at the truth's sensor and bench with the found effects in the model."""
-    final = diagnosis.final
+def truth_point(scenario, layout):
+    """The simulator's truth in ``layout``'s parametrisation (never the estimate's values).
+
+    A drag spin-down is the polynomial of ϑ(t) closest to the true ϑ(t) over the
+    window, of the degree the layout fits (cubic plus the found extension); an
+    imbalance is the truth's base spin plus its (sin, cos) torque; an effect the
+    truth does not have is absent (zero).
+    """
     truth = scenario.truth
-    spin = final.params.spin if scenario.motion is not None else truth.spin
-    effects = {}
+    spin, truth_effects = truth.spin, dict(truth.effects)
+    effects = {e.name: e for e in layout.effects}
+    if isinstance(scenario.motion, DragSpin):
+        extension = effects.get("spin_extension")
+        degree = 3 + (extension.extra_degrees if extension is not None else 0)
+        t = scenario.centred_times_s()
+        coef = np.polynomial.polynomial.polyfit(
+            t, scenario.motion.kinematics(t).theta_rad, degree + 1
+        )
+        omega = coef[1:] * np.arange(1, degree + 2)
+        spin = SpinParams(theta0_rad=coef[0], omega_radps=omega[:4])
+        truth_effects["spin_extension"] = omega[4:]
+    elif isinstance(scenario.motion, ImbalancedSpin):
+        spin = scenario.motion.base
+        truth_effects["imbalance"] = [scenario.motion.sin_radps2, scenario.motion.cos_radps2]
+    elif scenario.motion is not None:
+        raise ValueError(f"no truth representation for {scenario.motion!r}")
     declared = {e.name: e for e in scenario.effects}
-    for e in final.layout.effects:
-        if e.name in truth.effects:  # the truth's values, in the found effect's parametrisation
-            effects[e.name] = e.values_from(truth.effects[e.name], declared[e.name])
+    values = {}
+    for name, e in effects.items():
+        if name in declared:  # the truth's values, in the found effect's parametrisation
+            values[name] = e.values_from(truth_effects[name], declared[name])
         else:
-            effects[e.name] = final.params.effect(e.name, e.size)
-    point = final.params.with_changes(
-        bench=truth.bench, sensor=truth.sensor, spin=spin, effects=effects
-    )
-    layout = ParameterLayout(effects=final.layout.effects)
-    noise = NoiseModel.white(scenario.noise.std)
-    return cramer_rao_bound(point, scenario.centred_times_s(), noise, layout)
+            values[name] = np.asarray(truth_effects.get(name, np.zeros(e.size)), float)
+    return truth.with_changes(spin=spin, effects=values)
+
+
+def truth_bound_of(scenario, layout):
+    """CRLB at the simulator's truth for ``layout`` (the found effects in the model)."""
+    layout = ParameterLayout(effects=layout.effects)
+    point = truth_point(scenario, layout)
+    return cramer_rao_bound(point, scenario.centred_times_s(), scenario_noise(scenario), layout)
 
 
 @pytest.mark.parametrize("case", ["drag", "imbalance", "nonlinearity", "warmup", "gain_drift"])
@@ -83,14 +106,24 @@ def test_undeclared_effect_is_found_and_fixed(case):
     names = [s.test.effect.name for s in diagnosis.steps]
     assert names and names[0] == expected, names
     assert diagnosis.steps[0].test.p_corrected < 1e-3
-    bound = _truth_bound(scenario, diagnosis)
+    bound = truth_bound_of(scenario, diagnosis.final.layout)
     truth = dict(zip(bound.names, bound.values, strict=True))
     final = diagnosis.final
     z = {n: (final.value_of(n) - truth[n]) / bound.std_of(n) for n in SENSOR}
     assert max(abs(v) for v in z.values()) < 4.0, z
-    # The paper's model's error is reported in σ units, and it was real for some parameter.
+    # The paper's model was really wrong (its fit lies > 3.5 σ_CRLB from the truth for some
+    # parameter), and the reported base bias (base − final, in the final σ) points at it.
+    paper = truth_bound_of(scenario, ParameterLayout())
+    paper_truth = dict(zip(paper.names, paper.values, strict=True))
+    base_off = {
+        n: (diagnosis.base.value_of(n) - paper_truth[n]) / paper.std_of(n)
+        for n in (*SENSOR, "tilt_deg")
+    }
+    worst = max(base_off, key=lambda n: abs(base_off[n]))
+    assert abs(base_off[worst]) > 3.5, base_off
     bias = diagnosis.base_bias_sigma()
     assert set(SENSOR) <= set(bias)
+    assert np.sign(bias[worst]) == np.sign(base_off[worst]) and abs(bias[worst]) > 2.5, bias
     # Final residual at the noise level.
     sigma = scenario.noise.std
     assert np.all(np.abs(final.residual_rms_mps2 / sigma - 1) < 0.03), final.residual_rms_mps2
@@ -108,8 +141,11 @@ def test_two_effects_are_both_found():
     found = {s.test.effect.name for s in diagnosis.steps}
     assert {"nonlinearity_x", "offset_warmup"} <= found
     assert all(s.test.p_corrected < 1e-3 for s in diagnosis.steps)
-    k = diagnosis.final.value_of("nonlinearity_x.k_per_mps2")
-    assert abs(k - 1e-3) < 4 * diagnosis.final.std_of("nonlinearity_x.k_per_mps2")
+    name = "nonlinearity_x.k_per_mps2"
+    bound = truth_bound_of(scenario, diagnosis.final.layout)
+    assert bound.values[bound.names.index(name)] == 1e-3
+    k = diagnosis.final.value_of(name)
+    assert abs(k - 1e-3) < 4 * bound.std_of(name), (k, bound.std_of(name))
 
 
 def test_cross_axis_is_reported_not_identifiable_from_one_mounting():

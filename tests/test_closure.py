@@ -44,26 +44,34 @@ def _pipeline(tmp_path, folder, diagnose):
     return load_pipeline(path)
 
 
-def test_pooled_test_finds_a_faint_nonlinearity_and_the_joint_fit_fixes_offsets(tmp_path):
+#: The faint nonlinearity of the README's example (per m/s²).
+FAINT_K_PER_MPS2 = 4e-4
+
+
+def faint_nonlinearity_run(tmp_path) -> dict:
+    """Ten Table II recordings of one sensor with a faint x nonlinearity, through the batch.
+
+    Returns the batch's outputs and the figures the README quotes
+    (``docs/closed_loop/faint_nonlinearity.py`` prints them): each recording's
+    noncentrality of the nonlinearity, (k/σ_CRLB(k))² at the truth; each single
+    recording's offset_x error in σ_CRLB of its (paper's-model) fit at the truth; the
+    pooled test; the joint fit's offsets against the joint model's CRLB at the truth.
+    """
     scenarios = []
     for i in range(10):
         rng = np.random.default_rng([2026, i])
         s = table2(rng=rng)
         truth = s.truth.with_changes(
             bench=BenchParams(s.truth.bench.tilt_rad, 0.28, FAINT_MOUNTING),
-            effects={"nonlinearity_x": [4e-4]},
+            effects={"nonlinearity_x": [FAINT_K_PER_MPS2]},
         )
         scenarios.append(
             (dataclasses.replace(s, truth=truth, effects=(QuadraticNonlinearity(0),)), rng)
         )
     folder = _write(tmp_path, scenarios, "S1", "m1")
     outcome = run_batch(_pipeline(tmp_path, folder, diagnose=False))
-    assert not outcome.failed
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     sensor = report["closure"]["sensors"][0]
-    tests = {t["effect"]: t for t in sensor["pooled_tests"]}
-    assert tests["nonlinearity_x"]["p_corrected"] < 1e-3
-    assert sensor["effects_found"] == ["nonlinearity_x"]
     # CRLB of the joint model at the truth, over the windows the batch actually fitted.
     cals = [
         json.loads(p.read_text()) for p in sorted((tmp_path / "out").glob("s*.calibration.json"))
@@ -80,18 +88,52 @@ def test_pooled_test_finds_a_faint_nonlinearity_and_the_joint_fit_fixes_offsets(
     bound = sensor_crlb(states, times, noises, (QuadraticNonlinearity(0),))
     truth_offsets = scenarios[0][0].truth.sensor.offset_mps2
     joint = sensor["sensor_fit"]["parameters"]
-    for a, o in zip("xyz", truth_offsets, strict=True):
-        name = f"offset_{a}_mps2"
-        assert abs(joint[name]["value"] - o) < 4 * bound[name], (name, joint[name], bound[name])
-    # The single recordings' offsets (the paper's model) miss: most by more than 4 σ_CRLB.
+    joint_z = {
+        f"offset_{a}_mps2": (joint[f"offset_{a}_mps2"]["value"] - o) / bound[f"offset_{a}_mps2"]
+        for a, o in zip("xyz", truth_offsets, strict=True)
+    }
+    # One recording's bound: the joint bound of two identical copies, times √2.
     single_bound = [
         sensor_crlb([s, s], [t, t], [n, n])["offset_x_mps2"] * np.sqrt(2)
         for s, t, n in zip(states, times, noises, strict=True)
     ]
-    z = [
+    single_z = [
         (c["parameters"]["offset_x_mps2"]["value"] - truth_offsets[0]) / b
         for c, b in zip(cals, single_bound, strict=True)
     ]
+    nonlinearity = (QuadraticNonlinearity(0),)
+    k_bound = [
+        sensor_crlb([s, s], [t, t], [n, n], nonlinearity)["nonlinearity_x.k_per_mps2"] * np.sqrt(2)
+        for s, t, n in zip(states, times, noises, strict=True)
+    ]
+    return {
+        "outcome": outcome,
+        "report": report,
+        "sensor": sensor,
+        "tests": {t["effect"]: t for t in sensor["pooled_tests"]},
+        "bound": bound,
+        "truth_offsets": truth_offsets,
+        "joint_z": joint_z,
+        "single_z": single_z,
+        "noncentrality": [(FAINT_K_PER_MPS2 / b) ** 2 for b in k_bound],
+    }
+
+
+def test_pooled_test_finds_a_faint_nonlinearity_and_the_joint_fit_fixes_offsets(tmp_path):
+    run = faint_nonlinearity_run(tmp_path)
+    assert not run["outcome"].failed
+    tests, sensor, bound = run["tests"], run["sensor"], run["bound"]
+    assert tests["nonlinearity_x"]["p_corrected"] < 1e-3
+    assert sensor["effects_found"] == ["nonlinearity_x"]
+    # The pooled χ² (1 dof) is a draw of the noncentral χ² whose noncentrality is the sum of the
+    # recordings' (k/σ_CRLB(k))² at the truth: inside its 99.9 % band.
+    lam = sum(run["noncentrality"])
+    lo, hi = stats.ncx2.ppf([0.0005, 0.9995], 1, lam)
+    assert lo < tests["nonlinearity_x"]["statistic"] < hi, (tests["nonlinearity_x"], lam)
+    for name, z in run["joint_z"].items():
+        assert abs(z) < 4, (name, z, bound[name])
+    # The single recordings' offsets (the paper's model) miss: most by more than 4 σ_CRLB.
+    z = run["single_z"]
     assert np.mean(np.abs(z)) > 4 and sum(abs(v) > 4 for v in z) >= 6, np.round(z, 1)
     assert (tmp_path / "out" / "sensors" / "S1.sensor.json").exists()
     assert "Closure: sensor `S1`" in (tmp_path / "out" / "report.md").read_text()
@@ -99,6 +141,7 @@ def test_pooled_test_finds_a_faint_nonlinearity_and_the_joint_fit_fixes_offsets(
     # says that the linear correction cannot express the nonlinearity.
     deliverable = json.loads((tmp_path / "out" / "sensors" / "S1.calibration.json").read_text())
     assert deliverable["pooling"]["method"] == "joint_sensor_fit"
+    truth_offsets = run["truth_offsets"]
     for a, o, v in zip("xyz", truth_offsets, deliverable["sensor"]["offset_mps2"], strict=True):
         assert abs(v - o) < 4 * bound[f"offset_{a}_mps2"]
     assert any("nonlinearity_x" in w for w in deliverable["fit"]["warnings"])

@@ -1,21 +1,24 @@
 """The paper's four-step estimator (Sec. III) against the simulator's truth.
 
-Reference data: the paper's Table I (σ_n = 0.08 m/s², 60 noise draws) and the
-Table II sensor with random hand spins, both from :mod:`wheelcal.simulate`.
+Reference data: the paper's Table I (σ_n = 0.08 m/s²) and the Table II sensor
+with random hand spins, both from :mod:`wheelcal.simulate`.
 
-Tolerances are 5σ, with σ the larger of
-* the paper's Table I standard deviation at σ_n = 0.08 m/s², and
-* the spread of *this* implementation, measured on Table I (40 noise draws,
-  seeds 0–39, literal pipeline; 30 draws with the exact T for steps B–D).
-
-Why the second column: the literal eq. (26) picks T'' by the excursion
-max r_y − min r_y, an extreme-value statistic of the noise.  At 0.08 m/s² it
-leaves T'' off by 0.4° rms (1.1° at worst in 40 draws), and steps B–C cannot
-undo it: ϑ₀ and the misalignment inherit it (σ ≈ 0.3° instead of the paper's
-0.03°), and so do γ_x, γ_z and the offsets.  Given the exact T, steps B–D do
-reach the paper's precision (second test), except γ_x (σ 2.4e-4 vs 1e-4).
-The motion coefficients, compared in the paper's own time origin, match the
-Table I σ.
+Every tolerance is in units of the Cramér–Rao bound at the truth (σ_CRLB,
+:func:`~wheelcal.study.montecarlo.scenario_bound`).  The four-step estimator is
+not efficient, and it is biased: the literal eq. (26) picks T'' by the excursion
+max r_y − min r_y, an extreme-value statistic of the noise, and steps B–D cannot
+undo the error — ϑ₀, the misalignment and the offsets inherit it.  How much is
+measured, not assumed: ``python docs/accuracy/paper_estimator_mc.py --runs 200``
+(Table I, seeds 30000–30199) gives per parameter its std over σ_CRLB (F) and its
+bias over σ_CRLB (B), stated in :data:`PAPER_VS_CRLB`.  The bias is real (t ≈ 6 for
+ϑ₀, the Euler angles, gains and offsets: about 0.4 of the estimator's own std), unlike
+the paper's Fig. 7 — it comes from step A's T''.  Single fits must then lie
+within B ± 5 F σ_CRLB; the ``slow`` Monte Carlo (60 other seeds, about 1 min) checks F and B
+themselves: the mean error against B by a t-test (4 standard errors of the mean),
+the std against F within 4 standard errors of the ratio of the two spreads.  The
+Table II and reversed-spin fits use Table I's factors (same estimator, similar
+geometry — an assumption, with the 5× margin).  Given the exact T, steps B–D are
+near-efficient: within 5 σ_CRLB.
 """
 
 import re
@@ -26,48 +29,65 @@ import pytest
 
 from wheelcal.estimate import paper_steps
 from wheelcal.estimate.paper import PaperEstimate, PaperEstimator
+from wheelcal.estimate.reporting import report_transform
 from wheelcal.estimate.twins import choose_twin
-from wheelcal.model import BenchParams, CalibrationParams, SensorParams, SpinParams
+from wheelcal.model import (
+    BenchParams,
+    CalibrationParams,
+    ParameterLayout,
+    SensorParams,
+    SpinParams,
+)
 from wheelcal.recording import Recording, RecordingError, SessionInfo
 from wheelcal.simulate import simulate, table1, table2
 from wheelcal.simulate.presets import TABLE1_DURATION_S, TABLE1_SPIN_FROM_START
+from wheelcal.study import monte_carlo
+from wheelcal.study.montecarlo import scenario_bound
 
-NAMES = (
-    "theta0_deg", "tilt_deg", "euler_1_deg", "euler_2_deg", "euler_3_deg",
-    "gain_x", "gain_y", "gain_z", "offset_x_mps2", "offset_y_mps2", "offset_z_mps2",
-)  # fmt: skip
-# Table I, σ_n = 0.08 m/s²: ϑ₀, α, θ, φ, ψ, γ_x, γ_y, γ_z, o_x, o_y, o_z.
-PAPER_SIGMA = (0.03, 0.01, 0.03, 0.02, 0.08, 1e-4, 4e-4, 7e-4, 0.005, 0.014, 0.009)
-# This implementation, literal pipeline, Table I, 40 draws.
-MEASURED_SIGMA = (0.30, 0.013, 0.27, 0.13, 0.019, 4.9e-4, 4.4e-4, 2.3e-3, 0.028, 0.061, 0.038)
-# Steps B–D given the exact T (W = TΓR exactly upper triangular), 30 draws.
-EXACT_T_SIGMA = (0.013, 0.011, 0.005, 0.017, 0.018, 2.4e-4, 2.1e-4, 8.2e-4, 0.0041, 0.001, 0.0068)
-# Table I motion in the paper's time origin (first sample): ω₀ … ω₃.
+#: Table I, σ_n = 0.08 m/s², paper's estimator: (std/σ_CRLB, bias/σ_CRLB) at the truth,
+#: measured over 200 draws (seeds 30000–30199) by
+#: ``python docs/accuracy/paper_estimator_mc.py --runs 200`` (see there).
+PAPER_VS_CRLB = {
+    "theta0_rad": (20.48, 8.71),
+    "omega0_radps": (1.50, 0.05),
+    "omega1_radps2": (1.49, 0.24),
+    "omega2_radps3": (1.50, -0.11),
+    "omega3_radps4": (1.51, -0.30),
+    "tilt_deg": (1.03, -0.15),
+    "euler_1_deg": (22.96, -9.86),
+    "euler_2_deg": (6.97, 2.91),
+    "euler_3_deg": (1.05, -0.18),
+    "gain_x": (2.13, 0.70),
+    "gain_y": (1.86, 0.69),
+    "gain_z": (2.35, -0.91),
+    "offset_x_mps2": (7.24, -2.93),
+    "offset_y_mps2": (25.83, 11.15),
+    "offset_z_mps2": (4.64, 1.91),
+}
+MEASURED_RUNS = 200
+# Table I motion in the paper's time origin (first sample): ω₀ … ω₃ (the paper's σ).
 PAPER_OMEGA_SIGMA = (1e-4, 0.01e-3, 0.3e-6, 0.002e-6)
 
 
-def tolerance(*sigmas: tuple[float, ...]) -> dict[str, float]:
-    return {n: 5 * max(s) for n, *s in zip(NAMES, *sigmas, strict=True)}
+def z_scores(est: CalibrationParams, scenario) -> dict[str, float]:
+    """(estimate − truth) / σ_CRLB at the truth, ϑ₀ modulo 2π."""
+    bound = scenario_bound(scenario)
+    _, values, _ = report_transform(est, ParameterLayout(spin_degree=est.spin.degree))
+    d = values - bound.values
+    i = bound.names.index("theta0_rad")
+    d[i] = (d[i] + np.pi) % (2 * np.pi) - np.pi
+    return dict(zip(bound.names, d / bound.std, strict=True))
 
 
-def errors(est: CalibrationParams, truth: CalibrationParams) -> dict[str, float]:
-    def wrap_deg(x):
-        return (np.asarray(x) + 180.0) % 360.0 - 180.0
-
-    values = [
-        wrap_deg(np.rad2deg(est.spin.theta0_rad - truth.spin.theta0_rad)),  # ϑ₀ modulo 2π
-        est.bench.tilt_deg - truth.bench.tilt_deg,
-        *wrap_deg(est.bench.misalignment.euler_deg() - truth.bench.misalignment.euler_deg()),
-        *(est.sensor.gain - truth.sensor.gain),
-        *(est.sensor.offset_mps2 - truth.sensor.offset_mps2),
-    ]
-    return dict(zip(NAMES, map(float, values), strict=True))
-
-
-def assert_within(est: CalibrationParams, truth: CalibrationParams, tol: dict[str, float]):
-    err = errors(est, truth)
-    bad = {n: (round(err[n], 6), tol[n]) for n in NAMES if not abs(err[n]) < tol[n]}
-    assert not bad, f"error (estimate − truth) beyond tolerance: {bad}"
+def assert_like_the_paper_estimator(est: CalibrationParams, scenario) -> None:
+    """Within B ± 5 F σ_CRLB of the truth for every reported parameter."""
+    z = z_scores(est, scenario)
+    bad = {
+        n: (round(v, 2), PAPER_VS_CRLB[n])
+        for n, v in z.items()
+        if not abs(v - PAPER_VS_CRLB[n][1]) < 5 * PAPER_VS_CRLB[n][0]
+    }
+    assert not bad, f"(estimate − truth)/σ_CRLB beyond B ± 5F: {bad}"
 
 
 @pytest.fixture(scope="module")
@@ -80,10 +100,28 @@ def table1_fits() -> list[tuple]:
 
 
 def test_table1_parameters(table1_fits):
-    tol = tolerance(PAPER_SIGMA, MEASURED_SIGMA)
     for sim, est in table1_fits:
-        assert_within(est.params, sim.truth, tol)
+        assert_like_the_paper_estimator(est.params, sim.scenario)
         assert est.warnings == ()
+
+
+@pytest.mark.slow
+def test_paper_estimator_bias_and_spread_match_the_stated_factors():
+    """60 new draws (≈ 1 min on 2 workers): mean and spread against B and F of PAPER_VS_CRLB."""
+    summary = monte_carlo(table1(), PaperEstimator(), range(40000, 40060), workers=2)
+    n = summary.runs
+    assert summary.failures == 0
+    se_ratio = np.hypot(1 / np.sqrt(2 * (n - 1)), 1 / np.sqrt(2 * (MEASURED_RUNS - 1)))
+    for name, f, b in zip(
+        summary.names, summary.std_over_crlb, summary.bias_over_crlb, strict=True
+    ):
+        f_stated, b_stated = PAPER_VS_CRLB[name]
+        # t-test of the mean error against the stated bias (both means carry sampling error).
+        se_mean = np.hypot(f / np.sqrt(n), f_stated / np.sqrt(MEASURED_RUNS))
+        assert abs(b - b_stated) < 4 * se_mean, (name, b, b_stated, se_mean)
+        assert abs(np.log(f / f_stated)) < 4 * se_ratio, (name, f, f_stated)
+        # No unbiased estimator beats the bound; this one does not either.
+        assert f > 1 - 4 / np.sqrt(2 * (n - 1)), (name, f)
 
 
 def test_table1_motion_in_the_papers_time_origin(table1_fits):
@@ -150,7 +188,9 @@ def test_steps_b_to_d_reach_table1_precision_with_the_exact_realignment():
     offset = paper_steps.fit_offset(t, v, params, 6000)
     params = params.with_changes(sensor=SensorParams(offset.offset_mps2, geo.gain))
     assert geo.system_residual < 1e-3
-    assert_within(choose_twin(params).chosen, sim.truth, tolerance(PAPER_SIGMA, EXACT_T_SIGMA))
+    # Given the exact T, the estimator is near-efficient: within 5 σ_CRLB (the paper's claim).
+    z = z_scores(choose_twin(params).chosen, sim.scenario)
+    assert max(abs(v) for v in z.values()) < 5.0, z
 
 
 def test_reversed_spin_gives_the_same_sensor_and_bench():
@@ -161,15 +201,13 @@ def test_reversed_spin_gives_the_same_sensor_and_bench():
     sim = simulate(scenario, np.random.default_rng(4))
     est = PaperEstimator().fit(sim.recording)
     assert np.all(est.params.spin.omega_radps[:1] < 0)
-    assert_within(est.params, sim.truth, tolerance(PAPER_SIGMA, MEASURED_SIGMA))
+    assert_like_the_paper_estimator(est.params, sim.scenario)
 
 
 def test_table2_random_hand_spin():
     sim = simulate(table2(rng=np.random.default_rng(11)), np.random.default_rng(12))
     est = PaperEstimator().fit(sim.recording)
-    assert_within(est.params, sim.truth, tolerance(PAPER_SIGMA, MEASURED_SIGMA))
-    err = est.params.spin.omega_radps - sim.truth.spin.omega_radps
-    assert abs(err[0]) < 1e-3  # ω₀ at the centre, rad/s
+    assert_like_the_paper_estimator(est.params, sim.scenario)
 
 
 def test_missing_radius_names_the_source():

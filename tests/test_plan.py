@@ -18,7 +18,8 @@ import pytest
 from wheelcal.estimate.crlb import cramer_rao_bound
 from wheelcal.estimate.reporting import report_transform
 from wheelcal.estimate.systematic import nuisance_columns
-from wheelcal.model import BenchParams, Rotation
+from wheelcal.estimate.twins import twin_of
+from wheelcal.model import BenchParams, Rotation, SpinParams
 from wheelcal.plan import (
     AssumedErrors,
     MountingSearch,
@@ -34,6 +35,7 @@ from wheelcal.plan import (
 )
 from wheelcal.plan.mounting import AXIS_PERMUTATIONS, _Objective
 from wheelcal.simulate import simulate
+from wheelcal.study.montecarlo import scenario_bound
 
 #: Short plans keep the fits fast; everything else is the paper's bench.
 SHORT = {"duration_s": 45.0, "rate_hz": 100.0, "omega_end_radps": 6.5}
@@ -262,27 +264,53 @@ def test_mounting_search_beats_the_papers_mounting_in_seconds():
 # ---- round trips: simulate, fit in each geometry mode, compare with the plan's CRLB ---------
 
 
+def _reversed(scenario):
+    """The same bench spun the other way: ϑ → −ϑ (a vertical wheel's other twin)."""
+    spin = scenario.truth.spin
+    truth = scenario.truth.with_changes(spin=SpinParams(-spin.theta0_rad, -spin.omega_radps))
+    return dataclasses.replace(scenario, truth=truth)
+
+
+def _values_as_truth(result, truth) -> np.ndarray:
+    """The result's values in the truth's twin: a vertical wheel reports ω > 0 whatever the truth.
+
+    Twins of a vertical wheel share gains and offsets; the other twin (−ϑ, R·diag(1, −1, −1))
+    is mapped back before comparing with a truth that spins negatively.
+    """
+    if np.sign(result.params.spin.omega_radps[0]) == np.sign(truth.spin.omega_radps[0]):
+        return result.values
+    _, values, _ = report_transform(twin_of(result.params), result.layout)
+    return values
+
+
+VERTICAL = {"geometry": "vertical", "tilt_deg": 90.0, "noise_bandwidth_hz": 20.0}
+
+
 @pytest.mark.parametrize(
-    "changes",
+    ("changes", "reverse"),
     [
-        {},
-        {"geometry": "tilt", "tilt_deg": 35.0, "mounting_euler_deg": (-40.0, 30.0, 70.0)},
-        {"geometry": "vertical", "tilt_deg": 90.0, "noise_bandwidth_hz": 20.0},
+        ({}, False),
+        ({"geometry": "tilt", "tilt_deg": 35.0, "mounting_euler_deg": (-40.0, 30.0, 70.0)}, False),
+        (VERTICAL, False),
+        (VERTICAL, True),
     ],
 )
-def test_round_trip_within_4_sigma_of_the_plan(changes):
+def test_round_trip_within_4_sigma_of_the_plan(changes, reverse):
     plan = _plan(gain=(1.01, 0.98, 1.03), offset_mps2=(0.15, -0.07, -0.3), **changes)
     report = plan_report(plan, tradeoff_tilts_deg=None)
-    result = plan.estimator().fit(simulate(plan.scenario(), np.random.default_rng(31)).recording)
+    scenario = _reversed(plan.scenario()) if reverse else plan.scenario()
+    result = plan.estimator().fit(simulate(scenario, np.random.default_rng(31)).recording)
     assert result.names == report.names
-    if plan.geometry == "vertical" and result.params.spin.omega_radps[0] < 0:
-        # Twins of a vertical wheel share their offsets; compare the positive-spin one.
-        from wheelcal.estimate.twins import twin_of
-
-        _, values, _ = report_transform(twin_of(result.params), result.layout)
-    else:
-        values = result.values
-    z = _wrapped(values - report.values, report.names) / report.std
+    # CRLB at the simulator's truth (the reversed spin included) in the fit's layout.
+    bound = scenario_bound(scenario, result.layout)
+    if plan.geometry == "vertical":
+        # No upward side: the positive-spin twin is reported whatever the spin direction...
+        assert result.params.spin.omega_radps[0] > 0
+        # ... which is one physical description with the truth: the same bound at either.
+        twin = dataclasses.replace(scenario, truth=twin_of(scenario.truth))
+        assert np.allclose(scenario_bound(twin, result.layout).std, bound.std, rtol=1e-6)
+    values = _values_as_truth(result, scenario.truth)
+    z = _wrapped(values - bound.values, report.names) / bound.std
     assert np.max(np.abs(z)) < 4.0, dict(zip(report.names, z.round(2), strict=True))
     # And the σ the fit reports is the planner's prediction.
     assert result.std_of("offset_z_mps2") == pytest.approx(report.std_of("offset_z_mps2"), rel=0.15)
@@ -291,15 +319,17 @@ def test_round_trip_within_4_sigma_of_the_plan(changes):
 # ---- levelling errors: simulated against predicted ----------------------------------------
 
 
-def _mislevelled(plan: PlannedSetup, true_tilt_deg: float):
+def _mislevelled(plan: PlannedSetup, true_tilt_deg: float, reverse: bool = False):
     truth = plan.params().with_changes(
         bench=BenchParams(np.deg2rad(true_tilt_deg), plan.radius_m, plan.mounting)
     )
     scenario = dataclasses.replace(plan.scenario(), truth=truth)
+    if reverse:
+        scenario = _reversed(scenario)
     sim = simulate(scenario, np.random.default_rng(5))
     result = plan.estimator().fit(sim.recording)
-    _, true_values, _ = report_transform(truth, result.layout)
-    return result, true_values
+    _, true_values, _ = report_transform(scenario.truth, result.layout)
+    return result, true_values, scenario.truth
 
 
 def test_one_degree_levelling_error_in_tilt_mode_moves_what_the_planner_says():
@@ -309,7 +339,7 @@ def test_one_degree_levelling_error_in_tilt_mode_moves_what_the_planner_says():
     )
     report = plan_report(plan, tradeoff_tilts_deg=None)
     tilt = report.budget.source("tilt")
-    result, true_values = _mislevelled(plan, 46.0)
+    result, true_values, _ = _mislevelled(plan, 46.0)
     observed = _wrapped(result.values - true_values, result.names)
     predicted = tilt.shift_minus  # assumed − true = −1° = −σ
     names = report.names
@@ -331,7 +361,8 @@ def test_one_degree_levelling_error_in_tilt_mode_moves_what_the_planner_says():
     assert predicted[gains] - linear_prediction == pytest.approx(tilt.second_order[gains], rel=0.05)
 
 
-def test_vertical_wheel_three_degrees_off_level_gains_second_order():
+@pytest.mark.parametrize("reverse", [False, True])
+def test_vertical_wheel_three_degrees_off_level_gains_second_order(reverse):
     """Bench at 87°, fit as vertical: gains × cos 3° (linear budget: 0), offsets by g sin 3°."""
     plan = _plan(
         geometry="vertical",
@@ -342,13 +373,9 @@ def test_vertical_wheel_three_degrees_off_level_gains_second_order():
     )
     report = plan_report(plan, tradeoff_tilts_deg=None)
     tilt = report.budget.source("tilt")
-    result, true_values = _mislevelled(plan, 87.0)
-    if result.params.spin.omega_radps[0] < 0:
-        from wheelcal.estimate.twins import twin_of
-
-        _, values, _ = report_transform(twin_of(result.params), result.layout)
-    else:
-        values = result.values
+    result, true_values, truth = _mislevelled(plan, 87.0, reverse)
+    values = _values_as_truth(result, truth)
+    assert (result.params.spin.omega_radps[0] > 0) and (values is not result.values) == reverse
     observed = _wrapped(values - true_values, report.names)
     predicted = tilt.shift_plus  # assumed − true = +3° = +σ
     names = report.names

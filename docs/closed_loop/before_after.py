@@ -4,7 +4,10 @@ For each effect at the size the issue names (undeclared in the data), one Table 
 recording (σ_n = 0.08 m/s², 90 s at 200 Hz; gain drift at 0.02 m/s², see below)
 is calibrated with the paper's model and then diagnosed.  Printed per effect:
 what the loop found (χ², corrected p), the residual RMS before → after, and the
-worst sensor-parameter error before → after in units of the final σ.
+worst sensor-parameter error before → after in units of σ_CRLB evaluated at the
+simulator's truth (true sensor, bench, spin law and effects, true noise) for the
+model fitted: the paper's model before, the model with the found effects after
+(``tests/test_closed_loop.py::truth_bound_of``).  Never the fit's own σ.
 
 Run:  python docs/closed_loop/before_after.py
 """
@@ -12,11 +15,17 @@ Run:  python docs/closed_loop/before_after.py
 from __future__ import annotations
 
 import dataclasses
+import sys
+from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
+
+from test_closed_loop import truth_bound_of
 from wheelcal.diagnose.closed_loop import ClosedLoop
+from wheelcal.model import ParameterLayout
 from wheelcal.model.effects import GainDrift, OffsetWarmup, QuadraticNonlinearity
 from wheelcal.simulate import NoiseSpec, simulate, table1
 from wheelcal.simulate.motion import DragSpin, ImbalancedSpin
@@ -67,24 +76,21 @@ def cases():
 
 def main() -> None:
     print(
-        "| effect in the data | found (χ², p corrected) | residual RMS before → after (m/s²) | worst sensor error before → after (σ) |"
+        "| effect in the data | found (χ², p corrected) | residual RMS before → after (m/s²) | worst sensor error before → after (σ_CRLB at the truth) |"
     )
     print("|---|---|---|---|")
     with threadpool_limits(1):
         for label, scenario in cases():
             rec = simulate(scenario, np.random.default_rng(31)).recording
             d = ClosedLoop().run(rec)
-            truth = dict(
-                zip(
-                    SENSOR,
-                    [*scenario.truth.sensor.gain, *scenario.truth.sensor.offset_mps2],
-                    strict=True,
-                )
-            )
-            err = {
-                which: max(abs(r.value_of(n) - truth[n]) / d.final.std_of(n) for n in SENSOR)
-                for which, r in (("base", d.base), ("final", d.final))
-            }
+            err = {}
+            for which, fit, layout in (
+                ("base", d.base, ParameterLayout()),
+                ("final", d.final, d.final.layout),
+            ):
+                bound = truth_bound_of(scenario, layout)
+                truth = dict(zip(bound.names, bound.values, strict=True))
+                err[which] = max(abs(fit.value_of(n) - truth[n]) / bound.std_of(n) for n in SENSOR)
             found = (
                 "; ".join(
                     f"`{s.test.effect.name}` ({s.test.statistic:.0f}, {s.test.p_corrected:.0e})"
