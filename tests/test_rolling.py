@@ -86,7 +86,7 @@ def _oracle_specific_force(t, h=1e-4, h_arm=2e-5):
     return np.einsum("nji,nj->ni", _orientation(t), force_world)  # Rᵀ f
 
 
-def _identity_params(values=(RHO, 1.0)) -> CalibrationParams:
+def _identity_params(values=(RHO, 1.0, 0.0)) -> CalibrationParams:
     return CalibrationParams(
         spin=SpinParams(0.0, [1.0]),
         bench=BenchParams(np.pi / 2, R_SENSOR, Rotation.identity()),
@@ -132,7 +132,7 @@ def test_zero_means_absent_and_the_jacobian_is_exact():
     )
     layout = ParameterLayout(fit_tilt=False, effects=(effect,))
     assert np.array_equal(predict(base, t), predict(base, t, layout))
-    p = base.with_changes(effects={"rolling": np.array([RHO, 0.97])})
+    p = base.with_changes(effects={"rolling": np.array([RHO, 0.97, 0.02])})
     analytic = evaluate(p, t, layout, jacobian=True).jacobian
     x = layout.pack(p)
     for k, name in enumerate(layout.names):

@@ -94,11 +94,14 @@ class Rolling(Effect):
         (N, 3) share of the yaw in the gyro's samples (its reading of ψ̇ u), or
         ``None``.  A fit with this effect subtracts it from the gyro stream, whose
         own model knows only the spin about the axle.
+    yaw_scale_free:
+        Fit κ and ε (default).  ``False`` holds κ = 1, ε = 0 and fits ρ alone (parameters:
+        ``radius_m``) — a first pass before the yaw is known.
     """
 
     name = "rolling"
     stage = "force"
-    param_names = ("radius_m", "yaw_scale")
+    param_names = ("radius_m", "yaw_scale", "yaw_offset_radps")
     description = "wheel rolling on level ground: hub travel ρ·ω̇, turns ρ·ω·ψ̇, Ω cross terms"
 
     def __init__(
@@ -107,6 +110,7 @@ class Rolling(Effect):
         yaw_rate_radps: np.ndarray,
         yaw_accel_radps2: np.ndarray | None = None,
         gyro_yaw_radps: np.ndarray | None = None,
+        yaw_scale_free: bool = True,
     ) -> None:
         t = np.asarray(time_s, dtype=float)
         rate = np.asarray(yaw_rate_radps, dtype=float)
@@ -124,6 +128,9 @@ class Rolling(Effect):
                 raise ValueError("gyro_yaw_radps must be (N, 3), one row per time")
         self.time_s, self.yaw_rate_radps, self.yaw_accel_radps2 = t, rate, accel
         self.gyro_yaw_radps = gyro_yaw_radps
+        self.yaw_scale_free = bool(yaw_scale_free)
+        if not self.yaw_scale_free:
+            self.param_names = ("radius_m",)
 
     def settings(self) -> dict:
         """The yaw rate's size over the recording (reports only)."""
@@ -166,9 +173,11 @@ class Rolling(Effect):
         jacobian: bool,
     ) -> ForceDelta:
         """Δa of the module docstring, and its partials when ``jacobian``."""
-        rho, kappa = (float(x) for x in values)
+        values = np.asarray(values, dtype=float)
+        rho = float(values[0])
+        kappa, offset = (float(values[1]), float(values[2])) if self.yaw_scale_free else (1.0, 0.0)
         rate_g, accel_g = self.yaw(t_s)
-        yaw, yaw_dot = kappa * rate_g, kappa * accel_g  # ψ̇ = κ ψ̇_gyro
+        yaw, yaw_dot = kappa * rate_g + offset, kappa * accel_g  # ψ̇ = κ ψ̇_gyro + ε
         s, c = np.sin(kin.theta_rad), np.cos(kin.theta_rad)
         w, w_dot = kin.omega_radps, kin.omega_dot_radps2
         r = radius_m
@@ -179,14 +188,17 @@ class Rolling(Effect):
         delta[:, 2] = -rho * w * yaw + r * yaw_dot * s + 2 * r * w * yaw * c
         if not jacobian:
             return ForceDelta(delta)
-        d_own = np.empty((2, s.size, 3))
+        d_own = np.empty((self.size, s.size, 3))
         d_own[0, :, 0] = w_dot * s  # ∂/∂ρ
         d_own[0, :, 1] = -w_dot * c
         d_own[0, :, 2] = -w * yaw
-        # ∂/∂κ: ψ̇² = κ² ψ̇_g² gives 2κ ψ̇_g²; the linear terms give ψ̇_g, ψ̈_g.
-        d_own[1, :, 0] = 2 * r * kappa * rate_g**2 * s * s
-        d_own[1, :, 1] = -2 * r * kappa * rate_g**2 * s * c
-        d_own[1, :, 2] = -rho * w * rate_g + r * accel_g * s + 2 * r * w * rate_g * c
+        if self.yaw_scale_free:
+            by_yaw = np.column_stack(
+                [2 * r * yaw * s * s, -2 * r * yaw * s * c, -rho * w + 2 * r * w * c]
+            )
+            d_own[1] = by_yaw * rate_g[:, None]  # ∂/∂κ through ψ̇ and ψ̈
+            d_own[1, :, 2] += r * s * accel_g
+            d_own[2] = by_yaw  # ∂/∂ε
         by_theta = np.empty_like(delta)
         by_theta[:, 0] = rho * w_dot * c + 2 * r * yaw2 * s * c
         by_theta[:, 1] = rho * w_dot * s - r * yaw2 * (c * c - s * s)

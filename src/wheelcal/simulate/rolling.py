@@ -70,26 +70,30 @@ def drive(
 ) -> RollingMotion:
     """A random drive: start and end at rest, speed changes, a stop, turns while moving.
 
-    Segments of 6–10 s: accelerate or brake (2–3 s) to a new speed in
-    [0.3, 1] × ``max_speed_mps``, with one full stop of 3 s in the middle; a
-    turn of ±(0.4–1) × ``max_yaw_radps`` (ramps of 1 s) in most cruising segments.
+    Accelerate or brake at 0.8–1.5 m/s² (a car in town, a robot) to a new speed
+    in [0.3, 1] × ``max_speed_mps`` and cruise for 4–7 s, with one full stop of
+    3 s in the middle; a turn of ±(0.4–1) × ``max_yaw_radps`` (ramps of 1 s) in
+    most cruising segments.
     """
     half = duration_s / 2
     times, speeds = [-half - 1.0, -half + 3.0], [0.0, 0.0]  # at rest for 3 s
     yaw_t, yaw_r = [-half - 1.0], [0.0]
     t = -half + 3.0
     stop_done = False
-    while t < half - 12.0:
+
+    def ramp_s(change_mps: float) -> float:
+        return max(1.5, abs(change_mps) / rng.uniform(0.8, 1.5))
+
+    while t < half - 16.0:
         if not stop_done and t > -5.0:  # brake to a stop, stand, drive off
-            for dt, v in ((2.5, 0.0), (3.0, 0.0)):
-                t += dt
-                times.append(t)
-                speeds.append(v)
+            t += ramp_s(speeds[-1])
+            times += [t, t + 3.0]
+            speeds += [0.0, 0.0]
+            t += 3.0
             stop_done = True
             continue
-        ramp = rng.uniform(2.0, 3.0)
         v = max_speed_mps * rng.uniform(0.3, 1.0)
-        t += ramp
+        t += ramp_s(v - speeds[-1])
         times.append(t)
         speeds.append(v)
         cruise = rng.uniform(4.0, 7.0)
@@ -101,8 +105,8 @@ def drive(
         t += cruise
         times.append(t)
         speeds.append(v)
-    t += 3.0  # brake to rest
-    times += [t, half + 1.0]
+    t += ramp_s(speeds[-1])  # brake to rest
+    times += [t, max(half + 1.0, t + 1.0)]
     speeds += [0.0, 0.0]
     yaw_t.append(half + 1.0)
     yaw_r.append(0.0)
@@ -141,7 +145,7 @@ def rolling_scenario(
     yaw_rate, yaw_accel = motion.yaw(tc)
     effect = Rolling(tc, yaw_rate, yaw_accel)
     truth = rolling_truth(radius_m).with_changes(
-        effects={effect.name: np.array([rolling_radius_m, 1.0])}
+        effects={effect.name: np.array([rolling_radius_m, 1.0, 0.0])}
     )
     return Scenario(
         truth=truth,
