@@ -83,12 +83,13 @@ def demodulate_yaw(
     steady = np.column_stack(columns)  # b, G_X, G_Y: (k, 3) coefficients
     coef = values[3:].reshape(-1, 3)
     rate_hz = 1.0 / float(np.median(np.diff(t)))
+    grid = np.linspace(t[0], t[-1], round((t[-1] - t[0]) * rate_hz) + 1)  # gaps bridged
     sos = signal.butter(4, min(band_hz, 0.4 * rate_hz), fs=rate_hz, output="sos")
     # b and G are refitted with the yaw's share: the first fit saw the yaw as noise, and
     # G_X a_X = G_X (r ω² + g cos ϑ) shares cos ϑ with the yaw's cos ϑ h_X.
     for _ in range(_ITERATIONS):
         raw = np.sum((rest - steady @ coef) * up, axis=1)
-        yaw = signal.sosfiltfilt(sos, np.interp(t, t[valid], raw[valid]))
+        yaw = np.interp(t, grid, signal.sosfiltfilt(sos, np.interp(grid, t[valid], raw[valid])))
         turning = np.column_stack([yaw * c, yaw * s])
         design = np.hstack([steady, turning])
         solution, *_ = np.linalg.lstsq(design[valid], rest[valid], rcond=None)
