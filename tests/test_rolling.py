@@ -144,3 +144,92 @@ def test_zero_means_absent_and_the_jacobian_is_exact():
             predict(layout.unpack(xp, p), t, layout) - predict(layout.unpack(xm, p), t, layout)
         ).T / (2 * h)
         assert np.abs(analytic[k] - fd).max() < 1e-5 * np.abs(fd).max() + 1e-12, name
+
+
+# --- the fit: a simulated drive, against the Cramér–Rao bound at the truth -------------
+
+SENSOR = tuple(f"gain_{a}" for a in "xyz") + tuple(f"offset_{a}_mps2" for a in "xyz")
+BENCH = tuple(f"euler_{k}_deg" for k in (1, 2, 3)) + ("rolling.radius_m",)
+GROUPS = {"gain": SENSOR[:3], "offset": SENSOR[3:], "euler": BENCH[:3], "rho": BENCH[3:]}
+
+
+def _drive(seed: int):
+    from wheelcal.simulate.rolling import rolling_scenario, simulate_drive
+
+    scenario = rolling_scenario(np.random.default_rng(seed))
+    return simulate_drive(scenario, np.random.default_rng(seed + 1000))
+
+
+def _bound_at_truth(session, result):
+    """CRLB of the fitted layout at the truth: the true yaw, ϑ(t), gyro; the twin the fit chose."""
+    import dataclasses
+
+    from gyro_truth import gyro_bound
+    from wheelcal.estimate.twins import twin_of
+
+    scenario = session.scenario
+    shift = result.centre_s - 0.5 * scenario.duration_s  # fit's centre − scenario's centre
+    t = result.time_s - result.centre_s
+    theta = scenario.motion.kinematics(t + shift).theta_rad
+    yaw_rate, yaw_accel = scenario.motion.yaw(t + shift)
+    true_rolling = Rolling(t, yaw_rate, yaw_accel)
+    layout = dataclasses.replace(
+        result.layout,
+        effects=tuple(true_rolling if e.name == "rolling" else e for e in result.layout.effects),
+    )
+    truth = session.truth
+    fitted = result.params.bench.misalignment.matrix
+    if np.linalg.norm(fitted - twin_of(truth).bench.misalignment.matrix) < np.linalg.norm(
+        fitted - truth.bench.misalignment.matrix
+    ):
+        truth, theta = twin_of(truth), -theta
+    return gyro_bound(scenario, truth, theta, t, layout)
+
+
+def _rolling_run(seed: int) -> tuple[dict, dict, dict]:
+    """Per parameter: (estimate − truth) / σ_CRLB(truth), estimate − truth, reported σ."""
+    from wheelcal.estimate.joint import JointFit
+    from wheelcal.estimate.session_fit import SessionFit
+
+    session = _drive(seed)
+    fitter = JointFit(geometry="rolling", use_gyro=True)
+    result = SessionFit(fitter=fitter).run(session.recording).result
+    bound = _bound_at_truth(session, result)
+    truth = dict(zip(bound.names, bound.values, strict=True))
+    z, error, reported = {}, {}, {}
+    for name in SENSOR + BENCH:
+        diff = result.value_of(name) - truth[name]
+        if name.startswith("euler"):
+            diff = (diff + 180.0) % 360.0 - 180.0
+        z[name] = diff / bound.std_of(name)
+        error[name] = diff
+        reported[name] = result.std_of(name)
+    return z, error, reported
+
+
+def test_a_drive_calibrates_within_5_sigma_crlb_short():
+    for seed in (1, 2):
+        z, _, _ = _rolling_run(seed)
+        assert max(abs(v) for v in z.values()) < 5.0, z
+
+
+def _group_ratios(runs):
+    """Per group: RMS reported σ / observed spread (ddof 1), averaged over its parameters."""
+    out = {}
+    for group, names in GROUPS.items():
+        ratios = []
+        for name in names:
+            errors = np.array([run[1][name] for run in runs])
+            reported = np.array([run[2][name] for run in runs])
+            ratios.append(np.sqrt(np.mean(reported**2)) / np.std(errors, ddof=1))
+        out[group] = float(np.mean(ratios))
+    return out
+
+
+@pytest.mark.slow
+def test_drives_calibrate_within_5_sigma_crlb_and_report_honest_sigma_full():
+    runs = [_rolling_run(seed) for seed in range(100)]
+    worst = max(max(abs(v) for v in run[0].values()) for run in runs)
+    assert worst < 5.0, worst
+    for group, ratio in _group_ratios(runs).items():
+        assert 0.8 <= ratio <= 1.25, (group, ratio)
