@@ -133,6 +133,7 @@ class SessionOptions:
             geometry=self.geometry,
             known_tilt_deg=self.known_tilt_deg,
             tilt_std_deg=self.tilt_std_deg,
+            use_gyro=self.geometry == "rolling",  # the yaw rate comes from the gyro
         )
 
     def session_fit(self) -> SessionFit:
