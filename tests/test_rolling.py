@@ -153,10 +153,10 @@ BENCH = (*(f"euler_{k}_deg" for k in (1, 2, 3)), "rolling.radius_m")
 GROUPS = {"gain": SENSOR[:3], "offset": SENSOR[3:], "euler": BENCH[:3], "rho": BENCH[3:]}
 
 
-def _drive(seed: int):
+def _drive(seed: int, duration_s: float = 90.0):
     from wheelcal.simulate.rolling import rolling_scenario, simulate_drive
 
-    scenario = rolling_scenario(np.random.default_rng(seed))
+    scenario = rolling_scenario(np.random.default_rng(seed), duration_s=duration_s)
     return simulate_drive(scenario, np.random.default_rng(seed + 1000))
 
 
@@ -236,3 +236,25 @@ def test_drives_calibrate_within_5_sigma_crlb_and_report_honest_sigma_full():
     assert worst < 5.0, worst
     for group, ratio in _group_ratios(runs).items():
         assert 0.8 <= ratio <= 1.25, (group, ratio)
+
+
+# --- the closed loop finds an undeclared rolling wheel ---------------------------------
+
+
+def test_the_closed_loop_finds_an_undeclared_rolling_wheel():
+    from wheelcal.diagnose.closed_loop import ClosedLoop
+    from wheelcal.estimate.joint import JointFit
+    from wheelcal.estimate.knots import choose_knot_spacing
+
+    session = _drive(5, duration_s=40.0)
+    recording = session.recording
+    tc = recording.time_s - recording.time_s.mean()
+    spacing = choose_knot_spacing(tc, recording.gyro_radps).spacing_s
+    base = JointFit(use_gyro=True, spline_spacing_s=spacing).fit(recording)  # a fixed bench
+    diagnosis = ClosedLoop(fit=JointFit(), max_steps=1).run(recording, base=base)
+    step = diagnosis.steps[0]
+    assert step.test.effect.name == "rolling"
+    assert step.test.p_corrected < 1e-3
+    final = diagnosis.final
+    rho = final.value_of("rolling.radius_m")
+    assert abs(rho - 0.30) < 5 * final.std_of("rolling.radius_m")
