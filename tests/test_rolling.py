@@ -258,3 +258,24 @@ def test_the_closed_loop_finds_an_undeclared_rolling_wheel():
     final = diagnosis.final
     rho = final.value_of("rolling.radius_m")
     assert abs(rho - 0.30) < 5 * final.std_of("rolling.radius_m")
+
+
+def test_calibrate_geometry_rolling_on_the_command_line(tmp_path):
+    import json
+
+    from wheelcal.cli.main import main
+    from wheelcal.io import write_recording
+
+    session = _drive(3, duration_s=40.0)
+    path = tmp_path / "drive.mcap"
+    write_recording(session.recording, path, encoding="json", batch_size=50)
+    assert main(["calibrate", str(path), "--out", str(tmp_path), "--geometry", "rolling"]) == 0
+    cal = json.loads((tmp_path / "drive.calibration.json").read_text())
+    rolling = cal["effects"]["rolling"]
+    assert abs(rolling["radius_m"]["value"] - 0.30) < 5 * rolling["radius_m"]["std"]
+    truth = session.truth.sensor
+    gain_error = np.abs(np.array(cal["sensor"]["gain"]) - truth.gain)
+    assert np.all(gain_error < 5 * np.array(cal["sensor"]["gain_std"])), gain_error
+    offset_error = np.abs(np.array(cal["sensor"]["offset_mps2"]) - truth.offset_mps2)
+    assert np.all(offset_error < 5 * np.array(cal["sensor"]["offset_std_mps2"])), offset_error
+    assert cal["bench"]["tilt_deg"] == 90.0
