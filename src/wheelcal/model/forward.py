@@ -46,6 +46,8 @@ class ModelOutput:
     kinematics: Kinematics
     force: BenchForce
     sensed_mps2: np.ndarray
+    #: ∂Δa/∂r (N, 3) of the force-stage effects (with a Jacobian), for the radius' budget.
+    force_by_radius: np.ndarray | None = None
 
 
 def _apply_spin_effect(
@@ -302,7 +304,8 @@ def evaluate(
         jac[blocks[f"effect:{effect.name}"]] = term.d_own
         if term.d_gain is not None:
             jac[blocks["gain"]] += term.d_gain
-    return ModelOutput(predicted, jac, kin, force, sensed)
+    by_radius = sum(term.by_radius for _, term in force_terms) if force_terms else None
+    return ModelOutput(predicted, jac, kin, force, sensed, by_radius)
 
 
 def predict(
@@ -329,6 +332,8 @@ def nuisance_sensitivity(
     w_mat = params.sensor.gain[:, None] * params.bench.misalignment.matrix
     if nuisance == "radius_m":
         da = d_force_d_radius(out.kinematics)
+        if out.force_by_radius is not None:  # a rolling wheel's r ψ̇², r ψ̈, 2 r ω ψ̇ terms
+            da = da + out.force_by_radius
     elif nuisance == "gravity_mps2":
         da = d_force_d_gravity(out.force, params.bench.tilt_rad)
     elif nuisance == "tilt_rad":
