@@ -10,11 +10,17 @@ w ω + b + G a) explains the first part; what is left turns with the wheel:
 then a zero-phase low-pass at ``band_hz`` (a vehicle's yaw changes within
 seconds; the wheel turns many times a second) gives ψ̇_gyro(t).  Its scale is
 the gyro's mean scale across the axle, which the spin does not calibrate: the
-rolling effect fits κ in ψ̇ = κ ψ̇_gyro.  The yaw's share of the gyro samples,
-ψ̇_gyro (cos ϑ h_X + sin ϑ h_Y), with h_X, h_Y (the gyro's response to rates
-along the bench X and Y, its scale errors and misalignment included) by least
-squares, is taken out of the gyro stream before the joint fit, whose gyro
-model knows the spin only.
+rolling effect fits κ and a zero ε in ψ̇ = κ ψ̇_gyro + ε.  The yaw's share of
+the gyro samples, ψ̇_gyro (cos ϑ h_X + sin ϑ h_Y), with h_X, h_Y (the gyro's
+response to rates along the bench X and Y, its scale errors and misalignment
+included) by least squares, is taken out of the gyro stream before the joint
+fit, whose gyro model knows the spin only.
+
+b and G are refitted together with h, and the demodulation repeated with them
+(``_ITERATIONS`` rounds, a fixed point): the fit that gives ϑ and w saw the
+yaw as noise, and G_X a_X = G_X (r ω² + g cos ϑ) shares cos ϑ with the yaw's
+cos ϑ h_X — a steady yaw and the gyro's sensitivity to gravity turn alike,
+which is why ε is left to the accelerometer.
 
 The accelerometer's ϑ and R enter through u; an error δ in the direction of
 R u changes ψ̇_raw by a factor cos δ, and its leak across is part of h.
