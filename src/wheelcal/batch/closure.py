@@ -35,10 +35,11 @@ def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[SessionInput
         start, end = cal.window_s
         # A temperature-following offset needs its recording's temperature series, not
         # just its settings: the sensor closure leaves it out (it is session-local anyway).
+        # So does a rolling wheel's yaw (geometry "rolling" refits it from the gyro).
         effects = tuple(
             make_effect(name, settings)
             for name, settings in cal.effects.items()
-            if name != "temperature_offset"
+            if name not in ("temperature_offset", "rolling")
         )
         local = tuple(e for e in effects if not e.sensor_intrinsic)
         out.append(SessionInput(recording.window(start, end), cal.mounting_id, local))

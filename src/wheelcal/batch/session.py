@@ -133,6 +133,7 @@ class SessionOptions:
             geometry=self.geometry,
             known_tilt_deg=self.known_tilt_deg,
             tilt_std_deg=self.tilt_std_deg,
+            use_gyro=self.geometry == "rolling",  # the yaw rate comes from the gyro
         )
 
     def session_fit(self) -> SessionFit:
@@ -213,7 +214,13 @@ def compute_recording(
     """Calibrate a recording already read and checked (see :func:`compute_session`)."""
     timings = dict(timings or {})
     t1 = time.perf_counter()
-    fit = options.session_fit().run(recording)
+    session_fit = options.session_fit()
+    if options.diagnose:
+        # The misfit gate judges the loop's final model, not the base it starts from: an
+        # effect at the wheel's harmonics (a rolling wheel's turns) is what the loop looks for.
+        relaxed = replace(options.gates, max_harmonic_ratio=1e12)
+        session_fit = replace(session_fit, gates=relaxed)
+    fit = session_fit.run(recording)
     timings["fit"] = time.perf_counter() - t1
     result, choice = fit.result, fit.window
     diagnosis = None
@@ -224,8 +231,7 @@ def compute_recording(
         t1 = time.perf_counter()
         loop = ClosedLoop(fit=options.fitter(), alpha=options.alpha)
         diagnosis = loop.run(choice.recording, base=result)
-        if diagnosis.steps:
-            result = assess(diagnosis.final, fit.rests, options.gates)
+        result = assess(diagnosis.final, fit.rests, options.gates)
         timings["diagnose"] = time.perf_counter() - t1
     return _outcome_of(recording.source, result, choice, diagnosis, recording, timings)
 

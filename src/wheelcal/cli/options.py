@@ -54,9 +54,11 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     m = parser.add_argument_group("geometry")
     m.add_argument(
         "--geometry",
-        choices=("radius", "tilt", "vertical"),
+        choices=("radius", "tilt", "vertical", "rolling"),
         default="radius",
-        help="what is known: the radius (default), the tilt (--tilt-deg), or a vertical wheel",
+        help="what is known: the radius (default), the tilt (--tilt-deg), a vertical wheel, or "
+        "a vertical wheel rolling on level ground (a robot's or car's; needs the gyroscope and "
+        "--radius, the sensor's distance from the axle; fits the rolling radius)",
     )
     m.add_argument("--tilt-deg", type=float, help="measured tilt for --geometry tilt")
     m.add_argument("--tilt-std-deg", type=float, default=0.5, help="uncertainty of the known tilt")

@@ -19,6 +19,7 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from wheelcal.diagnose.harmonics import wheel_harmonics
+from wheelcal.diagnose.rolling_candidate import rolling_candidates
 from wheelcal.diagnose.score import ScoreTest, score_tests
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
@@ -69,6 +70,9 @@ class ClosedLoop:
         candidates = self.candidates + temperature_candidates(
             recording.time_s - base.centre_s, getattr(recording, "temperature_c", None)
         )
+        # A wheel rolling on the ground (a gyro-aided fit of a vertical wheel): yaw from the gyro.
+        candidates += rolling_candidates(base, recording)
+        fit, frame = _motion_fit(self.fit, base)
         for _ in range(self.max_steps):
             tests = score_tests(current, recording, candidates)
             usable = [t for t in tests if t.identifiable]
@@ -78,9 +82,9 @@ class ClosedLoop:
             if not best.p_corrected < self.alpha:
                 break
             effect = self._refined(best.effect, current, recording)
-            effects = (*current.layout.effects, effect)
-            refit = dataclasses.replace(self.fit, effects=effects).fit(
-                recording, initial=current.params
+            effects = (*_own_effects(current), effect)
+            refit = dataclasses.replace(fit, effects=effects).fit(
+                recording, initial=current.params, frame=frame
             )
             free = effect.with_free_setting()
             if free is not None:  # e.g. τ of a warm-up: fitted once the amplitudes are there
@@ -88,9 +92,9 @@ class ClosedLoop:
                 initial = refit.params.with_changes(
                     effects={**refit.params.effects, free.name: start}
                 )
-                effects = (*current.layout.effects, free)
-                refit = dataclasses.replace(self.fit, effects=effects).fit(
-                    recording, initial=initial
+                effects = (*_own_effects(current), free)
+                refit = dataclasses.replace(fit, effects=effects).fit(
+                    recording, initial=initial, frame=frame
                 )
             steps.append(Step(test=best, tests=tuple(tests), result=refit))
             current = refit
@@ -116,6 +120,35 @@ class ClosedLoop:
             return effect
         tests = [t for t in score_tests(current, recording, options) if t.identifiable]
         return max(tests, key=lambda t: t.statistic).effect if tests else effect
+
+
+#: Effects a gyro-aided fit adds itself (its motion model), not the loop's.
+_MOTION_EFFECTS = ("spin_spline", "gyro")
+
+
+def _own_effects(result: CalibrationResult) -> tuple[Effect, ...]:
+    return tuple(e for e in result.layout.effects if e.name not in _MOTION_EFFECTS)
+
+
+def _motion_fit(fit: JointFit, base: CalibrationResult) -> tuple[JointFit, tuple | None]:
+    """The loop's fit with the base's gyro and wheel-angle spline, and the base's frame.
+
+    A gyro-aided base (its layout holds the gyro reading and a spline) is refitted
+    the same way, on the same time origin and knots.
+    """
+    names = {e.name: e for e in base.layout.effects}
+    if not any(n in names for n in _MOTION_EFFECTS):
+        return fit, None
+    spline = names.get("spin_spline")
+    fit = dataclasses.replace(
+        fit,
+        use_gyro="gyro" in names,
+        spline_spacing_s=None if spline is None else spline.spacing_s,
+    )
+    frame = None
+    if spline is not None:  # the spline's window is the fit's frame (centred times)
+        frame = (base.centre_s + spline.start_s, base.centre_s + spline.end_s)
+    return fit, frame
 
 
 @dataclass(frozen=True, eq=False)

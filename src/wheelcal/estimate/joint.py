@@ -17,7 +17,10 @@ Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound
    noise model estimated before it is the noise model at the optimum.)
 
 Geometry modes (paper II-C): ``radius`` — r known, α fitted (the paper's choice);
-``tilt`` — α known, r fitted; ``vertical`` — α = 90° (a spirit level), r fitted.
+``tilt`` — α known, r fitted; ``vertical`` — α = 90° (a spirit level), r fitted;
+``rolling`` — a vertical wheel rolling on level ground (α = 90°, r known, the
+rolling radius ρ and the gyro's yaw scale fitted, the yaw rate demodulated
+from the gyro: :mod:`wheelcal.model.rolling`, :mod:`wheelcal.estimate.yaw`).
 """
 
 from __future__ import annotations
@@ -52,7 +55,9 @@ from wheelcal.model.effects import GyroReading, SpinSpline
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.recording import Recording, RecordingError
 
-GEOMETRY_MODES = ("radius", "tilt", "vertical")
+GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling")
+#: Passes of (demodulate the yaw with the latest fit, refit) in geometry ``rolling``.
+ROLLING_PASSES = 1
 #: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
 _STAGE1_SAMPLES = 3000
 
@@ -66,7 +71,8 @@ class JointFit:
     spin_degree:
         Degree of the ω(t) polynomial (3 = the paper's cubic).
     geometry:
-        ``"radius"`` (default), ``"tilt"`` or ``"vertical"``; see the module doc.
+        ``"radius"`` (default), ``"tilt"``, ``"vertical"`` or ``"rolling"`` (needs
+        ``use_gyro``); see the module doc.
     known_tilt_deg:
         The measured tilt in ``"tilt"`` mode.
     tilt_std_deg:
@@ -109,6 +115,8 @@ class JointFit:
             raise ValueError("spline_spacing_s must be positive")
         if self.geometry not in GEOMETRY_MODES:
             raise ValueError(f"geometry must be one of {GEOMETRY_MODES}, got {self.geometry!r}")
+        if self.geometry == "rolling" and not self.use_gyro:
+            raise ValueError("geometry 'rolling' takes the yaw rate from the gyro: use_gyro=True")
         if self.geometry == "tilt" and self.known_tilt_deg is None:
             raise ValueError("geometry 'tilt' needs known_tilt_deg")
         if self.known_tilt_deg is not None and not 0.0 <= self.known_tilt_deg <= 90.0:
@@ -117,11 +125,10 @@ class JointFit:
     @property
     def layout(self) -> ParameterLayout:
         """Free parameters for this configuration (without the window's motion effects)."""
-        radius_known = self.geometry == "radius"
         return ParameterLayout(
             spin_degree=self.spin_degree,
-            fit_tilt=radius_known,
-            fit_radius=not radius_known,
+            fit_tilt=self.geometry == "radius",
+            fit_radius=self.geometry in ("tilt", "vertical"),
             effects=tuple(self.effects),
         )
 
@@ -149,7 +156,7 @@ class JointFit:
         return dataclasses.replace(self.layout, effects=tuple(self.effects) + tuple(motion))
 
     def _fixed_tilt_rad(self) -> float | None:
-        if self.geometry == "vertical":
+        if self.geometry in ("vertical", "rolling"):
             return np.pi / 2
         if self.geometry == "tilt":
             return float(np.deg2rad(self.known_tilt_deg))
@@ -157,7 +164,7 @@ class JointFit:
 
     def _checked_info(self, recording: Recording):
         info = recording.info
-        if self.geometry == "radius" and info.radius_m is None:
+        if self.geometry in ("radius", "rolling") and info.radius_m is None:
             raise RecordingError(
                 f"{recording.source}: the radius (sensor distance from the axle) is needed: "
                 "give --radius or radius_m in the wheelcal.session metadata"
@@ -171,7 +178,7 @@ class JointFit:
         tc = t - 0.5 * (t[0] + t[-1])
         gyro_t = gyro = rate = None
         if self.use_gyro:
-            gyro_t, gyro = gyro_samples(recording, tc)
+            gyro_t, gyro = gyro_samples(recording, tc, self.effects)
             _, vecs = np.linalg.eigh(gyro.T @ gyro)
             rate = np.interp(tc, gyro_t, gyro @ vecs[:, -1])  # ω up to sign, scale, bias
         guess = initial_guess(
@@ -184,6 +191,9 @@ class JointFit:
             spline=self._spline(tc),
             omega_radps=rate,
         )
+        if self.geometry == "rolling":  # r is known: the vertical guess only fitted it
+            bench = dataclasses.replace(guess.params.bench, radius_m=info.radius_m)
+            guess = dataclasses.replace(guess, params=guess.params.with_changes(bench=bench))
         if not self.use_gyro:
             return guess
         params = with_gyro_start(guess.params, self.layout_for(recording), gyro_t, gyro)
@@ -203,6 +213,10 @@ class JointFit:
         end in recording time) keeps the time origin and the spline's knots of a
         larger window when refitting a subset of it from its ``initial``.
         """
+        if self.geometry == "rolling" and _rolling_of(self.effects) is None:
+            from wheelcal.estimate.rolling_fit import fit_rolling
+
+            return fit_rolling(self, recording, initial=initial, guess=guess, frame=frame)
         info = self._checked_info(recording)
         t = recording.time_s
         frame = frame or (float(t[0]), float(t[-1]))
@@ -211,7 +225,7 @@ class JointFit:
         v = recording.accel_mps2
         gravity = info.gravity_or_standard_mps2
         layout = self.layout_for(recording, frame)
-        gyro_t, gyro = gyro_samples(recording, tc) if self.use_gyro else (None, None)
+        gyro_t, gyro = gyro_samples(recording, tc, self.effects) if self.use_gyro else (None, None)
         notes: list[str] = []
         if initial is None and self.effects:
             # Settle the twin on the paper's model, then free the effects from zero.
@@ -303,7 +317,7 @@ class JointFit:
                 f"g ({gravity:.5f} m/s²) one for one — give gravity_mps2 for gains better "
                 "than ~0.2 %"
             )
-        if self.geometry == "vertical":
+        if self.geometry in ("vertical", "rolling"):
             warnings.append(
                 "vertical wheel: the wheel axis has no upward side, so R is reported for the "
                 "positive spin direction (gains and offsets are unaffected)"
@@ -377,8 +391,18 @@ def _residual_fn(
     return normal
 
 
-def gyro_samples(recording: Recording, tc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Centred times and samples of the recording's usable gyro rows."""
+def _rolling_of(effects: tuple):
+    return next((e for e in effects if e.stage == "force"), None)
+
+
+def gyro_samples(
+    recording: Recording, tc: np.ndarray, effects: tuple = ()
+) -> tuple[np.ndarray, np.ndarray]:
+    """Centred times and samples of the recording's usable gyro rows.
+
+    A rolling wheel's yaw (an effect of stage ``force`` in ``effects`` that knows
+    its share of the gyro) is taken out: the gyro's own model is the spin's.
+    """
     gyro = getattr(recording, "gyro_radps", None)
     if gyro is None:
         raise RecordingError(f"{recording.source}: the recording has no gyroscope")
@@ -387,7 +411,11 @@ def gyro_samples(recording: Recording, tc: np.ndarray) -> tuple[np.ndarray, np.n
         raise RecordingError(
             f"{recording.source}: only {int(valid.sum())} usable gyro samples in the window"
         )
-    return tc[valid], np.asarray(gyro)[valid]
+    rolling = _rolling_of(effects)
+    samples = np.asarray(gyro)[valid]
+    if rolling is not None:
+        samples = samples - rolling.gyro_share(tc[valid])
+    return tc[valid], samples
 
 
 def with_gyro_start(

@@ -50,7 +50,12 @@ from wheelcal.estimate.noise_reference import noise_reference
 from wheelcal.estimate.rest_check import check_rests
 from wheelcal.estimate.rests import RestSegment, find_rests
 from wheelcal.estimate.result import CalibrationResult
-from wheelcal.estimate.window import FreeSpinWindow, find_free_spin, find_motion_window
+from wheelcal.estimate.window import (
+    FreeSpinWindow,
+    find_drive_window,
+    find_free_spin,
+    find_motion_window,
+)
 from wheelcal.model import evaluate
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 
@@ -131,6 +136,12 @@ class SessionFit:
             raise RecordingError(
                 f"{recording.source}: --gyro on, but the recording has no usable gyroscope"
             )
+        if self.fitter.geometry == "rolling":  # the yaw rate comes from the gyro
+            if not has_gyro or self.gyro == "off":
+                raise RecordingError(
+                    f"{recording.source}: geometry 'rolling' needs the recording's gyroscope"
+                )
+            return self._run_with_gyro(recording, "a rolling wheel")
         if has_gyro and self.gyro == "on":
             return self._run_with_gyro(recording, "--gyro on")
         try:
@@ -161,7 +172,8 @@ class SessionFit:
             window = recording.window(self.start_s, self.end_s)
             reason = f"window given on the command line: {self.start_s:g}–{self.end_s:g} s"
         else:
-            found = find_motion_window(recording)
+            finder = find_drive_window if self.fitter.geometry == "rolling" else find_motion_window
+            found = finder(recording)
             start, end = found.start_s, min(found.end_s, found.start_s + gates.max_window_s)
             window = recording.window(start, end)
             reason = found.reason + (
@@ -188,6 +200,10 @@ class SessionFit:
         fastest /= max(float(np.sum(result.params.effect("gyro", 6)[:3] ** 2)), 1e-12)
         refuse_undersampled(recording.source, window.rate_hz, fastest, gates)
         refuse_few_turns(result)
+        if fitter.geometry == "rolling":  # the gyro block judges the spin's share only
+            gyro_t, gyro = gyro_samples(
+                window, window.time_s - result.centre_s, result.layout.effects
+            )
         block = gyro_from_fit(result, gyro_t, gyro)
         choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
         return SessionFitOutcome(assess(result, rests, gates, None, block), choice, rests)

@@ -253,3 +253,48 @@ def find_motion_window(recording: Recording, search: MotionSearch | None = None)
         omega_end_radps=float(rate[inside][-1]),
         max_spin_accel_radps2=float(np.max(np.abs(accel[inside]))),
     )
+
+
+def find_drive_window(
+    recording: Recording, search: MotionSearch | None = None, rest_s: float = 1.0
+) -> FreeSpinWindow:
+    """A rolling wheel's drive: from its first motion to its last, stops included.
+
+    The rolling model holds the vehicle's accelerations, stops and turns, so
+    nothing inside the drive is cut; ``rest_s`` of rest is kept on each side.
+    """
+    search = search or MotionSearch()
+    gyro = getattr(recording, "gyro_radps", None)
+    if gyro is None:
+        raise RecordingError(f"{recording.source}: no gyroscope to find the wheel's motion")
+    t = recording.time_s
+    valid = np.all(np.isfinite(gyro), axis=1)
+    rate = np.interp(t, t[valid], np.linalg.norm(gyro[valid], axis=1))
+    rate = _moving_average(rate, max(1, round(search.smooth_s * recording.rate_hz)))
+    moving = np.flatnonzero(rate > search.min_rate_radps)
+    if moving.size == 0:
+        raise RecordingError(
+            f"{recording.source}: the gyroscope shows no motion faster than "
+            f"{search.min_rate_radps} rad/s"
+        )
+    start_s = max(float(t[0]), float(t[moving[0]]) - rest_s)
+    end_s = min(float(t[-1]), float(t[moving[-1]]) + rest_s)
+    if end_s - start_s < search.min_duration_s:
+        raise RecordingError(
+            f"{recording.source}: the wheel moves for {end_s - start_s:.1f} s "
+            f"(need {search.min_duration_s:g} s)"
+        )
+    inside = (t >= start_s) & (t <= end_s)
+    accel = np.gradient(rate, t)
+    reason = (
+        f"drive {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s) from the gyroscope: "
+        f"first to last motion with {rest_s:g} s of rest either side, stops included"
+    )
+    return FreeSpinWindow(
+        start_s=float(start_s),
+        end_s=float(end_s),
+        reason=reason,
+        omega_start_radps=float(rate[inside][0]),
+        omega_end_radps=float(rate[inside][-1]),
+        max_spin_accel_radps2=float(np.max(np.abs(accel[inside]))),
+    )

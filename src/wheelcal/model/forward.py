@@ -12,10 +12,15 @@ With W = Γ R and a(t) from eq. (1):
 * rotation δ_k:         Γ R (e_k × a)          (right perturbation R·exp([δ]×))
 * gain γ_i:             e_i s_i,   s = R a
 * offset o_i:           e_i
+
+Effects of stage ``force`` (:class:`~wheelcal.model.rolling.Rolling`) add Δa
+to the bench-frame force before R; their partials w.r.t. ϑ, ω, ω̇ chain into
+the spin rows, and R, Γ then act on the total a.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +46,8 @@ class ModelOutput:
     kinematics: Kinematics
     force: BenchForce
     sensed_mps2: np.ndarray
+    #: ∂Δa/∂r (N, 3) of the force-stage effects (with a Jacobian), for the radius' budget.
+    force_by_radius: np.ndarray | None = None
 
 
 def _apply_spin_effect(
@@ -119,6 +126,10 @@ def candidate_columns(
         if e.stage == "sensor"
     ]
     w3 = _sensor_w(gain, params.bench.misalignment.matrix, terms)
+    if candidate.stage == "force":
+        r = params.bench.radius_m
+        d = candidate.force_delta(np.zeros(candidate.size), t, out.kinematics, r, True)
+        return np.stack([_through_w(w3, column) for column in d.d_own])
     d = candidate.spin_delta(np.zeros(candidate.size), t, out.kinematics, True)
     rows = (d.d_own_theta, d.d_own_omega, d.d_own_omega_dot)
     return _spin_rows_to_v(w3, out.force, rows, out.kinematics.omega_radps, params.bench.radius_m)
@@ -144,6 +155,34 @@ def _through_w(w3: np.ndarray, da: np.ndarray) -> np.ndarray:
     if w3.shape[2] == 1:
         return w3[:, :, 0] @ da.T
     return np.einsum("ijn,nj->in", w3, da)
+
+
+def _add_force_rows(jac, layout, w3, kin, force_terms, spin_effects) -> None:
+    """Force effects' share of dv/dp, and their own columns.
+
+    Spin rows p: W·(∂Δa/∂ϑ ∂ϑ/∂p + ∂Δa/∂ω ∂ω/∂p + ∂Δa/∂ω̇ ∂ω̇/∂p); own: W·∂Δa/∂θ.
+    """
+    blocks = layout.blocks
+    by = [
+        sum(getattr(term, k) for _, term in force_terms)
+        for k in ("by_theta", "by_omega", "by_omega_dot")
+    ]
+    da = kin.d_theta[:, :, None] * by[0][None]
+    da += kin.d_omega[:, :, None] * by[1][None]
+    da += kin.d_omega_dot[:, :, None] * by[2][None]
+    if w3.shape[2] == 1:
+        rows = np.einsum("ij,snj->sin", w3[:, :, 0], da)
+    else:
+        rows = np.einsum("ijn,snj->sin", w3, da)
+    targets = [blocks["spin"]] + [blocks[f"effect:{e.name}"] for e in spin_effects]
+    row = 0
+    for target in targets:
+        size = target.stop - target.start
+        jac[target] += rows[row : row + size]
+        row += size
+    for effect, term in force_terms:
+        block = blocks[f"effect:{effect.name}"]
+        jac[block] = np.stack([_through_w(w3, column) for column in term.d_own])
 
 
 def wheel_kinematics(
@@ -192,6 +231,15 @@ def evaluate(
     t = np.asarray(t_s, dtype=float)
     kin = wheel_kinematics(params, t, effects, jacobian, kinematics)
     force = bench_force(kin, params.bench.tilt_rad, params.bench.radius_m, params.gravity_mps2)
+    force_terms = []
+    for effect in effects:
+        if effect.stage == "force":  # Δa of the bench frame (e.g. a rolling wheel's hub)
+            values = params.effect(effect.name, effect.size)
+            term = effect.force_delta(values, t, kin, params.bench.radius_m, jacobian)
+            force_terms.append((effect, term))
+    if force_terms:
+        total = force.accel_mps2 + sum(term.delta for _, term in force_terms)
+        force = dataclasses.replace(force, accel_mps2=total)
     rot = params.bench.misalignment.matrix
     gain = params.sensor.gain
     sensed = force.accel_mps2 @ rot.T  # Eq. (4): s = R a
@@ -230,15 +278,21 @@ def evaluate(
             row += effect.size
     else:  # the paper's model: straight into the Jacobian, no copy
         _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r, out=jac[spin])
+    if force_terms:
+        _add_force_rows(jac, layout, w3, kin, force_terms, spin_effects)
     if layout.fit_tilt:
         jac[blocks["tilt"].start] = _through_w(w3, d_force_d_tilt(force))
     if layout.fit_radius:
-        jac[blocks["radius"].start] = _through_w(w3, d_force_d_radius(kin))
+        da_dr = d_force_d_radius(kin)
+        for _, term in force_terms:
+            da_dr = da_dr + term.by_radius
+        jac[blocks["radius"].start] = _through_w(w3, da_dr)
     # Rotation: ∂(R exp([δ]×) a)/∂δ_k = R (e_k × a), so dv/dδ_k = W (e_k × a):
     # e_x × a = (0, −a_Z, a_Y), e_y × a = (a_Z, 0, −a_X), e_z × a = (−a_Y, a_X, 0).
     a = force.accel_mps2
     rot0 = blocks["rotation"].start
-    a_x, a_y, a_z = a[:, 0], a[:, 1], force.g_cos_tilt  # a_Z is a constant
+    a_x, a_y = a[:, 0], a[:, 1]
+    a_z = a[:, 2] if force_terms else force.g_cos_tilt  # a_Z is a constant in eq. (1)
     w_x, w_y, w_z = w3[:, 0], w3[:, 1], w3[:, 2]
     jac[rot0] = w_z * a_y - w_y * a_z
     jac[rot0 + 1] = w_x * a_z - w_z * a_x
@@ -250,7 +304,8 @@ def evaluate(
         jac[blocks[f"effect:{effect.name}"]] = term.d_own
         if term.d_gain is not None:
             jac[blocks["gain"]] += term.d_gain
-    return ModelOutput(predicted, jac, kin, force, sensed)
+    by_radius = sum(term.by_radius for _, term in force_terms) if force_terms else None
+    return ModelOutput(predicted, jac, kin, force, sensed, by_radius)
 
 
 def predict(
@@ -277,6 +332,8 @@ def nuisance_sensitivity(
     w_mat = params.sensor.gain[:, None] * params.bench.misalignment.matrix
     if nuisance == "radius_m":
         da = d_force_d_radius(out.kinematics)
+        if out.force_by_radius is not None:  # a rolling wheel's r ψ̇², r ψ̈, 2 r ω ψ̇ terms
+            da = da + out.force_by_radius
     elif nuisance == "gravity_mps2":
         da = d_force_d_gravity(out.force, params.bench.tilt_rad)
     elif nuisance == "tilt_rad":

@@ -194,6 +194,7 @@ class GyroSpec:
         misalignment: np.ndarray,
         rate_hz: float,
         rng: np.random.Generator,
+        extra_rate_radps: np.ndarray | None = None,
     ) -> np.ndarray:
         """The gyro's readings (N, 3), rad/s, for the wheel rate and specific force at each sample.
 
@@ -210,8 +211,14 @@ class GyroSpec:
             Sample rate (for the noise std).
         rng:
             The only source of randomness (one (N, 3) normal draw, if noisy).
+        extra_rate_radps:
+            Body rate besides the spin, bench frame (N, 3) — e.g. a rolling
+            wheel's yaw ψ̇ u (:mod:`wheelcal.model.rolling`); ``None``: none.
         """
-        rate = self.ideal_reading(omega_radps, misalignment) @ self.response_matrix.T
+        ideal = self.ideal_reading(omega_radps, misalignment)
+        if extra_rate_radps is not None:
+            ideal = ideal + np.asarray(extra_rate_radps, dtype=float) @ np.asarray(misalignment).T
+        rate = ideal @ self.response_matrix.T
         rate += np.asarray(sensed_mps2, dtype=float) @ self.g_sensitivity_radps_per_mps2.T
         rate += np.asarray(self.bias_radps)
         std = self.noise_std_radps(rate_hz)
