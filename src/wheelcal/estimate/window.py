@@ -31,6 +31,7 @@ filtering; gaps are bridged) and either spin direction.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -239,12 +240,21 @@ def find_motion_window(recording: Recording, search: MotionSearch | None = None)
             f"{recording.source}: the wheel turns for {max(end_s - start_s, 0):.1f} s at most "
             f"(need {search.min_duration_s:g} s)"
         )
-    inside = (t >= start_s) & (t <= end_s)
+    window = _gyro_window(t, rate, accel, start_s, end_s, reason="")
     reason = (
         f"motion {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s) from the gyroscope: "
-        f"|ω| {rate[inside][0]:.2f} → {rate[inside][-1]:.2f} rad/s, speed changes up to "
-        f"{np.max(np.abs(accel[inside])):.2f} rad/s² followed by the wheel-angle spline"
+        f"|ω| {window.omega_start_radps:.2f} → {window.omega_end_radps:.2f} rad/s, speed "
+        f"changes up to {window.max_spin_accel_radps2:.2f} rad/s² followed by the "
+        "wheel-angle spline"
     )
+    return dataclasses.replace(window, reason=reason)
+
+
+def _gyro_window(
+    t: np.ndarray, rate: np.ndarray, accel: np.ndarray, start_s: float, end_s: float, reason: str
+) -> FreeSpinWindow:
+    """The window [start_s, end_s] with the gyro's rate at its ends and its fastest ω̇."""
+    inside = (t >= start_s) & (t <= end_s)
     return FreeSpinWindow(
         start_s=float(start_s),
         end_s=float(end_s),
@@ -284,17 +294,8 @@ def find_drive_window(
             f"{recording.source}: the wheel moves for {end_s - start_s:.1f} s "
             f"(need {search.min_duration_s:g} s)"
         )
-    inside = (t >= start_s) & (t <= end_s)
-    accel = np.gradient(rate, t)
     reason = (
         f"drive {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s) from the gyroscope: "
         f"first to last motion with {rest_s:g} s of rest either side, stops included"
     )
-    return FreeSpinWindow(
-        start_s=float(start_s),
-        end_s=float(end_s),
-        reason=reason,
-        omega_start_radps=float(rate[inside][0]),
-        omega_end_radps=float(rate[inside][-1]),
-        max_spin_accel_radps2=float(np.max(np.abs(accel[inside]))),
-    )
+    return _gyro_window(t, rate, np.gradient(rate, t), start_s, end_s, reason)
