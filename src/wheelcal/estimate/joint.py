@@ -56,8 +56,6 @@ from wheelcal.model.forward import wheel_kinematics
 from wheelcal.recording import Recording, RecordingError
 
 GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling")
-#: Passes of (demodulate the yaw with the latest fit, refit) in geometry ``rolling``.
-ROLLING_PASSES = 1
 #: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
 _STAGE1_SAMPLES = 3000
 

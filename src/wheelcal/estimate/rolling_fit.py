@@ -27,6 +27,9 @@ from wheelcal.model import CalibrationParams
 from wheelcal.model.rolling import Rolling
 from wheelcal.recording import Recording, RecordingError
 
+#: Passes of (demodulate the yaw with the latest fit, refit).
+ROLLING_PASSES = 1
+
 
 def fit_rolling(
     fitter,
@@ -36,8 +39,6 @@ def fit_rolling(
     frame: tuple[float, float] | None = None,
 ) -> CalibrationResult:
     """Fit ``recording`` in geometry ``rolling`` with ``fitter``'s other settings (module doc)."""
-    from wheelcal.estimate.joint import ROLLING_PASSES
-
     t = recording.time_s
     frame = frame or (float(t[0]), float(t[-1]))
     tc = t - 0.5 * (frame[0] + frame[1])

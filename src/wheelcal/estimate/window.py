@@ -205,6 +205,17 @@ class MotionSearch:
     min_duration_s: float = 5.0
 
 
+def _smoothed_gyro_rate(recording: Recording, search: MotionSearch) -> np.ndarray:
+    """|ω| from the gyroscope at every sample (gaps interpolated), moving-averaged."""
+    gyro = getattr(recording, "gyro_radps", None)
+    if gyro is None:
+        raise RecordingError(f"{recording.source}: no gyroscope to find the wheel's motion")
+    t = recording.time_s
+    valid = np.all(np.isfinite(gyro), axis=1)
+    rate = np.interp(t, t[valid], np.linalg.norm(gyro[valid], axis=1))
+    return _moving_average(rate, max(1, round(search.smooth_s * recording.rate_hz)))
+
+
 def find_motion_window(recording: Recording, search: MotionSearch | None = None) -> FreeSpinWindow:
     """The longest stretch where the wheel turns, found from the gyroscope.
 
@@ -215,14 +226,8 @@ def find_motion_window(recording: Recording, search: MotionSearch | None = None)
     wheel, whose forces are not in the model), shrunk by ``margin_s``.
     """
     search = search or MotionSearch()
-    gyro = getattr(recording, "gyro_radps", None)
-    if gyro is None:
-        raise RecordingError(f"{recording.source}: no gyroscope to find the wheel's motion")
     t = recording.time_s
-    valid = np.all(np.isfinite(gyro), axis=1)
-    rate = np.interp(t, t[valid], np.linalg.norm(gyro[valid], axis=1))
-    n = max(1, round(search.smooth_s * recording.rate_hz))
-    rate = _moving_average(rate, n)
+    rate = _smoothed_gyro_rate(recording, search)
     accel = np.gradient(rate, t)
     turning = (rate > search.min_rate_radps) & (np.abs(accel) < search.max_spin_accel_radps2)
     starts, stops = _runs(turning)
@@ -274,13 +279,8 @@ def find_drive_window(
     nothing inside the drive is cut; ``rest_s`` of rest is kept on each side.
     """
     search = search or MotionSearch()
-    gyro = getattr(recording, "gyro_radps", None)
-    if gyro is None:
-        raise RecordingError(f"{recording.source}: no gyroscope to find the wheel's motion")
     t = recording.time_s
-    valid = np.all(np.isfinite(gyro), axis=1)
-    rate = np.interp(t, t[valid], np.linalg.norm(gyro[valid], axis=1))
-    rate = _moving_average(rate, max(1, round(search.smooth_s * recording.rate_hz)))
+    rate = _smoothed_gyro_rate(recording, search)
     moving = np.flatnonzero(rate > search.min_rate_radps)
     if moving.size == 0:
         raise RecordingError(
