@@ -98,6 +98,15 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"wheelcal {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except Exception as exc:  # MemoryError and the unforeseen: a message, never a traceback
+        if args.debug:
+            raise
+        print(
+            f"wheelcal {args.command}: error: {type(exc).__name__}: {exc} "
+            "(run with --debug for the traceback)",
+            file=sys.stderr,
+        )
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover
