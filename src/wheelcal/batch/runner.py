@@ -406,13 +406,16 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
         report["overview"] = {"file": OVERVIEW_FILE}
     else:
         report["overview"] = {"file": None, "note": note}
-    if pipeline.rerun:
+    batch_rrd = pipeline.rerun and bool(calibrations)  # nothing to draw when every session failed
+    if batch_rrd:
         paths.append(out / "batch.rrd")
+    elif pipeline.rerun and (out / "batch.rrd").exists():
+        os.replace(out / "batch.rrd", out / "batch.stale.rrd")  # not this run's
     report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
     report["provenance"] = {"report_key": report_key, "outputs": [str(p) for p in paths]}
     atomic_write_text(md_path, report_markdown(report, f"Repeatability report — {pipeline.name}"))
     atomic_write_text(csv_path, sessions_csv(calibrations, report["per_session"]))
-    if pipeline.rerun:
+    if batch_rrd:
         from wheelcal.viz.batch_rrd import write_batch_rrd
 
         write_batch_rrd(out / "batch.rrd", calibrations)
