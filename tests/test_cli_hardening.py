@@ -385,3 +385,15 @@ def test_two_batches_on_one_folder_compute_each_session_once(tmp_path, inputs):
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert report["sessions"] == 3 and report["calibrated"] == 3 and not report["failed"]
     assert all(s["status"] in ("calibrated", "up to date") for s in report["per_session"])
+
+
+def test_a_fifo_matched_by_the_globs_is_a_named_failure(tmp_path, inputs):
+    folder = tmp_path / "rec"
+    folder.mkdir()
+    (folder / "r2.mcap").write_bytes((inputs / "r2.mcap").read_bytes())
+    os.mkfifo(folder / "live.mcap")  # a logger's pipe: reading it would block forever
+    (folder / "sub.mcap").mkdir()  # a folder the glob matches is simply not a recording
+    outcome = run_batch(load_pipeline(_pipeline(tmp_path, f"{folder}/*.mcap")))
+    assert [r.stem for r in outcome.records] == ["live", "r2"]
+    (failed,) = outcome.failed
+    assert "live.mcap: is a FIFO (named pipe), not a recording file" in failed.error

@@ -225,12 +225,14 @@ class Pipeline:
         """Recordings matched by the globs plus the simulated ones (sorted, de-duplicated).
 
         Two spellings of one file (``a/x.mcap``, ``./b/../a/x.mcap``) count once.
+        Folders are left out; a FIFO or device is kept, for the batch to refuse
+        by name (it must never be read: ``/dev/zero`` never ends).
         """
         found: set[Path] = set(self.simulated_paths())
         for pattern in self.globs:
             found.update(Path(p) for p in glob.glob(os.path.expanduser(pattern), recursive=True))
         unique: dict[Path, Path] = {}
-        for p in sorted(p for p in found if p.is_file()):
+        for p in sorted(p for p in found if p.exists() and not p.is_dir()):
             unique.setdefault(p.resolve(), p)
         return sorted(unique.values())
 

@@ -29,11 +29,17 @@ from threadpoolctl import threadpool_limits
 from wheelcal.batch.locking import report_lock, session_lock
 from wheelcal.batch.pipeline import Pipeline, PipelineError
 from wheelcal.batch.provenance import file_sha256, run_key, stored_run_key
-from wheelcal.batch.session import SessionOptions, calibrate_session, failed_outcome
+from wheelcal.batch.session import (
+    SessionOptions,
+    calibrate_session,
+    check_regular_file,
+    failed_outcome,
+)
 from wheelcal.batch.stems import unique_stems
 from wheelcal.batch.workers import exit_with_parent
 from wheelcal.io.atomic import OutputFolderError, prepare_output_folder
 from wheelcal.io.calibration import Calibration
+from wheelcal.recording import RecordingError
 from wheelcal.runtime import tune_allocator
 
 
@@ -180,10 +186,15 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
     for f in files:
         stem = stems[str(f)]
         try:
+            check_regular_file(f)  # before hashing: a FIFO would block, /dev/zero never end
             sha = file_sha256(f)
-        except OSError as exc:
+        except (OSError, RecordingError) as exc:
             # An input that became unreadable: its earlier outputs must not pass for this run's.
-            error = f"cannot read ({exc.strerror or exc})"
+            error = (
+                str(exc)
+                if isinstance(exc, RecordingError)
+                else f"cannot read ({exc.strerror or exc})"
+            )
             up_to_date.append(
                 SessionRecord(
                     source=str(f), stem=stem, error=failed_outcome(str(f), stem, out, error).error
