@@ -397,3 +397,16 @@ def test_a_fifo_matched_by_the_globs_is_a_named_failure(tmp_path, inputs):
     assert [r.stem for r in outcome.records] == ["live", "r2"]
     (failed,) = outcome.failed
     assert "live.mcap: is a FIFO (named pipe), not a recording file" in failed.error
+
+
+def test_a_failed_write_names_the_file_not_the_hidden_temporary(tmp_path, monkeypatch):
+    import wheelcal.io.atomic as atomic
+
+    def mkstemp(prefix="", suffix="", dir=None):
+        raise PermissionError(13, "Permission denied", str(Path(dir) / f"{prefix}x{suffix}"))
+
+    monkeypatch.setattr(atomic.tempfile, "mkstemp", mkstemp)
+    target = tmp_path / "r.calibration.json"
+    with pytest.raises(PermissionError) as exc:
+        atomic.atomic_write_text(target, "{}")
+    assert str(target) in str(exc.value) and ".tmp" not in str(exc.value)

@@ -66,7 +66,10 @@ def atomic_output(
     """
     target = Path(path)
     directory = target.parent if str(target.parent) else Path(".")
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:  # name the file the user asked for, not our hidden temporary one
+        raise OSError(exc.errno, exc.strerror, str(target)) from None
     tmp = Path(tmp_name)
     try:
         mode = "wb" if binary else "w"
