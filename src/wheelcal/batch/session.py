@@ -359,24 +359,28 @@ def check_regular_file(path: str | Path) -> None:
 
     A missing file is left to the reader, which names it.
     """
+    kind = special_file_kind(path)
+    if kind is not None:
+        raise RecordingError(f"{path}: is {kind}, not a recording file; give an .mcap file")
+
+
+def special_file_kind(path: str | Path) -> str | None:
+    """What ``path`` is when it exists and is not a regular file (``"a FIFO ..."``), else None."""
     try:
         mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        return
+    except OSError:
+        return None
     if stat.S_ISREG(mode):
-        return
-    kind = (
-        "a folder"
-        if stat.S_ISDIR(mode)
-        else "a FIFO (named pipe)"
-        if stat.S_ISFIFO(mode)
-        else "a device"
-        if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
-        else "a socket"
-        if stat.S_ISSOCK(mode)
-        else "not a regular file"
-    )
-    raise RecordingError(f"{path}: is {kind}, not a recording file; give an .mcap file")
+        return None
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
 
 
 def failed_outcome(

@@ -32,16 +32,14 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
-    from wheelcal.batch.session import check_regular_file
+    from wheelcal.batch.session import special_file_kind
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.io.apply_calibration import apply_calibration
-    from wheelcal.recording import RecordingError
 
     for what, path in (("CAL.json", args.calibration), ("IN.mcap", args.source)):
-        try:
-            check_regular_file(path)
-        except RecordingError:
-            raise UsageError(f"{what} {path} is not a regular file") from None
+        kind = special_file_kind(path)
+        if kind is not None:
+            raise UsageError(f"{what} {path} is {kind}, not a file to read")
     if os.path.isdir(args.destination):
         raise UsageError(f"OUT.mcap {args.destination} is a folder; give the file to write")
     if os.path.exists(args.source) and os.path.exists(args.destination):
