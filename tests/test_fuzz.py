@@ -3,13 +3,13 @@
 Two short recordings (ROS 2 ``sensor_msgs/msg/Imu`` and the JSON
 ``wheelcal.AccelBatch``) are damaged in a few hundred seeded ways: byte flips,
 truncations, zeroed ranges, duplicated chunks, record length fields swapped or
-replaced, and chunk headers claiming up to 1 TiB.  Half the cases damage the
-file (its CRCs see it); half damage the messages of an uncompressed copy whose
-CRCs are set to 0 ("not computed"), which reaches the decoders.  The damaged
-files are calibrated by the command line in a few subprocesses, each under a
-data-segment limit (``RLIMIT_DATA``) and a timeout, so a decompression bomb or
-a hang fails this test instead of the
-machine.  For every case:
+replaced, chunk headers claiming up to 1 TiB, and JSON nested ``[[[[…`` deep.
+Half the cases damage the file (its CRCs see it); half damage the messages of
+an uncompressed copy whose CRCs are set to 0 ("not computed"), which reaches
+the decoders.  The damaged files are calibrated by the command line in a few
+subprocesses, each under a data-segment limit (``RLIMIT_DATA``) and a timeout,
+so a decompression bomb or a hang fails this test instead of the machine.
+For every case:
 
 * no Python traceback, no crash by signal, no hang;
 * the case is either calibrated or named as failed, never neither;
@@ -50,6 +50,7 @@ CHUNK_OPCODE = 0x06
 FOOTER_OPCODE = 0x02
 MESSAGE_OPCODE = 0x05
 DATA_END_OPCODE = 0x0F
+MESSAGE_HEADER_BYTES = 22  # channel id, sequence, log time, publish time
 
 
 def _records(data: bytes) -> list[tuple[int, int, int]]:
@@ -134,6 +135,23 @@ def damage_chunk_header(data: bytes, rng: np.random.Generator) -> tuple[str, byt
     claim = int(rng.choice([2**40, 2**31, size * 2, size // 2, size + 1, 0]))
     struct.pack_into("<Q", out, at, claim)
     return "chunk_size", bytes(out)
+
+
+def damage_nesting(data: bytes, rng: np.random.Generator) -> tuple[str, bytes]:
+    """One JSON message's payload replaced by ``[[[[…`` (tens of thousands deep), CRCs 0."""
+    out = _without_crcs(data)
+    chunks = [pos for pos, opcode, _ in _records(data) if opcode == CHUNK_OPCODE]
+    start, end = _chunk_records(data, chunks[int(rng.integers(0, len(chunks)))])
+    messages, pos = [], start
+    while pos + 9 <= end:
+        (length,) = struct.unpack_from("<Q", data, pos + 1)
+        if data[pos] == MESSAGE_OPCODE:
+            messages.append((pos, length))
+        pos += 9 + length
+    pos, length = messages[int(rng.integers(0, len(messages)))]
+    payload = pos + 9 + MESSAGE_HEADER_BYTES
+    out[payload : pos + 9 + length] = b"[" * (length - MESSAGE_HEADER_BYTES)
+    return "nested_json", bytes(out)
 
 
 def damage_content(data: bytes, rng: np.random.Generator) -> tuple[str, bytes]:
@@ -225,6 +243,8 @@ def test_damaged_recordings_are_refused_or_harmless(tmp_path, originals):
             # Half the cases damage the file (CRCs see it), half the messages past the CRCs.
             if i % 10 == 0:
                 kind, damaged = damage_chunk_header(data, rng)
+            elif i % 10 == 4 and encoding == "json":
+                kind, damaged = damage_nesting(plain, rng)
             elif i % 2:
                 kind, damaged = damage(data, rng)
             else:
