@@ -410,3 +410,17 @@ def test_a_failed_write_names_the_file_not_the_hidden_temporary(tmp_path, monkey
     with pytest.raises(PermissionError) as exc:
         atomic.atomic_write_text(target, "{}")
     assert str(target) in str(exc.value) and ".tmp" not in str(exc.value)
+
+
+def test_writing_onto_a_folder_names_it_not_a_temporary(tmp_path, inputs, capsys):
+    out = tmp_path / "out"
+    assert main(["calibrate", str(inputs / "r2.mcap"), "--out", str(out), "--quiet"]) == 0
+    cal = str(out / "r2.calibration.json")
+    assert main(["export", cal, "--format", "yaml", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert f"--out {tmp_path} is a folder" in err and ".tmp" not in err and "Errno" not in err
+    from wheelcal.io.atomic import atomic_write_text
+
+    with pytest.raises(IsADirectoryError) as exc:
+        atomic_write_text(tmp_path, "x")
+    assert exc.value.filename == str(tmp_path) and ".tmp" not in str(exc.value)

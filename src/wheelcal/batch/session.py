@@ -343,7 +343,7 @@ def calibrate_session(
         outcome = replace(compute_session(path, options), stem=stem)
         return write_session(outcome, options, out_dir, provenance, durable)
     except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:
-        return failed_outcome(source, stem, out_dir, str(exc), exc)
+        return failed_outcome(source, stem, out_dir, describe_error(exc), exc)
     except (MemoryError, RecursionError) as exc:
         # A recording that exhausts memory or the stack fails alone: the next one still runs.
         what = "out of memory" if isinstance(exc, MemoryError) else "input nested too deeply"
@@ -352,6 +352,16 @@ def calibrate_session(
         return failed_outcome(
             source, stem, out_dir, f"unexpected error: {type(exc).__name__}: {exc}", exc
         )
+
+
+def describe_error(exc: BaseException) -> str:
+    """An error in words: ``path: Permission denied`` rather than ``[Errno 13] …: 'path'``."""
+    if isinstance(exc, OSError) and exc.strerror:
+        if exc.filename is None:
+            return exc.strerror
+        where = f"{exc.filename} -> {exc.filename2}" if exc.filename2 else f"{exc.filename}"
+        return f"{where}: {exc.strerror}"
+    return str(exc)
 
 
 def check_regular_file(path: str | Path) -> None:

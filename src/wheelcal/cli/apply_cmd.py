@@ -32,7 +32,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
-    from wheelcal.batch.session import special_file_kind
+    from wheelcal.batch.session import describe_error, special_file_kind
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.io.apply_calibration import apply_calibration
 
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     except Exception as exc:  # incl. MemoryError, RecursionError: named, never a traceback
         if getattr(args, "debug", False):
             raise
-        message = str(exc)
+        message = describe_error(exc)
         if not isinstance(exc, ValueError | OSError) or not message:
             message = f"{type(exc).__name__}: {exc}".rstrip(": ")
         if args.source not in message and args.calibration not in message:

@@ -11,6 +11,7 @@ partial file.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 from collections.abc import Iterator
@@ -66,6 +67,8 @@ def atomic_output(
     """
     target = Path(path)
     directory = target.parent if str(target.parent) else Path(".")
+    if target.is_dir():  # found now: the final rename would name the temporary file
+        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file to write", str(target))
     try:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
     except OSError as exc:  # name the file the user asked for, not our hidden temporary one
