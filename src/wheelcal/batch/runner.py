@@ -1,11 +1,16 @@
 """``wheelcal batch``: many sessions in parallel, one report.
 
-1. Generate the pipeline's simulated recordings, if it has a [simulate] section.
+1. Check that the output folder can be written (before any work), and generate
+   the pipeline's simulated recordings, if it has a [simulate] section.
 2. Plan: every input file gets a run key (:mod:`wheelcal.batch.provenance`);
    sessions whose calibration JSON (and .rrd, when asked for) carry the same key
    are up to date and skipped.
 3. Run the rest on local processes (one BLAS thread each) or on a Dask cluster.
-   A failing session is recorded with its error; the batch goes on.
+   A failing session is recorded with its error, whatever the error (a
+   MemoryError, a worker that dies); the batch goes on.  Each session runs
+   under its lock (:mod:`wheelcal.batch.locking`), so two batches on one
+   folder compute it once, and local workers die with the batch
+   (:mod:`wheelcal.batch.workers`).
 4. Pool each sensor's sessions into ``sensors/<sensor_id>.calibration.json``
    (:mod:`wheelcal.batch.sensors`), draw ``overview.png``, and write
    ``report.json``, ``report.md``, ``sessions.csv`` (and ``batch.rrd``)
