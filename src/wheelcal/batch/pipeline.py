@@ -35,13 +35,16 @@ from __future__ import annotations
 
 import dataclasses
 import glob
+import math
 import os
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from wheelcal.batch.session import SessionOptions
 from wheelcal.estimate.gates import Gates
+from wheelcal.estimate.joint import GEOMETRY_MODES
 from wheelcal.recording import SESSION_FACT_KEYS
 
 
@@ -49,38 +52,131 @@ class PipelineError(ValueError):
     """A pipeline file that cannot be used (names the file and the problem)."""
 
 
-_SECTIONS = {
-    "pipeline": {"name", "output"},
-    "inputs": {"globs", "topic"},
-    "simulate": {
-        "preset",
-        "count",
-        "seed",
-        "noise_mps2",
-        "bandwidth_hz",
-        "format",
-        "folder",
-        "sensor_id",
-        "mounting_id",
-        "quantise",
-        "push_and_stop",
-    },
-    "defaults": set(SESSION_FACT_KEYS),
-    "overrides": set(SESSION_FACT_KEYS),
-    "run": {
-        "calibrate",
-        "diagnose",
-        "closure",
-        "alpha",
-        "rerun",
-        "geometry",
-        "known_tilt_deg",
-        "tilt_std_deg",
-        "gyro",
-    },
-    "executor": {"kind", "workers", "address"},
-    "gates": {f.name for f in dataclasses.fields(Gates)},
+@dataclass(frozen=True)
+class _Key:
+    """What one key accepts: a TOML type, an optional range, and the words for both."""
+
+    kind: str  # "str", "bool", "int", "number", "globs", "pair"
+    allowed: str  # what the error message says is allowed
+    within: Callable[[object], bool] | None = None
+
+
+def _text(allowed: str = "a non-empty string") -> _Key:
+    return _Key("str", allowed, lambda v: v != "")
+
+
+def _choice(*options: str) -> _Key:
+    return _Key("str", "one of " + ", ".join(repr(o) for o in options), lambda v: v in options)
+
+
+def _positive(unit: str = "") -> _Key:
+    return _Key("number", f"a number > 0{unit}", lambda v: v > 0)
+
+
+_BOOL = _Key("bool", "true or false")
+_GATE_KEYS = {
+    f.name: _positive() for f in dataclasses.fields(Gates) if f.name not in ("gain_range",)
 }
+_GATE_KEYS["gain_range"] = _Key("pair", "[low, high] with 0 < low < 1 < high")
+_GATE_KEYS["unexplained_ratio"] = _Key("number", "a number > 1", lambda v: v > 1)
+_GATE_KEYS["rest_alpha"] = _Key("number", "a number in (0, 1)", lambda v: 0 < v < 1)
+_FACTS = {
+    "radius_m": _positive(" (m)"),
+    "radius_std_m": _Key("number", "a number >= 0 (m)", lambda v: v >= 0),
+    "gravity_mps2": _positive(" (m/s²)"),
+    "full_scale_g": _positive(" (g)"),
+    "gyro_full_scale_dps": _positive(" (°/s)"),
+    "sensor_id": _text(),
+    "mounting_id": _text(),
+}
+assert set(_FACTS) == set(SESSION_FACT_KEYS)
+#: Largest [simulate] count: a typo like 1e9 must not fill the disk.
+MAX_SIMULATED = 10_000
+
+#: Every key of every section, with its type and range (a typo or a wrong type is an error).
+_SECTIONS: dict[str, dict[str, _Key]] = {
+    "pipeline": {"name": _text(), "output": _text("a folder path (string)")},
+    "inputs": {
+        "globs": _Key("globs", "a glob pattern or a list of them (strings)"),
+        "topic": _text("a topic name (string)"),
+    },
+    "simulate": {
+        "preset": _choice("table1", "table2"),
+        "count": _Key(
+            "int", f"a whole number from 1 to {MAX_SIMULATED}", lambda v: 1 <= v <= MAX_SIMULATED
+        ),
+        "seed": _Key("int", "a whole number >= 0", lambda v: v >= 0),
+        "noise_mps2": _positive(" (m/s²)"),
+        "bandwidth_hz": _positive(" (Hz)"),
+        "format": _choice("ros2", "json"),
+        "folder": _text("a folder path (string)"),
+        "sensor_id": _text(),
+        "mounting_id": _text(),
+        "quantise": _BOOL,
+        "push_and_stop": _BOOL,
+    },
+    "defaults": _FACTS,
+    "overrides": _FACTS,
+    "run": {
+        "calibrate": _BOOL,
+        "diagnose": _BOOL,
+        "closure": _BOOL,
+        "alpha": _Key("number", "a number in (0, 1)", lambda v: 0 < v < 1),
+        "rerun": _BOOL,
+        "geometry": _choice(*GEOMETRY_MODES),
+        "known_tilt_deg": _Key("number", "a number in [0, 90] (°)", lambda v: 0 <= v <= 90),
+        "tilt_std_deg": _Key("number", "a number >= 0 (°)", lambda v: v >= 0),
+        "gyro": _choice("auto", "on", "off"),
+    },
+    "executor": {
+        "kind": _choice("processes", "dask"),
+        "workers": _Key("int", "a whole number >= 1", lambda v: v >= 1),
+        "address": _text("a scheduler address such as 'tcp://host:8786'"),
+    },
+    "gates": _GATE_KEYS,
+}
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _type_ok(kind: str, value: object) -> bool:
+    if kind == "str":
+        return isinstance(value, str)
+    if kind == "bool":
+        return isinstance(value, bool)
+    if kind == "int":
+        return isinstance(value, int) and not isinstance(value, bool)
+    if kind == "number":
+        return _is_number(value)
+    if kind == "globs":
+        return isinstance(value, str) or (
+            isinstance(value, list) and all(isinstance(v, str) and v for v in value)
+        )
+    if kind == "pair":
+        return isinstance(value, list) and len(value) == 2 and all(map(_is_number, value))
+    raise AssertionError(kind)
+
+
+def _check_value(path: str, section: str, key: str, value: object) -> None:
+    """Refuse a value of the wrong type or out of range, naming the key and what is allowed."""
+    spec = _SECTIONS[section][key]
+    ok = _type_ok(spec.kind, value) and (spec.within is None or spec.within(value))
+    if not ok:
+        shown = _toml_repr(value)
+        raise PipelineError(
+            f"{path}: [{section}] {key} = {shown} is not allowed: use {spec.allowed}"
+        )
+
+
+def _toml_repr(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"' if len(value) <= 80 else f'"{value[:77]}..."'
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 @dataclass(frozen=True)
@@ -129,12 +225,14 @@ class Pipeline:
         """Recordings matched by the globs plus the simulated ones (sorted, de-duplicated).
 
         Two spellings of one file (``a/x.mcap``, ``./b/../a/x.mcap``) count once.
+        Folders are left out; a FIFO or device is kept, for the batch to refuse
+        by name (it must never be read: ``/dev/zero`` never ends).
         """
         found: set[Path] = set(self.simulated_paths())
         for pattern in self.globs:
             found.update(Path(p) for p in glob.glob(os.path.expanduser(pattern), recursive=True))
         unique: dict[Path, Path] = {}
-        for p in sorted(p for p in found if p.is_file()):
+        for p in sorted(p for p in found if p.exists() and not p.is_dir()):
             unique.setdefault(p.resolve(), p)
         return sorted(unique.values())
 
@@ -147,7 +245,7 @@ class Pipeline:
 
 
 def _check_keys(path: str, section: str, table: dict) -> None:
-    unknown = set(table) - _SECTIONS[section]
+    unknown = set(table) - set(_SECTIONS[section])
     if unknown:
         raise PipelineError(
             f"{path}: unknown key(s) {sorted(unknown)} in [{section}]; "
@@ -163,6 +261,16 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
             data = tomllib.load(f)
     except FileNotFoundError:
         raise PipelineError(f"{path}: no such pipeline file") from None
+    except IsADirectoryError:
+        raise PipelineError(f"{path}: is a folder; give a pipeline file (TOML)") from None
+    except OSError as exc:
+        raise PipelineError(
+            f"{path}: cannot read the pipeline file ({exc.strerror or exc})"
+        ) from None
+    except UnicodeDecodeError as exc:
+        raise PipelineError(f"{path}: not valid TOML (not UTF-8: {exc.reason})") from None
+    except RecursionError:
+        raise PipelineError(f"{path}: not valid TOML (nested too deeply)") from None
     except tomllib.TOMLDecodeError as exc:
         raise PipelineError(f"{path}: not valid TOML ({exc})") from None
     unknown = set(data) - set(_SECTIONS)
@@ -174,6 +282,8 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
         if not isinstance(table, dict):
             raise PipelineError(f"{path}: [{section}] must be a table")
         _check_keys(path, section, table)
+        for key, value in table.items():
+            _check_value(path, section, key, value)
     head = data.get("pipeline", {})
     name = str(head.get("name", Path(path).stem))
     output = Path(head.get("output", f"out/{name}"))

@@ -1,11 +1,16 @@
 """``wheelcal batch``: many sessions in parallel, one report.
 
-1. Generate the pipeline's simulated recordings, if it has a [simulate] section.
+1. Check that the output folder can be written (before any work), and generate
+   the pipeline's simulated recordings, if it has a [simulate] section.
 2. Plan: every input file gets a run key (:mod:`wheelcal.batch.provenance`);
    sessions whose calibration JSON (and .rrd, when asked for) carry the same key
    are up to date and skipped.
 3. Run the rest on local processes (one BLAS thread each) or on a Dask cluster.
-   A failing session is recorded with its error; the batch goes on.
+   A failing session is recorded with its error, whatever the error (a
+   MemoryError, a worker that dies); the batch goes on.  Each session runs
+   under its lock (:mod:`wheelcal.batch.locking`), so two batches on one
+   folder compute it once, and local workers die with the batch
+   (:mod:`wheelcal.batch.workers`).
 4. Pool each sensor's sessions into ``sensors/<sensor_id>.calibration.json``
    (:mod:`wheelcal.batch.sensors`), draw ``overview.png``, and write
    ``report.json``, ``report.md``, ``sessions.csv`` (and ``batch.rrd``)
@@ -20,16 +25,26 @@ import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from wheelcal.batch.locking import report_lock, session_lock
 from wheelcal.batch.pipeline import Pipeline, PipelineError
 from wheelcal.batch.provenance import file_sha256, run_key, stored_run_key
-from wheelcal.batch.session import SessionOptions, calibrate_session
+from wheelcal.batch.session import (
+    SessionOptions,
+    calibrate_session,
+    check_regular_file,
+    failed_outcome,
+)
 from wheelcal.batch.stems import unique_stems
+from wheelcal.batch.workers import exit_with_parent
+from wheelcal.io.atomic import OutputFolderError, prepare_output_folder
 from wheelcal.io.calibration import Calibration
+from wheelcal.recording import RecordingError
 from wheelcal.runtime import tune_allocator
 
 
@@ -114,17 +129,24 @@ class _Task:
 
 
 def _run_task(task: _Task) -> SessionRecord:
-    """Worker entry point (top level: it must pickle)."""
+    """Worker entry point (top level: it must pickle).
+
+    The session's lock is held while it runs; once it has the lock, a session
+    that another batch on the same folder has just written is skipped.
+    """
     tune_allocator()
-    with threadpool_limits(1):
-        outcome = calibrate_session(
-            task.path,
-            task.options,
-            task.out_dir,
-            provenance={"run_key": task.key, "input_sha256": task.input_sha256},
-            durable=False,  # atomic, not fsync-ed one by one: run_batch syncs once
-            stem=task.stem,
-        )
+    with session_lock(task.out_dir, task.stem):
+        if _up_to_date(Path(task.out_dir), task.stem, task.key, task.options):
+            return _up_to_date_record(task.path, Path(task.out_dir), task.stem, task.options.rrd)
+        with threadpool_limits(1):
+            outcome = calibrate_session(
+                task.path,
+                task.options,
+                task.out_dir,
+                provenance={"run_key": task.key, "input_sha256": task.input_sha256},
+                durable=False,  # atomic, not fsync-ed one by one: run_batch syncs once
+                stem=task.stem,
+            )
     result = outcome.result
     notes = () if result is None else (*result.notes, *(f"⚠ {w}" for w in result.warnings))
     return SessionRecord(
@@ -140,6 +162,24 @@ def _run_task(task: _Task) -> SessionRecord:
     )
 
 
+def _up_to_date(out: Path, stem: str, key: str, options: SessionOptions) -> bool:
+    """The session's outputs exist and carry this run key."""
+    rrd = out / f"{stem}.rrd"
+    diag = out / f"{stem}.diagnosis.json"
+    complete = (not options.rrd or rrd.exists()) and (not options.diagnose or diag.exists())
+    return complete and stored_run_key(out / f"{stem}.calibration.json") == key
+
+
+def _up_to_date_record(source: str, out: Path, stem: str, rrd: bool) -> SessionRecord:
+    return SessionRecord(
+        source=source,
+        stem=stem,
+        calibration_path=str(out / f"{stem}.calibration.json"),
+        rrd_path=str(out / f"{stem}.rrd") if rrd else None,
+        skipped=True,
+    )
+
+
 def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
     try:
         stems = unique_stems(files)
@@ -151,27 +191,24 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
     for f in files:
         stem = stems[str(f)]
         try:
+            check_regular_file(f)  # before hashing: a FIFO would block, /dev/zero never end
             sha = file_sha256(f)
-        except OSError as exc:
+        except (OSError, RecordingError) as exc:
+            # An input that became unreadable: its earlier outputs must not pass for this run's.
+            error = (
+                str(exc)
+                if isinstance(exc, RecordingError)
+                else f"cannot read ({exc.strerror or exc})"
+            )
             up_to_date.append(
-                SessionRecord(source=str(f), stem=stem, error=f"{f}: cannot read ({exc})")
+                SessionRecord(
+                    source=str(f), stem=stem, error=failed_outcome(str(f), stem, out, error).error
+                )
             )
             continue
         key = run_key(sha, pipeline.options, produces)
-        cal = out / f"{stem}.calibration.json"
-        rrd = out / f"{stem}.rrd"
-        diag = out / f"{stem}.diagnosis.json"
-        complete = (not pipeline.rerun or rrd.exists()) and (not pipeline.diagnose or diag.exists())
-        if stored_run_key(cal) == key and complete:
-            up_to_date.append(
-                SessionRecord(
-                    source=str(f),
-                    stem=stem,
-                    calibration_path=str(cal),
-                    rrd_path=str(rrd) if pipeline.rerun else None,
-                    skipped=True,
-                )
-            )
+        if _up_to_date(out, stem, key, pipeline.options):
+            up_to_date.append(_up_to_date_record(str(f), out, stem, pipeline.rerun))
         else:
             tasks.append(_Task(str(f), pipeline.options, str(out), key, sha, stem))
     return tasks, up_to_date
@@ -187,7 +224,14 @@ def _execute(
         from dask.distributed import Client
         from dask.distributed import as_completed as dask_completed
 
-        with Client(executor.address, timeout="20s") as client:
+        try:
+            client = Client(executor.address, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise PipelineError(
+                f"{pipeline.path}: [executor] cannot reach the Dask scheduler at "
+                f"{executor.address}: {exc}"
+            ) from None
+        with client:
             futures = {client.submit(_run_task, t, pure=False): t for t in tasks}
             for future in dask_completed(futures):
                 on_done(_collect(future, futures[future]))
@@ -196,12 +240,42 @@ def _execute(
     workers = min(workers, len(tasks))
     if workers == 1:
         for task in tasks:
-            on_done(_run_task(task))
+            try:
+                record = _run_task(task)
+            except Exception as exc:  # one session must never stop the batch
+                record = _failed_record(task, exc)
+            on_done(record)
         return
-    with ProcessPoolExecutor(workers) as pool:
-        futures = {pool.submit(_run_task, t): t for t in tasks}
+    broken = _run_pool(tasks, workers, on_done)
+    # A worker that died (killed by the OOM killer, a segfault) breaks the whole pool: every
+    # session still pending fails with it.  Re-run those one per fresh worker, so only the
+    # session that kills its worker is failed.
+    for task in broken:
+        for lost in _run_pool([task], 1, on_done):
+            on_done(_failed_record(lost, BrokenProcessPool()))
+
+
+def _run_pool(
+    tasks: list[_Task], workers: int, on_done: Callable[[SessionRecord], None]
+) -> list[_Task]:
+    """Run tasks on a process pool; returns the tasks lost to a broken pool (not reported)."""
+    broken = []
+    with ProcessPoolExecutor(
+        workers, initializer=exit_with_parent, initargs=(os.getpid(),)
+    ) as pool:
+        futures = {}
+        for i, task in enumerate(tasks):
+            try:
+                futures[pool.submit(_run_task, task)] = task
+            except BrokenProcessPool:
+                broken.extend(tasks[i:])
+                break
         for future in as_completed(futures):
-            on_done(_collect(future, futures[future]))
+            if isinstance(future.exception(), BrokenProcessPool):
+                broken.append(futures[future])
+            else:
+                on_done(_collect(future, futures[future]))
+    return sorted(broken, key=lambda t: t.path)
 
 
 def _collect(future, task: _Task) -> SessionRecord:
@@ -209,11 +283,17 @@ def _collect(future, task: _Task) -> SessionRecord:
     try:
         return future.result()
     except Exception as exc:  # one session must never stop the batch
-        return SessionRecord(
-            source=task.path,
-            stem=task.stem,
-            error=f"{task.path}: worker failed: {exc!r}",
-        )
+        return _failed_record(task, exc)
+
+
+def _failed_record(task: _Task, exc: BaseException) -> SessionRecord:
+    """A session whose worker raised or died: named, and its earlier outputs marked stale."""
+    if isinstance(exc, BrokenProcessPool):
+        what = "its worker process died (out of memory, or killed)"
+    else:
+        what = f"worker failed: {type(exc).__name__}: {exc}"
+    outcome = failed_outcome(task.path, task.stem, task.out_dir, what)
+    return SessionRecord(source=task.path, stem=task.stem, error=outcome.error)
 
 
 def run_batch(
@@ -224,7 +304,12 @@ def run_batch(
 
     t0 = time.perf_counter()
     say = progress or (lambda event: None)
-    pipeline.output.mkdir(parents=True, exist_ok=True)
+    if pipeline.executor.kind == "dask":
+        _require_dask(pipeline)
+    try:
+        prepare_output_folder(pipeline.output)  # before any work: a read-only folder wastes it
+    except OutputFolderError as exc:
+        raise PipelineError(f"{pipeline.path}: {exc}") from None
     made = simulate_inputs(pipeline, lambda msg: say(ProgressEvent(0, 0, message=msg)))
     if not pipeline.calibrate:  # [run] calibrate = false: only make the simulated inputs
         return BatchOutcome(pipeline, (), (), False, len(made), time.perf_counter() - t0)
@@ -250,7 +335,8 @@ def run_batch(
     _execute(pipeline, tasks, done)
     _sync()  # the sessions' files, durable in one flush (they skipped per-file fsync)
     records.sort(key=lambda r: r.source)
-    paths, written = _write_report(pipeline, records)
+    with report_lock(pipeline.output):  # another batch on this folder may be writing it
+        paths, written = _write_report(pipeline, records)
     return BatchOutcome(
         pipeline=pipeline,
         records=tuple(records),
@@ -259,6 +345,18 @@ def run_batch(
         simulated=len(made),
         wall_s=time.perf_counter() - t0,
     )
+
+
+def _require_dask(pipeline: Pipeline) -> None:
+    """Refuse a Dask pipeline before any work when the ``dask`` extra is missing."""
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError as exc:
+        raise PipelineError(
+            f'{pipeline.path}: [executor] kind = "dask" needs the dask extra, which is not '
+            f"installed ({exc}): pip install 'wheelcal[dask]' (or \"dask[distributed]\"), on "
+            "this machine and on every worker"
+        ) from None
 
 
 def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tuple[str, ...], bool]:
@@ -324,13 +422,16 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
         report["overview"] = {"file": OVERVIEW_FILE}
     else:
         report["overview"] = {"file": None, "note": note}
-    if pipeline.rerun:
+    batch_rrd = pipeline.rerun and bool(calibrations)  # nothing to draw when every session failed
+    if batch_rrd:
         paths.append(out / "batch.rrd")
+    elif pipeline.rerun and (out / "batch.rrd").exists():
+        os.replace(out / "batch.rrd", out / "batch.stale.rrd")  # not this run's
     report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
     report["provenance"] = {"report_key": report_key, "outputs": [str(p) for p in paths]}
     atomic_write_text(md_path, report_markdown(report, f"Repeatability report — {pipeline.name}"))
     atomic_write_text(csv_path, sessions_csv(calibrations, report["per_session"]))
-    if pipeline.rerun:
+    if batch_rrd:
         from wheelcal.viz.batch_rrd import write_batch_rrd
 
         write_batch_rrd(out / "batch.rrd", calibrations)

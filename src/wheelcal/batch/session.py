@@ -19,6 +19,7 @@ behave the same.  Computing and writing are separate:
 from __future__ import annotations
 
 import os
+import stat
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -338,28 +339,86 @@ def calibrate_session(
     source = str(path)
     stem = stem or session_stem(path)
     try:
+        check_regular_file(path)
         outcome = replace(compute_session(path, options), stem=stem)
         return write_session(outcome, options, out_dir, provenance, durable)
     except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:
-        message = str(exc)
-        if source not in message:
-            message = f"{source}: {message}"
-        stale = _keep_as_stale(Path(out_dir), stem)
-        if stale:
-            message += f" (an earlier calibration of this file was kept as {stale})"
-        refused = exc if isinstance(exc, CalibrationRefused) else None
-        return SessionOutcome(
-            source=source,
-            stem=stem,
-            error=message,
-            gate=refused.gate if refused else None,
-            fix=refused.fix if refused else None,
+        return failed_outcome(source, stem, out_dir, describe_error(exc), exc)
+    except (MemoryError, RecursionError) as exc:
+        # A recording that exhausts memory or the stack fails alone: the next one still runs.
+        what = "out of memory" if isinstance(exc, MemoryError) else "input nested too deeply"
+        return failed_outcome(source, stem, out_dir, f"{what} ({type(exc).__name__})", exc)
+    except Exception as exc:  # one session must never stop the others
+        return failed_outcome(
+            source, stem, out_dir, f"unexpected error: {type(exc).__name__}: {exc}", exc
         )
 
 
-def _keep_as_stale(out: Path, stem: str) -> str | None:
-    """Rename a failed session's earlier outputs to ``.stale``; the calibration's new name."""
-    kept = None
+def describe_error(exc: BaseException) -> str:
+    """An error in words: ``path: Permission denied`` rather than ``[Errno 13] …: 'path'``."""
+    if isinstance(exc, OSError) and exc.strerror:
+        if exc.filename is None:
+            return exc.strerror
+        where = f"{exc.filename} -> {exc.filename2}" if exc.filename2 else f"{exc.filename}"
+        return f"{where}: {exc.strerror}"
+    return str(exc)
+
+
+def check_regular_file(path: str | Path) -> None:
+    """Refuse a device, FIFO or folder before reading it (``/dev/zero`` never ends).
+
+    A missing file is left to the reader, which names it.
+    """
+    kind = special_file_kind(path)
+    if kind is not None:
+        raise RecordingError(f"{path}: is {kind}, not a recording file; give an .mcap file")
+
+
+def special_file_kind(path: str | Path) -> str | None:
+    """What ``path`` is when it exists and is not a regular file (``"a FIFO ..."``), else None."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def failed_outcome(
+    source: str, stem: str, out_dir: str | Path, message: str, exc: BaseException | None = None
+) -> SessionOutcome:
+    """The outcome of a failed session: the error names the file; earlier outputs go stale."""
+    if source not in message:
+        message = f"{source}: {message}"
+    stale = keep_as_stale(Path(out_dir), stem)
+    if stale:
+        message += f" (the earlier outputs of this file were kept as {stale})"
+    refused = exc if isinstance(exc, CalibrationRefused) else None
+    return SessionOutcome(
+        source=source,
+        stem=stem,
+        error=message,
+        gate=refused.gate if refused else None,
+        fix=refused.fix if refused else None,
+    )
+
+
+def keep_as_stale(out: Path, stem: str) -> str | None:
+    """Rename a failed session's earlier outputs to ``.stale``; their new names, or None.
+
+    Never deletes: a good earlier result stays on disk, marked so nobody takes it
+    for this run's.
+    """
+    kept = []
     for suffix in _OUTPUT_SUFFIXES:
         old = out / f"{stem}{suffix}"
         if not old.exists():
@@ -370,6 +429,5 @@ def _keep_as_stale(out: Path, stem: str) -> str | None:
             os.replace(old, new)
         except OSError:
             continue
-        if suffix == ".calibration.json":
-            kept = new.name
-    return kept
+        kept.append(new.name)
+    return ", ".join(kept) or None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 
 
 def register(sub) -> None:
@@ -31,16 +32,37 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
+    from wheelcal.batch.session import describe_error, special_file_kind
+    from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.io.apply_calibration import apply_calibration
 
-    topic, samples = apply_calibration(
-        args.calibration,
-        args.source,
-        args.destination,
-        args.topic,
-        args.out_topic,
-        args.format,
-        allow_partial=args.allow_partial,
-    )
+    for what, path in (("CAL.json", args.calibration), ("IN.mcap", args.source)):
+        kind = special_file_kind(path)
+        if kind is not None:
+            raise UsageError(f"{what} {path} is {kind}, not a file to read")
+    if os.path.isdir(args.destination):
+        raise UsageError(f"OUT.mcap {args.destination} is a folder; give the file to write")
+    if os.path.exists(args.source) and os.path.exists(args.destination):
+        if os.path.samefile(args.source, args.destination):
+            raise UsageError(f"OUT.mcap {args.destination} is IN.mcap itself; give a new file")
+    try:
+        topic, samples = apply_calibration(
+            args.calibration,
+            args.source,
+            args.destination,
+            args.topic,
+            args.out_topic,
+            args.format,
+            allow_partial=args.allow_partial,
+        )
+    except Exception as exc:  # incl. MemoryError, RecursionError: named, never a traceback
+        if getattr(args, "debug", False):
+            raise
+        message = describe_error(exc)
+        if not isinstance(exc, ValueError | OSError) or not message:
+            message = f"{type(exc).__name__}: {exc}".rstrip(": ")
+        if args.source not in message and args.calibration not in message:
+            message = f"{args.source}: {message}"
+        raise SessionsFailed(f"error: {message}") from None
     print(f"wrote {args.destination}: {samples} calibrated samples on {topic}")
     return 0

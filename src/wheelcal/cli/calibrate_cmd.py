@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from wheelcal.cli.errors import SessionsFailed
-from wheelcal.cli.options import add_session_arguments, session_options
+from wheelcal.cli.options import add_session_arguments, output_folder, session_options
 
 
 def register(sub) -> None:
@@ -34,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.cli.summary import session_summary
 
     options = session_options(args, rrd=args.rrd)
+    output_folder(args.out)  # before any session: a read-only folder is found now
     failed = []
     for path in args.files:
         outcome = calibrate_session(path, options, args.out)

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from wheelcal.cli.errors import SessionsFailed
-from wheelcal.cli.options import add_session_arguments, session_options
+from wheelcal.cli.options import add_session_arguments, output_folder, session_options
 
 
 def register(sub) -> None:
@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     options = dataclasses.replace(
         session_options(args, rrd=args.rrd), diagnose=True, alpha=args.alpha
     )
+    output_folder(args.out)  # before any session: a read-only folder is found now
     failed = 0
     for path in args.files:
         outcome = calibrate_session(path, options, args.out)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 
 def register(sub) -> None:
@@ -33,6 +34,8 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.io.calibration_json import load_calibration
     from wheelcal.io.export_formats import to_c_header, to_yaml
 
+    if args.out and Path(args.out).is_dir():
+        raise UsageError(f"--out {args.out} is a folder; give the file to write")
     calibration = load_calibration(args.calibration, allow_partial=args.allow_partial)
     try:
         text = (

@@ -96,7 +96,18 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError, RuntimeError) as exc:
         if args.debug:
             raise
-        print(f"wheelcal {args.command}: error: {exc}", file=sys.stderr)
+        from wheelcal.batch.session import describe_error
+
+        print(f"wheelcal {args.command}: error: {describe_error(exc)}", file=sys.stderr)
+        return 1
+    except Exception as exc:  # MemoryError and the unforeseen: a message, never a traceback
+        if args.debug:
+            raise
+        print(
+            f"wheelcal {args.command}: error: {type(exc).__name__}: {exc} "
+            "(run with --debug for the traceback)",
+            file=sys.stderr,
+        )
         return 1
 
 

@@ -140,3 +140,13 @@ def session_options(args: argparse.Namespace, rrd: bool = False):
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from None
+
+
+def output_folder(path: str):
+    """The ``--out`` folder, created and proven writable (UsageError naming it otherwise)."""
+    from wheelcal.io.atomic import OutputFolderError, prepare_output_folder
+
+    try:
+        return prepare_output_folder(path, what="--out folder")
+    except OutputFolderError as exc:
+        raise UsageError(str(exc)) from None

@@ -10,6 +10,7 @@ import numpy as np
 from wheelcal.io.calibration_json import load_calibration, load_correction_from
 from wheelcal.io.mcap_reader import read_recording
 from wheelcal.io.mcap_writer import accel_channel, copy_with_channels, recording_stamps_ns
+from wheelcal.io.sample_checks import InputPolicy
 
 CALIBRATION_METADATA_NAME = "wheelcal.calibration"
 
@@ -34,12 +35,15 @@ def apply_calibration(
     calibration = load_calibration(calibration_path, allow_partial=allow_partial)
     correction = load_correction_from(calibration)
     topic = topic or calibration.get("source", {}).get("topic") or None
+    # Applying needs no spin: any readable recording, however short, is corrected (the
+    # reader's other checks — damage, units, NaNs, clock — still refuse bad input).
+    policy = InputPolicy(min_duration_s=0.0, min_samples=1)
     try:
-        recording = read_recording(source, topic=topic)
+        recording = read_recording(source, topic=topic, policy=policy)
     except Exception:
         if topic is None:
             raise
-        recording = read_recording(source)  # the calibration's topic is not in this file
+        recording = read_recording(source, policy=policy)  # the calibration's topic is absent
     corrected = correction.apply(recording.accel_mps2)
     new_topic = out_topic or f"{recording.topic.rstrip('/')}/calibrated"
     enc = encoding or ("json" if "wheelcal" in recording.topic else "ros2")

@@ -11,6 +11,7 @@ partial file.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 from collections.abc import Iterator
@@ -66,7 +67,12 @@ def atomic_output(
     """
     target = Path(path)
     directory = target.parent if str(target.parent) else Path(".")
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    if target.is_dir():  # found now: the final rename would name the temporary file
+        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file to write", str(target))
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:  # name the file the user asked for, not our hidden temporary one
+        raise OSError(exc.errno, exc.strerror, str(target)) from None
     tmp = Path(tmp_name)
     try:
         mode = "wb" if binary else "w"
@@ -96,3 +102,45 @@ def atomic_write_text(path: str | os.PathLike, text: str, durable: bool = True) 
     """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`atomic_output`)."""
     with atomic_output(path, binary=False, durable=durable) as stream:
         stream.write(text)
+
+
+class OutputFolderError(ValueError):
+    """An output folder that cannot be created or written (names the folder)."""
+
+
+def prepare_output_folder(path: str | os.PathLike, what: str = "output folder") -> Path:
+    """Create ``path`` if needed and prove it writable, before any work is done.
+
+    A read-only folder found only after every session was computed wastes the
+    run, and its error would name a hidden temporary file; this names the
+    folder instead.
+
+    Raises
+    ------
+    OutputFolderError
+        For a dangling symbolic link, a path that is a file, a folder that
+        cannot be created or one that cannot be written.
+    """
+    folder = Path(path)
+    if folder.is_symlink() and not folder.exists():
+        raise OutputFolderError(
+            f"{what} {folder} is a symbolic link to {os.readlink(folder)}, which does not exist"
+        )
+    if folder.exists() and not folder.is_dir():
+        raise OutputFolderError(f"{what} {folder} exists and is not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputFolderError(
+            f"cannot create the {what} {folder}: {exc.strerror or exc}"
+        ) from None
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".wheelcal-write-test.", dir=folder)
+    except OSError as exc:
+        raise OutputFolderError(
+            f"cannot write in the {what} {folder}: {exc.strerror or exc}"
+        ) from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+    return folder
