@@ -6,9 +6,16 @@ folders and prints, measured in this process:
 
 * sessions per second for each run and the ratios (2 workers vs 1, Rerun on vs off);
 * the per-session cost breakdown (read, window search, fit, Rerun, JSON) from
-  the sessions' own timings, and what share of a session the fit is.
+  the sessions' own timings, and what share of a session the fit is;
+* with ``--dask``: the same batch (2 workers, no Rerun) on a Dask
+  ``LocalCluster`` of 2 single-threaded worker processes, run alternately with
+  the local process pool (``--rounds`` times each), and the ratio of their
+  throughputs (target ≥ 0.9).
 
-Run:  python benchmarks/bench_batch.py [--sessions 1000] [--keep DIR]
+Targets (issue 15): 1,000 recordings on 2 workers ≥ 40 sessions/s without
+Rerun, ≥ 25 with it; Dask ≥ 90 % of the local processes.
+
+Run:  python benchmarks/bench_batch.py [--sessions 1000] [--keep DIR] [--dask] [--rounds 3]
 """
 
 from __future__ import annotations
@@ -43,13 +50,17 @@ def _make_recordings(folder: Path, count: int) -> float:
     return time.perf_counter() - t0
 
 
-def _run(root: Path, inputs: Path, workers: int, rerun: bool):
-    out = root / f"out_w{workers}_{'rrd' if rerun else 'norrd'}"
+def _run(root: Path, inputs: Path, workers: int, rerun: bool, dask_address: str | None = None):
+    tag = "dask" if dask_address else f"w{workers}"
+    out = root / f"out_{tag}_{'rrd' if rerun else 'norrd'}"
     shutil.rmtree(out, ignore_errors=True)
-    toml = root / f"p_w{workers}_{rerun}.toml"
+    toml = root / f"p_{tag}_{rerun}.toml"
+    executor = (
+        f"kind='dask'\naddress='{dask_address}'\n" if dask_address else f"workers={workers}\n"
+    )
     toml.write_text(
         f"[pipeline]\nname='bench'\noutput='{out}'\n[inputs]\nglobs=['{inputs}/*.mcap']\n"
-        f"[run]\nrerun={'true' if rerun else 'false'}\n[executor]\nworkers={workers}\n"
+        f"[run]\nrerun={'true' if rerun else 'false'}\n[executor]\n{executor}"
     )
     t0 = time.perf_counter()
     outcome = run_batch(load_pipeline(toml))
@@ -62,6 +73,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sessions", type=int, default=1000)
     ap.add_argument("--keep", metavar="DIR", help="reuse/keep recordings and outputs here")
+    ap.add_argument("--dask", action="store_true", help="also compare a Dask LocalCluster")
+    ap.add_argument("--rounds", type=int, default=3, help="alternating dask/local runs")
+    ap.add_argument("--skip-local", action="store_true", help="only the Dask comparison")
     args = ap.parse_args()
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="wheelcal-bench-"))
     inputs = root / "recordings"
@@ -69,6 +83,10 @@ def main() -> None:
     print(
         f"{args.sessions} recordings (90 s, 200 Hz, ROS 2 MCAP) in {inputs} (generated in {gen:.0f} s)"
     )
+    if args.dask:
+        _compare_dask(root, inputs, args.sessions, args.rounds)
+    if args.skip_local:
+        return
     results = {}
     for workers in (1, 2):
         for rerun in (False, True):
@@ -97,6 +115,21 @@ def main() -> None:
     )
     if not args.keep:
         shutil.rmtree(root, ignore_errors=True)
+
+
+def _compare_dask(root: Path, inputs: Path, sessions: int, rounds: int) -> None:
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as cluster:
+        walls: dict[str, list[float]] = {"processes": [], "dask": []}
+        for _ in range(rounds):  # alternate: the machine's load drifts
+            walls["processes"].append(_run(root, inputs, 2, False)[0])
+            walls["dask"].append(_run(root, inputs, 2, False, cluster.scheduler_address)[0])
+    for name, ts in walls.items():
+        rates = ", ".join(f"{sessions / t:.1f}" for t in ts)
+        print(f"{name:9s} (2 workers, no Rerun): sessions/s per round {rates}")
+    ratio = statistics.median(walls["processes"]) / statistics.median(walls["dask"])
+    print(f"Dask / local processes throughput: {ratio:.2f}   (target >= 0.90)")
 
 
 if __name__ == "__main__":

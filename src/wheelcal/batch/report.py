@@ -62,6 +62,11 @@ _RATIO_NOTE = (
 )
 
 
+def _read_only(calibration: Mapping) -> Mapping:
+    """The document itself: a :class:`Calibration`'s item access deep-copies every value."""
+    return getattr(calibration, "document", calibration)
+
+
 def _finite(x) -> float | None:
     return None if x is None or not math.isfinite(float(x)) else float(x)
 
@@ -240,6 +245,7 @@ def session_notes(calibration: Mapping, outliers: Sequence[Mapping] = ()) -> lis
     warnings, parameters the recording could not determine, a fit that did not
     converge, and the report's outlier flags.
     """
+    calibration = _read_only(calibration)
     src = calibration.get("source", {})
     fit = calibration.get("fit", {})
     notes = list(src.get("notes", []))
@@ -260,6 +266,7 @@ def session_entry(
     session: Mapping, calibration: Mapping | None, outliers: Sequence[Mapping] = ()
 ) -> dict:
     """One ``per_session`` entry of ``report.json``: status, counts and notes."""
+    calibration = None if calibration is None else _read_only(calibration)
     file = session["file"]
     entry = {
         "file": file,
@@ -488,6 +495,7 @@ def sessions_csv(calibrations: list[dict], per_session: Sequence[Mapping] | None
     and the appended columns carry the status, the reader's dropped and clipped
     sample counts, the number of notes and their text.
     """
+    calibrations = [_read_only(c) for c in calibrations]
     names = [
         p for p in REPORT_PARAMETERS if any(p in c.get("parameters", {}) for c in calibrations)
     ]

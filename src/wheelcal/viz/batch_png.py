@@ -23,6 +23,8 @@ import io
 import math
 from collections.abc import Mapping, Sequence
 
+import numpy as np
+
 OVERVIEW_FILE = "overview.png"
 MISSING_MATPLOTLIB = "matplotlib is not installed (pip install 'wheelcal[plots]')"
 PANEL_PARAMETERS = (
@@ -80,6 +82,8 @@ def overview_png(
     if not calibrations:
         return None, "no session was calibrated"
     numbers = list(numbers) if numbers is not None else list(range(1, len(calibrations) + 1))
+    # Read, never copy: a Calibration's item access returns a fresh deep copy each time.
+    calibrations = [getattr(cal, "document", cal) for cal in calibrations]
     groups: dict[tuple[str, str], list[int]] = {}
     for i, cal in enumerate(calibrations):
         src = cal.get("source", {})
@@ -146,15 +150,22 @@ def _parameter_panel(ax, name, calibrations, groups, colours, numbers, pooled) -
 
 
 def _residual_panel(ax, k, axis, calibrations, groups, colours) -> None:
+    from matplotlib.collections import LineCollection
+
     drawn = 0
     for key, members in groups.items():
+        curves = []  # one collection per group: one artist, however many sessions
         for i in members:
             profile = calibrations[i].get("fit", {}).get("residual_by_wheel_angle")
             if not profile or not profile.get("centres_deg"):
                 continue
             values = [_number(row[k]) for row in profile["mean_mps2"]]
-            ax.plot(profile["centres_deg"], values, color=colours[key], lw=0.8, alpha=0.6)
-            drawn += 1
+            curves.append(np.column_stack([np.asarray(profile["centres_deg"], float), values]))
+        if curves:
+            ax.add_collection(LineCollection(curves, colors=colours[key], lw=0.8, alpha=0.6))
+            drawn += len(curves)
+    if drawn:
+        ax.autoscale_view()
     ax.axhline(0.0, color="0.5", lw=0.6)
     ax.set_xlim(0, 360)
     ax.set_xticks([0, 90, 180, 270, 360])
