@@ -248,8 +248,13 @@ def _execute(
         return
     broken = _run_pool(tasks, workers, on_done)
     # A worker that died (killed by the OOM killer, a segfault) breaks the whole pool: every
-    # session still pending fails with it.  Re-run those one per fresh worker, so only the
-    # session that kills its worker is failed.
+    # session still pending fails with it.  Re-run those on a fresh pool while that makes
+    # progress, then one per fresh worker, so only the session that kills its worker fails.
+    while broken and len(broken) > 1:
+        retry = _run_pool(broken, workers, on_done)
+        if len(retry) == len(broken):  # no session finished: isolate them
+            break
+        broken = retry
     for task in broken:
         for lost in _run_pool([task], 1, on_done):
             on_done(_failed_record(lost, BrokenProcessPool()))
