@@ -46,7 +46,7 @@ from wheelcal.estimate.initial import InitialGuess
 from wheelcal.estimate.joint import JointFit, gyro_samples
 from wheelcal.estimate.knots import choose_knot_spacing
 from wheelcal.estimate.motion_check import MotionCheck, broadband_noise, check_motion
-from wheelcal.estimate.noise_reference import noise_reference
+from wheelcal.estimate.noise_reference import NoiseReference, noise_reference
 from wheelcal.estimate.rest_check import check_rests
 from wheelcal.estimate.rests import RestSegment, find_rests
 from wheelcal.estimate.result import CalibrationResult
@@ -224,7 +224,7 @@ class SessionFit:
             guess = self.fitter.start(window)
             _check_implied_radius(guess, window, gates)
             result = self.fitter.fit(window, guess=guess)
-            motion = _motion(result, window, rests)
+            motion, reference = _motion(result, window, rests)
             if motion is None or not motion.inadequate(gates.motion_z, gates.motion_shift_sigma):
                 break
             if window.duration_s * SHRINK < gates.min_window_s:
@@ -246,14 +246,18 @@ class SessionFit:
             )
             window = window.window(t0, t0 + shorter)
         if window.clip_limits_mps2 is not None:
+            fitted = result
             result, window, rail_note = _clear_of_rails(self.fitter, result, window)
             note = "; ".join(x for x in (note, rail_note) if x)
+            if result is not fitted:  # refitted: its residual has its own reference
+                reference = None
         if note:
             choice = WindowChoice(window, choice.found, choice.reason + "; " + note)
         omega = result.params.spin.omega_at(result.centred_time_s[[0, -1]])
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
         refuse_few_turns(result)
-        return SessionFitOutcome(assess(result, rests, gates, motion), choice, rests)
+        outcome = assess(result, rests, gates, motion, reference=reference)
+        return SessionFitOutcome(outcome, choice, rests)
 
 
 #: Stretches of the motion window whose residual exceeds this × the typical are left out.
@@ -346,11 +350,11 @@ def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) 
 
 def _motion(
     result: CalibrationResult, window: Recording, rests: tuple[RestSegment, ...]
-) -> MotionCheck | None:
-    """The motion check with the residual's broadband level as the noise."""
+) -> tuple[MotionCheck | None, NoiseReference]:
+    """The motion check with the residual's broadband level as the noise, and that reference."""
     reference = noise_reference(result.residual_mps2, _theta(result), rests)
     noise = broadband_noise(result.noise, reference.broadband_mps2)
-    return check_motion(result, window.accel_mps2, noise)
+    return check_motion(result, window.accel_mps2, noise), reference
 
 
 def _theta(result: CalibrationResult) -> np.ndarray:
@@ -368,15 +372,19 @@ def assess(
     gates: Gates,
     motion: MotionCheck | None = None,
     gyro=None,
+    reference: NoiseReference | None = None,
 ) -> CalibrationResult:
     """Apply the post-fit gates to ``result``; return it with its :class:`Assessment`.
+
+    ``reference`` is the noise reference of this very result with these rests,
+    when the caller has it already (the motion check needs it too).
 
     Raises :class:`CalibrationRefused` when the refusal band is hit.
     """
     undetermined = undetermined_parameters(result, gates)
     refuse_implausible(result, gates, undetermined)
     bad = {name for name, _ in undetermined}
-    noise = noise_reference(result.residual_mps2, _theta(result), rests)
+    noise = reference or noise_reference(result.residual_mps2, _theta(result), rests)
     refuse_misfit(result.source, noise, gates)
     checks = () if bad else check_rests(result, rests, gates.rest_alpha)
     warnings = (
