@@ -114,3 +114,37 @@ def test_short_spin_is_an_error():
         RecordingError, match=r"no free spin found: .* lasts [0-9.]+ s \(need 10 s\)"
     ):
         find_free_spin(sim.recording, WindowSearch(min_duration_s=10.0))
+
+
+def test_a_day_long_gap_costs_memory_by_samples_not_by_time_span():
+    """A recording built directly (no reader to drop stray stamps) with a 1-day gap.
+
+    The window search used to resample the whole span to a regular grid:
+    17 million points for 18,000 samples (2.8 GB, 14 s).  Now each stretch
+    between long gaps is searched on its own: the calibration is the one of
+    the spin alone, and the peak allocation stays that of a normal recording.
+    """
+    import tracemalloc
+
+    from wheelcal.estimate.session_fit import SessionFit
+
+    spin = simulate(table1(), np.random.default_rng(4)).recording
+    rest_t = spin.time_s[-1] + 86_400.0 + np.arange(2000) / 200.0
+    rest_v = np.array([0.3, -0.2, 9.9]) + 0.05 * np.random.default_rng(5).normal(size=(2000, 3))
+    gappy = replace(
+        spin,
+        time_s=np.concatenate([spin.time_s, rest_t]),
+        accel_mps2=np.concatenate([spin.accel_mps2, rest_v]),
+    )
+    tracemalloc.start()
+    try:
+        outcome = SessionFit().run(gappy)
+        peak_bytes = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    # A regular grid over the day would need 17.3 M × 3 × 8 B = 415 MB for one copy.
+    assert peak_bytes < 100e6
+    alone = SessionFit().run(spin)
+    assert outcome.window.recording.samples == alone.window.recording.samples
+    np.testing.assert_allclose(outcome.result.values, alone.result.values, rtol=1e-12)
+    assert "stretches between gaps" in outcome.window.reason

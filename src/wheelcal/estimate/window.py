@@ -32,6 +32,7 @@ filtering; gaps are bridged) and either spin direction.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,6 +92,25 @@ def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
 
 
+#: Gaps longer than this are not bridged: the search runs on each stretch between them.
+MAX_BRIDGED_GAP_S = 1.0
+#: A stretch whose regular grid would hold more than this × its samples is not searched.
+MAX_GRID_PER_SAMPLE = 4.0
+
+
+def contiguous_stretches(time_s: np.ndarray, rate_hz: float) -> list[slice]:
+    """The runs of samples between gaps longer than ``MAX_BRIDGED_GAP_S`` (and 16 periods).
+
+    A window search resamples to a regular grid; across a gap that grid would
+    grow with the time span instead of the sample count (one stamp a day late:
+    17 million points at 200 Hz).  Gaps this long cannot be bridged anyway.
+    """
+    limit = max(MAX_BRIDGED_GAP_S, 16.0 / rate_hz)
+    cuts = np.flatnonzero(np.diff(time_s) > limit) + 1
+    edges = [0, *cuts.tolist(), time_s.size]
+    return [slice(a, b) for a, b in itertools.pairwise(edges)]
+
+
 def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> FreeSpinWindow:
     """Find the free-spin window of a recording automatically.
 
@@ -112,9 +132,45 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
         If no free spin of at least ``min_duration_s`` is found.
     """
     search = search or WindowSearch()
+    stretches = contiguous_stretches(recording.time_s, recording.rate_hz)
+    if len(stretches) == 1:
+        return _find_in_stretch(recording, search)
+    # A recording with long gaps: each stretch between them on its own, the longest spin wins.
+    found, errors = [], []
+    for part in stretches:
+        if part.stop - part.start < 2:
+            continue
+        keep = np.zeros(recording.samples, dtype=bool)
+        keep[part] = True
+        piece = recording.select(keep)
+        try:
+            found.append(_find_in_stretch(piece, search))
+        except RecordingError as exc:
+            errors.append(str(exc))
+    if not found:
+        raise RecordingError(
+            f"{recording.source}: no free spin found in any of the {len(stretches)} stretches "
+            f"between gaps longer than {MAX_BRIDGED_GAP_S:g} s ({errors[0] if errors else ''})"
+        )
+    best = max(found, key=lambda w: w.duration_s)
+    return dataclasses.replace(
+        best,
+        reason=best.reason + f" (in the longest of {len(stretches)} stretches between gaps "
+        f"longer than {MAX_BRIDGED_GAP_S:g} s)",
+    )
+
+
+def _find_in_stretch(recording: Recording, search: WindowSearch) -> FreeSpinWindow:
+    """:func:`find_free_spin` on samples without long gaps (a regular grid bounded by them)."""
     rate = recording.rate_hz
     t0 = float(recording.time_s[0])
     n = int(np.floor(recording.duration_s * rate)) + 1
+    if n > MAX_GRID_PER_SAMPLE * recording.samples + 64:
+        raise RecordingError(
+            f"{recording.source}: the samples are too sparse for their median rate "
+            f"({recording.samples} samples over {recording.duration_s:.1f} s at "
+            f"{rate:.4g} Hz): too many gaps to search for a free spin"
+        )
     grid = t0 + np.arange(n) / rate
     v = np.column_stack(
         [np.interp(grid, recording.time_s, recording.accel_mps2[:, k]) for k in range(3)]
@@ -230,6 +286,8 @@ def find_motion_window(recording: Recording, search: MotionSearch | None = None)
     rate = _smoothed_gyro_rate(recording, search)
     accel = np.gradient(rate, t)
     turning = (rate > search.min_rate_radps) & (np.abs(accel) < search.max_spin_accel_radps2)
+    for part in contiguous_stretches(t, recording.rate_hz)[1:]:
+        turning[part.start] = False  # a run never spans a long gap
     starts, stops = _runs(turning)
     if starts.size == 0:
         raise RecordingError(
@@ -282,6 +340,10 @@ def find_drive_window(
     t = recording.time_s
     rate = _smoothed_gyro_rate(recording, search)
     moving = np.flatnonzero(rate > search.min_rate_radps)
+    stretches = contiguous_stretches(t, recording.rate_hz)
+    if len(stretches) > 1 and moving.size:  # the drive: the stretch that moves most
+        most = max(stretches, key=lambda p: np.sum((moving >= p.start) & (moving < p.stop)))
+        moving = moving[(moving >= most.start) & (moving < most.stop)]
     if moving.size == 0:
         raise RecordingError(
             f"{recording.source}: the gyroscope shows no motion faster than "
