@@ -268,6 +268,7 @@ class JointFit:
             self.max_iterations,
             tol=1e-3,  # stop when the next step would be < 0.03 σ
             initial_damping=1e-9,  # warm start: Gauss–Newton steps
+            jacobian_on_trial=True,  # ... which are accepted: one pass per step
         )
         iterations = out.iterations
         converged = out.converged

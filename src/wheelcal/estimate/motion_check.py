@@ -128,6 +128,7 @@ def _normal_with_spline(
         def extra(params, output, t_s, local=local):
             return candidate_columns(params, t_s, layout, local, output)
 
+        extra.size = local.size  # columns written in place (see accumulate)
         part = accumulate(
             result.params, tc[lo:stop], accel_mps2[lo:stop], layout, noise, extra=extra
         )
