@@ -47,6 +47,7 @@ from wheelcal.estimate.joint import JointFit, gyro_samples
 from wheelcal.estimate.knots import choose_knot_spacing
 from wheelcal.estimate.motion_check import MotionCheck, broadband_noise, check_motion
 from wheelcal.estimate.noise_reference import NoiseReference, noise_reference
+from wheelcal.estimate.normal_equations import CHUNK_SAMPLES
 from wheelcal.estimate.rest_check import check_rests
 from wheelcal.estimate.rests import RestSegment, find_rests
 from wheelcal.estimate.result import CalibrationResult
@@ -56,7 +57,7 @@ from wheelcal.estimate.window import (
     find_free_spin,
     find_motion_window,
 )
-from wheelcal.model import evaluate
+from wheelcal.model.forward import wheel_kinematics
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 
 #: Each retry keeps this fraction of the window (its start).
@@ -358,7 +359,14 @@ def _motion(
 
 
 def _theta(result: CalibrationResult) -> np.ndarray:
-    return evaluate(result.params, result.centred_time_s, result.layout).kinematics.theta_rad
+    """The fitted wheel angle ϑ(t) at every sample (the kinematics only, in chunks)."""
+    tc = result.centred_time_s
+    theta = np.empty_like(tc)
+    for start in range(0, tc.size, CHUNK_SAMPLES):
+        stop = min(tc.size, start + CHUNK_SAMPLES)
+        kin = wheel_kinematics(result.params, tc[start:stop], result.layout.effects)
+        theta[start:stop] = kin.theta_rad
+    return theta
 
 
 def _usable_gyro(recording: Recording) -> bool:
