@@ -52,6 +52,7 @@ from wheelcal.estimate.rest_check import check_rests
 from wheelcal.estimate.rests import RestSegment, find_rests
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import (
+    MAX_BRIDGED_GAP_S,
     FreeSpinWindow,
     find_drive_window,
     find_free_spin,
@@ -180,6 +181,7 @@ class SessionFit:
             reason = found.reason + (
                 f"; capped to its first {gates.max_window_s:g} s" if end < found.end_s else ""
             )
+        _refuse_long_gap(window)
         rests = find_rests(recording, (float(window.time_s[0]), float(window.time_s[-1])))
         tc = window.time_s - 0.5 * (window.time_s[0] + window.time_s[-1])
         gyro_t, gyro = gyro_samples(window, tc)
@@ -329,6 +331,22 @@ def _clear_of_rails(
         f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"
     )
     return refit, kept, note
+
+
+def _refuse_long_gap(window: Recording) -> None:
+    """A spline of the wheel angle has knots over the window's time span, not its samples.
+
+    Windows found automatically never span a long gap; a window given with
+    --start-s/--end-s might, and its knots would then grow with the gap.
+    """
+    steps = np.diff(window.time_s)
+    longest = float(steps.max()) if steps.size else 0.0
+    if longest > MAX_BRIDGED_GAP_S:
+        raise RecordingError(
+            f"{window.source}: the window spans a gap of {longest:.3g} s without samples "
+            f"(longer than {MAX_BRIDGED_GAP_S:g} s): the gyro-aided fit's wheel angle cannot "
+            "bridge it; choose a window on one side with --start-s/--end-s"
+        )
 
 
 def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) -> None:
