@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.fft import next_fast_len, rfft
 
 from wheelcal.estimate.rests import RestSegment, pooled_noise_std
 
@@ -87,8 +88,11 @@ def order_spectrum_split(
     turns = angle[-1] / (2 * np.pi)
     if r.shape[0] < 64 or turns < 4 or not np.all(np.diff(angle) >= 0):
         return np.sqrt(total_var), np.zeros(3)
-    grid = np.linspace(0.0, angle[-1], r.shape[0])
-    bins = r.shape[0] // 2 + 1
+    # Resampled to a length the FFT factors well (≥ N, 2·3·5·7·11-smooth): a prime length
+    # takes Bluestein's algorithm, 10–15× slower (1.8 M samples: 0.9 s per axis).
+    size = next_fast_len(r.shape[0], real=True)
+    grid = np.linspace(0.0, angle[-1], size)
+    bins = size // 2 + 1
     order = np.arange(bins) / turns  # cycles per turn
     band = np.round(order).astype(np.int64)  # the nearest order
     between = np.abs(order - band) > HARMONIC_HALF_WIDTH
@@ -98,7 +102,7 @@ def order_spectrum_split(
     for k in range(3):  # one axis at a time: temporaries of one column, never of (N, 3)
         uniform = np.interp(grid, angle, r[:, k])
         uniform -= uniform.mean()
-        power = np.abs(np.fft.rfft(uniform)) ** 2
+        power = np.abs(rfft(uniform)) ** 2
         del uniform
         power[0] = 0.0
         share[k] = min(bands.floor_sum(power) / max(float(power.sum()), 1e-300), 1.0)
