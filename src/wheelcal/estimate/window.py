@@ -25,8 +25,13 @@ stays inside the true free spin.  The differences look ``lag_s`` ahead and
 behind, so a push or brake taints ω̇ up to ~``lag_s`` into the spin: the
 window loses ≈ ``lag_s`` + ``margin_s`` at each end (≈ 2 s of a 60–90 s spin).
 
-Works at any sample rate (the data are resampled to their median rate for
-filtering; gaps are bridged) and either spin direction.
+Works at any sample rate and either spin direction.  The search looks only
+below ``lowpass_hz``, so it runs on block means at about ``SEARCH_RATE_HZ``
+(interpolated onto a grid at the median rate when that is slower): its time
+and memory follow the sample count.  Gaps up to ``MAX_BRIDGED_GAP_S`` are
+bridged; longer ones split the recording into stretches searched one by one
+(the longest free spin wins), so no grid ever spans a gap — one timestamp a
+day late would otherwise make it 17 million points long.
 """
 
 from __future__ import annotations
