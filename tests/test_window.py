@@ -114,3 +114,68 @@ def test_short_spin_is_an_error():
         RecordingError, match=r"no free spin found: .* lasts [0-9.]+ s \(need 10 s\)"
     ):
         find_free_spin(sim.recording, WindowSearch(min_duration_s=10.0))
+
+
+def test_a_day_long_gap_costs_memory_by_samples_not_by_time_span():
+    """A recording built directly (no reader to drop stray stamps) with a 1-day gap.
+
+    The window search used to resample the whole span to a regular grid:
+    17 million points for 18,000 samples (2.8 GB, 14 s).  Now each stretch
+    between long gaps is searched on its own: the calibration is the one of
+    the spin alone, and the peak allocation stays that of a normal recording.
+    """
+    import tracemalloc
+
+    from wheelcal.estimate.session_fit import SessionFit
+
+    spin = simulate(table1(), np.random.default_rng(4)).recording
+    rest_t = spin.time_s[-1] + 86_400.0 + np.arange(2000) / 200.0
+    rest_v = np.array([0.3, -0.2, 9.9]) + 0.05 * np.random.default_rng(5).normal(size=(2000, 3))
+    gappy = replace(
+        spin,
+        time_s=np.concatenate([spin.time_s, rest_t]),
+        accel_mps2=np.concatenate([spin.accel_mps2, rest_v]),
+    )
+    tracemalloc.start()
+    try:
+        outcome = SessionFit().run(gappy)
+        peak_bytes = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    # A regular grid over the day would need 17.3 M × 3 × 8 B = 415 MB for one copy.
+    assert peak_bytes < 100e6
+    alone = SessionFit().run(spin)
+    assert outcome.window.recording.samples == alone.window.recording.samples
+    np.testing.assert_allclose(outcome.result.values, alone.result.values, rtol=1e-12)
+    assert "stretches between gaps" in outcome.window.reason
+
+
+def test_a_given_gyro_window_across_a_day_long_gap_is_refused_in_bounded_memory():
+    """--gyro on with --start-s/--end-s spanning a 1-day gap: the wheel-angle spline's
+    knots follow the time span, so the window is refused before any is built (it used
+    to build B-spline bases of ~5,000 knots × 6,000 samples per candidate spacing)."""
+    import tracemalloc
+
+    from wheelcal.estimate.session_fit import SessionFit
+    from wheelcal.simulate import hostile
+    from wheelcal.simulate.gyro import GyroSpec
+
+    session = hostile.clean(np.random.default_rng(1), gyro=GyroSpec()).recording
+    later = session.time_s[-1] + 86_400.0 + np.arange(2000) / 200.0
+    rest = np.array([0.3, -0.2, 9.9]) + 0.05 * np.random.default_rng(5).normal(size=(2000, 3))
+    gappy = replace(
+        session,
+        time_s=np.concatenate([session.time_s, later]),
+        accel_mps2=np.concatenate([session.accel_mps2, rest]),
+        gyro_radps=np.concatenate([session.gyro_radps, np.zeros((2000, 3))]),
+        temperature_c=None,
+    )
+    fit = SessionFit(gyro="on", start_s=float(session.time_s[0]), end_s=float(later[-1]))
+    tracemalloc.start()
+    try:
+        with pytest.raises(RecordingError, match=r"spans a gap of 8\.64e\+04 s"):
+            fit.run(gappy)
+        peak_bytes = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak_bytes < 50e6

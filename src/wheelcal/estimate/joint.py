@@ -37,7 +37,7 @@ from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.initial import InitialGuess, initial_guess
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import accumulate
+from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, accumulate
 from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.systematic import (
@@ -256,7 +256,7 @@ class JointFit:
         # Stage 2: noise model from the full residual, whitened refit on all samples.
         # The accumulations carry the sensitivities to the fixed quantities as
         # extra columns, so the last one also gives the systematic budget.
-        noise = self._noise_model(v - _predict(out.params, tc, layout))
+        noise = self._noise_model(residual_of(out.params, tc, v, layout))
         gyro2 = gyro_noise = None
         if gyro is not None:
             gyro_noise = self._noise_model(gyro - gyro_prediction(out.params, gyro_t, layout))
@@ -268,6 +268,7 @@ class JointFit:
             self.max_iterations,
             tol=1e-3,  # stop when the next step would be < 0.03 σ
             initial_damping=1e-9,  # warm start: Gauss–Newton steps
+            jacobian_on_trial=True,  # ... which are accepted: one pass per step
         )
         iterations = out.iterations
         converged = out.converged
@@ -287,7 +288,7 @@ class JointFit:
         names, values, g = report_transform(params, layout)
         cov = transform_covariance(g, cov_x)
         std = np.sqrt(np.diag(cov))
-        residual = v - _predict(params, tc, layout)
+        residual = residual_of(params, tc, v, layout)
 
         gravity_std = self.gravity_std_mps2
         if gravity_std is None:
@@ -363,8 +364,22 @@ def _same_point(a: CalibrationParams, b: CalibrationParams) -> bool:
     )
 
 
-def _predict(params: CalibrationParams, tc: np.ndarray, layout: ParameterLayout) -> np.ndarray:
-    return evaluate(params, tc, layout).predicted_mps2
+def residual_of(
+    params: CalibrationParams, tc: np.ndarray, v: np.ndarray, layout: ParameterLayout
+) -> np.ndarray:
+    """The residual (data − model, shape (N, 3)), the model evaluated in chunks.
+
+    The model's temporaries (ϑ, ω, sin ϑ, cos ϑ, a, s …: ~150 B per sample at
+    once) stay bounded; only the residual itself grows with N.
+    """
+    residual = np.empty_like(v, dtype=float)
+    for start in range(0, tc.size, CHUNK_SAMPLES):
+        stop = min(tc.size, start + CHUNK_SAMPLES)
+        part = residual[start:stop]
+        np.subtract(
+            v[start:stop], evaluate(params, tc[start:stop], layout).predicted_mps2, out=part
+        )
+    return residual
 
 
 def _residual_fn(

@@ -58,10 +58,13 @@ class NoiseModel:
     def estimate(cls, residual_mps2: np.ndarray, max_order: int = 10) -> NoiseModel:
         """Fit AR(p) per axis (Yule–Walker, p by AIC) and the innovation covariance."""
         r = np.asarray(residual_mps2, dtype=float)
-        r = r - r.mean(axis=0)
-        polys = tuple(_yule_walker_aic(r[:, i], max_order) for i in range(3))
+        mean = r.mean(axis=0)
+        # One axis at a time: a few copies of one column, never of the whole (N, 3).
+        polys = tuple(_yule_walker_aic(r[:, i] - mean[i], max_order) for i in range(3))
         p = max(a.size - 1 for a in polys)
-        innov = np.column_stack([fir_filter(polys[i], r[:, i]) for i in range(3)])[p:]
+        innov = np.empty((max(r.shape[0] - p, 0), 3))
+        for i in range(3):
+            innov[:, i] = fir_filter(polys[i], r[:, i] - mean[i])[p:]
         cov = innov.T @ innov / max(innov.shape[0], 1)
         # Guard against a degenerate axis (e.g. a constant channel).
         cov += np.eye(3) * 1e-18 * max(np.trace(cov), 1e-30)
@@ -95,12 +98,15 @@ class NoiseModel:
         d = np.sqrt(np.diag(self.innovation_cov))
         return self.innovation_cov / np.outer(d, d)
 
-    def whiten(self, residual: np.ndarray, jacobian: np.ndarray | None = None):
+    def whiten(
+        self, residual: np.ndarray, jacobian: np.ndarray | None = None, overwrite: bool = False
+    ):
         """Whiten a residual (N, 3) and optionally a Jacobian (P, 3, N).
 
         Returns ``(r, j)`` with r of shape (3, M) and j of shape (P, 3, M),
         M = N − p: unit-variance, uncorrelated errors, so the Fisher matrix is
-        ``j.reshape(P, -1) @ j.reshape(P, -1).T``.
+        ``j.reshape(P, -1) @ j.reshape(P, -1).T``.  ``overwrite`` lets white
+        noise (p = 0) whiten the Jacobian in its own buffer (no copy).
         """
         p = self.order
         inv_chol = self._inv_chol
@@ -112,6 +118,14 @@ class NoiseModel:
         if jacobian is None:
             return r, None
         size, _, n = jacobian.shape
+        if p == 0 and overwrite:  # white, in place: row i of L⁻¹ needs rows ≤ i, so i = 2, 1, 0
+            for i in (2, 1, 0):
+                row = jacobian[:, i, :]
+                row *= inv_chol[i, i]
+                for k in range(i):
+                    if inv_chol[i, k] != 0.0:
+                        row += inv_chol[i, k] * jacobian[:, k, :]
+            return r, jacobian
         if p == 0:  # white: L⁻¹ across axes in one batched product
             return r, np.matmul(inv_chol, jacobian)
         filtered = [

@@ -30,7 +30,8 @@ from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, eval
 #: 90 s / 200 Hz recording, bounded memory for long or fast ones.
 CHUNK_SAMPLES = 32768
 
-# (params, model output, chunk times) → (k, 3, n) extra columns at those times
+# (params, model output, chunk times) → (k, 3, n) extra columns at those times; a callback
+# with a ``size`` attribute (k) has its columns written straight after the free ones.
 ExtraColumns = Callable[[CalibrationParams, ModelOutput, np.ndarray], np.ndarray]
 
 
@@ -112,7 +113,8 @@ def accumulate(
     cost = 0.0
     entries = 0
     hess = grad = None
-    extra_size = None  # learnt from the first chunk
+    # Learnt from the first chunk, unless the callback states it (then no copy at all).
+    extra_size = getattr(extra, "size", None) if extra is not None else None
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         lo = max(0, start - p)  # p samples of history for the FIR whitening
@@ -135,7 +137,7 @@ def accumulate(
                 buf = np.concatenate([buf, cols])
             else:
                 buf[here.size :] = cols
-        rw, jw = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop], buf)
+        rw, jw = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop], buf, overwrite=True)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)
         if hess is None:

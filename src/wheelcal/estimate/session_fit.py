@@ -46,17 +46,19 @@ from wheelcal.estimate.initial import InitialGuess
 from wheelcal.estimate.joint import JointFit, gyro_samples
 from wheelcal.estimate.knots import choose_knot_spacing
 from wheelcal.estimate.motion_check import MotionCheck, broadband_noise, check_motion
-from wheelcal.estimate.noise_reference import noise_reference
+from wheelcal.estimate.noise_reference import NoiseReference, noise_reference
+from wheelcal.estimate.normal_equations import CHUNK_SAMPLES
 from wheelcal.estimate.rest_check import check_rests
 from wheelcal.estimate.rests import RestSegment, find_rests
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import (
+    MAX_BRIDGED_GAP_S,
     FreeSpinWindow,
     find_drive_window,
     find_free_spin,
     find_motion_window,
 )
-from wheelcal.model import evaluate
+from wheelcal.model.forward import wheel_kinematics
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 
 #: Each retry keeps this fraction of the window (its start).
@@ -179,6 +181,7 @@ class SessionFit:
             reason = found.reason + (
                 f"; capped to its first {gates.max_window_s:g} s" if end < found.end_s else ""
             )
+        _refuse_long_gap(window)
         rests = find_rests(recording, (float(window.time_s[0]), float(window.time_s[-1])))
         tc = window.time_s - 0.5 * (window.time_s[0] + window.time_s[-1])
         gyro_t, gyro = gyro_samples(window, tc)
@@ -224,7 +227,7 @@ class SessionFit:
             guess = self.fitter.start(window)
             _check_implied_radius(guess, window, gates)
             result = self.fitter.fit(window, guess=guess)
-            motion = _motion(result, window, rests)
+            motion, reference = _motion(result, window, rests)
             if motion is None or not motion.inadequate(gates.motion_z, gates.motion_shift_sigma):
                 break
             if window.duration_s * SHRINK < gates.min_window_s:
@@ -246,14 +249,18 @@ class SessionFit:
             )
             window = window.window(t0, t0 + shorter)
         if window.clip_limits_mps2 is not None:
+            fitted = result
             result, window, rail_note = _clear_of_rails(self.fitter, result, window)
             note = "; ".join(x for x in (note, rail_note) if x)
+            if result is not fitted:  # refitted: its residual has its own reference
+                reference = None
         if note:
             choice = WindowChoice(window, choice.found, choice.reason + "; " + note)
         omega = result.params.spin.omega_at(result.centred_time_s[[0, -1]])
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
         refuse_few_turns(result)
-        return SessionFitOutcome(assess(result, rests, gates, motion), choice, rests)
+        outcome = assess(result, rests, gates, motion, reference=reference)
+        return SessionFitOutcome(outcome, choice, rests)
 
 
 #: Stretches of the motion window whose residual exceeds this × the typical are left out.
@@ -326,6 +333,22 @@ def _clear_of_rails(
     return refit, kept, note
 
 
+def _refuse_long_gap(window: Recording) -> None:
+    """A spline of the wheel angle has knots over the window's time span, not its samples.
+
+    Windows found automatically never span a long gap; a window given with
+    --start-s/--end-s might, and its knots would then grow with the gap.
+    """
+    steps = np.diff(window.time_s)
+    longest = float(steps.max()) if steps.size else 0.0
+    if longest > MAX_BRIDGED_GAP_S:
+        raise RecordingError(
+            f"{window.source}: the window spans a gap of {longest:.3g} s without samples "
+            f"(longer than {MAX_BRIDGED_GAP_S:g} s): the gyro-aided fit's wheel angle cannot "
+            "bridge it; choose a window on one side with --start-s/--end-s"
+        )
+
+
 def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) -> None:
     """Refuse before fitting when the start already puts the gains far from 1.
 
@@ -346,15 +369,22 @@ def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) 
 
 def _motion(
     result: CalibrationResult, window: Recording, rests: tuple[RestSegment, ...]
-) -> MotionCheck | None:
-    """The motion check with the residual's broadband level as the noise."""
+) -> tuple[MotionCheck | None, NoiseReference]:
+    """The motion check with the residual's broadband level as the noise, and that reference."""
     reference = noise_reference(result.residual_mps2, _theta(result), rests)
     noise = broadband_noise(result.noise, reference.broadband_mps2)
-    return check_motion(result, window.accel_mps2, noise)
+    return check_motion(result, window.accel_mps2, noise), reference
 
 
 def _theta(result: CalibrationResult) -> np.ndarray:
-    return evaluate(result.params, result.centred_time_s, result.layout).kinematics.theta_rad
+    """The fitted wheel angle ϑ(t) at every sample (the kinematics only, in chunks)."""
+    tc = result.centred_time_s
+    theta = np.empty_like(tc)
+    for start in range(0, tc.size, CHUNK_SAMPLES):
+        stop = min(tc.size, start + CHUNK_SAMPLES)
+        kin = wheel_kinematics(result.params, tc[start:stop], result.layout.effects)
+        theta[start:stop] = kin.theta_rad
+    return theta
 
 
 def _usable_gyro(recording: Recording) -> bool:
@@ -368,15 +398,19 @@ def assess(
     gates: Gates,
     motion: MotionCheck | None = None,
     gyro=None,
+    reference: NoiseReference | None = None,
 ) -> CalibrationResult:
     """Apply the post-fit gates to ``result``; return it with its :class:`Assessment`.
+
+    ``reference`` is the noise reference of this very result with these rests,
+    when the caller has it already (the motion check needs it too).
 
     Raises :class:`CalibrationRefused` when the refusal band is hit.
     """
     undetermined = undetermined_parameters(result, gates)
     refuse_implausible(result, gates, undetermined)
     bad = {name for name, _ in undetermined}
-    noise = noise_reference(result.residual_mps2, _theta(result), rests)
+    noise = reference or noise_reference(result.residual_mps2, _theta(result), rests)
     refuse_misfit(result.source, noise, gates)
     checks = () if bad else check_rests(result, rests, gates.rest_alpha)
     warnings = (

@@ -84,6 +84,7 @@ def nuisance_extra(nuisances: list[str]):
     def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
         return np.stack([nuisance_sensitivity(params, t_s, q, output).T for q in nuisances])
 
+    extra.size = len(nuisances)
     return extra
 
 

@@ -25,13 +25,20 @@ stays inside the true free spin.  The differences look ``lag_s`` ahead and
 behind, so a push or brake taints ω̇ up to ~``lag_s`` into the spin: the
 window loses ≈ ``lag_s`` + ``margin_s`` at each end (≈ 2 s of a 60–90 s spin).
 
-Works at any sample rate (the data are resampled to their median rate for
-filtering; gaps are bridged) and either spin direction.
+Works at any sample rate and either spin direction.  The search looks only
+below ``lowpass_hz``, so it runs on block means at about ``SEARCH_RATE_HZ``
+(interpolated onto a grid at the median rate when that is slower): its time
+and memory follow the sample count.  Gaps up to ``MAX_BRIDGED_GAP_S`` are
+bridged; longer ones split the recording into stretches searched one by one
+(the longest free spin wins), so no grid ever spans a gap — one timestamp a
+day late would otherwise make it 17 million points long.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,6 +98,25 @@ def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
 
 
+#: Gaps longer than this are not bridged: the search runs on each stretch between them.
+MAX_BRIDGED_GAP_S = 1.0
+#: A stretch whose regular grid would hold more than this × its samples is not searched.
+MAX_GRID_PER_SAMPLE = 4.0
+
+
+def contiguous_stretches(time_s: np.ndarray, rate_hz: float) -> list[slice]:
+    """The runs of samples between gaps longer than ``MAX_BRIDGED_GAP_S`` (and 16 periods).
+
+    A window search resamples to a regular grid; across a gap that grid would
+    grow with the time span instead of the sample count (one stamp a day late:
+    17 million points at 200 Hz).  Gaps this long cannot be bridged anyway.
+    """
+    limit = max(MAX_BRIDGED_GAP_S, 16.0 / rate_hz)
+    cuts = np.flatnonzero(np.diff(time_s) > limit) + 1
+    edges = [0, *cuts.tolist(), time_s.size]
+    return [slice(a, b) for a, b in itertools.pairwise(edges)]
+
+
 def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> FreeSpinWindow:
     """Find the free-spin window of a recording automatically.
 
@@ -112,13 +138,87 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
         If no free spin of at least ``min_duration_s`` is found.
     """
     search = search or WindowSearch()
+    stretches = contiguous_stretches(recording.time_s, recording.rate_hz)
+    if len(stretches) == 1:
+        return _find_in_stretch(recording, search)
+    # A recording with long gaps: each stretch between them on its own, the longest spin wins.
+    found, errors = [], []
+    for part in stretches:
+        if part.stop - part.start < 2:
+            continue
+        keep = np.zeros(recording.samples, dtype=bool)
+        keep[part] = True
+        piece = recording.select(keep)
+        try:
+            found.append(_find_in_stretch(piece, search))
+        except RecordingError as exc:
+            errors.append(str(exc))
+    if not found:
+        raise RecordingError(
+            f"{recording.source}: no free spin found in any of the {len(stretches)} stretches "
+            f"between gaps longer than {MAX_BRIDGED_GAP_S:g} s ({errors[0] if errors else ''})"
+        )
+    best = max(found, key=lambda w: w.duration_s)
+    return dataclasses.replace(
+        best,
+        reason=best.reason + f" (in the longest of {len(stretches)} stretches between gaps "
+        f"longer than {MAX_BRIDGED_GAP_S:g} s)",
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def _lowpass(cutoff_hz: float, rate_hz: float) -> np.ndarray:
+    """2nd-order Butterworth low-pass as second-order sections (designed once per rate)."""
+    from scipy import signal
+
+    return signal.butter(2, cutoff_hz, fs=rate_hz, output="sos")
+
+
+#: The search runs on block means at about this rate (it only looks below ``lowpass_hz``).
+SEARCH_RATE_HZ = 50.0
+
+
+def _search_grid(recording: Recording, rate: float, n: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Regular times, samples (n, 3) on them, and their rate, for the window search.
+
+    Faster than 2 × ``SEARCH_RATE_HZ``, the samples are averaged in blocks of
+    m = ⌊rate / SEARCH_RATE_HZ⌋ sample periods: a boxcar whose response at
+    the search's 8 Hz low-pass is ≥ 0.96, without ever building the full-rate
+    grid (time and memory then scale with the samples, at any rate).  Blocks a
+    gap left empty are interpolated.  Slower, the samples are interpolated onto
+    the grid at their median rate.
+    """
+    t, accel = recording.time_s, recording.accel_mps2
+    t0 = float(t[0])
+    m = int(rate // SEARCH_RATE_HZ)
+    if m < 2:
+        grid = t0 + np.arange(n) / rate
+        return grid, np.column_stack([np.interp(grid, t, accel[:, k]) for k in range(3)]), rate
+    block_rate = rate / m
+    bins = ((t - t0) * block_rate).astype(np.int64)
+    count = np.bincount(bins)
+    centre = t0 + (np.arange(count.size) + 0.5) / block_rate
+    filled = count > 0
+    v = np.empty((count.size, 3))
+    for k in range(3):
+        mean = np.bincount(bins, weights=accel[:, k], minlength=count.size)[filled] / count[filled]
+        v[:, k] = mean if filled.all() else np.interp(centre, centre[filled], mean)
+    return centre, v, block_rate
+
+
+def _find_in_stretch(recording: Recording, search: WindowSearch) -> FreeSpinWindow:
+    """:func:`find_free_spin` on samples without long gaps (a regular grid bounded by them)."""
     rate = recording.rate_hz
     t0 = float(recording.time_s[0])
     n = int(np.floor(recording.duration_s * rate)) + 1
-    grid = t0 + np.arange(n) / rate
-    v = np.column_stack(
-        [np.interp(grid, recording.time_s, recording.accel_mps2[:, k]) for k in range(3)]
-    )
+    if n > MAX_GRID_PER_SAMPLE * recording.samples + 64:
+        raise RecordingError(
+            f"{recording.source}: the samples are too sparse for their median rate "
+            f"({recording.samples} samples over {recording.duration_s:.1f} s at "
+            f"{rate:.4g} Hz): too many gaps to search for a free spin"
+        )
+    grid, v, rate = _search_grid(recording, rate, n)
+    n = grid.size
     lag = max(round(search.lag_s * rate / 2), 1)  # half the baseline, in samples
     if n < 8 * lag:
         raise RecordingError(
@@ -128,7 +228,7 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
     # Noise: zero-phase low-pass (SOS: stable at any rate).
     from scipy import signal  # heavy import, deferred until a window is searched
 
-    sos = signal.butter(2, min(search.lowpass_hz, 0.4 * rate), fs=rate, output="sos")
+    sos = _lowpass(min(search.lowpass_hz, 0.4 * rate), rate)
     v = signal.sosfiltfilt(sos, v, axis=0)
     # A rough phase from dv/dt: differentiation suppresses the slow part
     # (o, r ω², g cos α …) without the seconds-long ringing a high-pass filter
@@ -166,7 +266,8 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
     first, last = int(starts[best]), int(stops[best]) - 1
     # A run that reaches the first/last valid estimate may go on beyond the data.
     start_s = grid[first] + search.margin_s if first > 2 * lag else t0
-    end_s = grid[last] - search.margin_s if last < n - 1 - 2 * lag else grid[-1]
+    # (the grid's last point is a block's centre: the data go on to the last sample)
+    end_s = grid[last] - search.margin_s if last < n - 1 - 2 * lag else float(recording.time_s[-1])
     if end_s - start_s < search.min_duration_s:
         raise RecordingError(
             f"{recording.source}: no free spin found: the longest stretch that looks like "
@@ -230,6 +331,8 @@ def find_motion_window(recording: Recording, search: MotionSearch | None = None)
     rate = _smoothed_gyro_rate(recording, search)
     accel = np.gradient(rate, t)
     turning = (rate > search.min_rate_radps) & (np.abs(accel) < search.max_spin_accel_radps2)
+    for part in contiguous_stretches(t, recording.rate_hz)[1:]:
+        turning[part.start] = False  # a run never spans a long gap
     starts, stops = _runs(turning)
     if starts.size == 0:
         raise RecordingError(
@@ -282,6 +385,10 @@ def find_drive_window(
     t = recording.time_s
     rate = _smoothed_gyro_rate(recording, search)
     moving = np.flatnonzero(rate > search.min_rate_radps)
+    stretches = contiguous_stretches(t, recording.rate_hz)
+    if len(stretches) > 1 and moving.size:  # the drive: the stretch that moves most
+        most = max(stretches, key=lambda p: np.sum((moving >= p.start) & (moving < p.stop)))
+        moving = moving[(moving >= most.start) & (moving < most.stop)]
     if moving.size == 0:
         raise RecordingError(
             f"{recording.source}: the gyroscope shows no motion faster than "
