@@ -323,31 +323,88 @@ def _message_index_offsets(buf: bytes, starts, lengths) -> np.ndarray:
     return np.concatenate(out) if out else np.empty(0, np.int64)
 
 
-def _decompress(path: str, compression: str, data: bytes, size: int, where: str) -> bytes:
+#: Largest plausible ratio of a chunk's claimed uncompressed size to its compressed size.
+#: ROS 2 Imu and AccelBatch chunks reach ~40× with zstd (a sensor at rest, exactly
+#: constant samples; noisy floats ~11×) and ~17× with lz4 (measured with this writer):
+#: 200× leaves a margin of five, while a zero-filled "decompression bomb" claims
+#: thousands.  ``MAX_CHUNK_SLACK_BYTES`` lets tiny chunks (headers, a few records) pass.
+MAX_CHUNK_RATIO = 200
+MAX_CHUNK_SLACK_BYTES = 1 << 16
+#: Absolute cap on one chunk's uncompressed size (writers use 1–8 MiB chunks).
+MAX_CHUNK_BYTES = 512 << 20
+_PIECE_BYTES = 4 << 20  # decompress in pieces of at most this size
+
+
+def _decompress(path: str, compression: str, data, size: int, where: str):
+    """The chunk's records, decompressed into one buffer of the claimed ``size``.
+
+    The claimed size is judged *before* anything is allocated (at most
+    ``MAX_CHUNK_RATIO`` × the compressed size, and ``MAX_CHUNK_BYTES``), and
+    the data are decompressed in bounded pieces into that buffer, so a chunk
+    whose data would expand beyond its claim (or a zstd frame that states no
+    content size, or a false one) fails after at most ``size`` bytes.
+    """
     if compression == "":
-        out = data
-    elif compression == "zstd":
-        import zstandard
-
-        try:
-            out = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-        except zstandard.ZstdError as exc:
-            raise CorruptFileError(path, f"{where}: zstd data is damaged ({exc})") from None
-    elif compression == "lz4":
-        import lz4.frame
-
-        try:
-            out = lz4.frame.decompress(data)
-        except RuntimeError as exc:
-            raise CorruptFileError(path, f"{where}: lz4 data is damaged ({exc})") from None
-    else:
+        if len(data) != size:
+            raise CorruptFileError(
+                path, f"{where}: holds {len(data)} bytes of records, the chunk says {size}"
+            )
+        return data
+    if compression not in ("zstd", "lz4"):
         raise CorruptFileError(
             path, f"{where}: unsupported chunk compression {compression!r} (need zstd, lz4, none)"
         )
-    if len(out) != size:
+    limit = min(MAX_CHUNK_RATIO * len(data) + MAX_CHUNK_SLACK_BYTES, MAX_CHUNK_BYTES)
+    if size > limit:
         raise CorruptFileError(
-            path, f"{where}: decompressed to {len(out)} bytes, the chunk says {size}"
+            path,
+            f"{where}: claims {size} bytes uncompressed from {len(data)} compressed bytes "
+            f"(ratio {size / max(len(data), 1):.0f}); wheelcal accepts at most "
+            f"{MAX_CHUNK_RATIO}× and {MAX_CHUNK_BYTES >> 20} MiB per chunk (a damaged file "
+            "or a decompression bomb)",
         )
+    out = bytearray(size)
+    pos = 0
+    try:
+        if compression == "zstd":
+            import zstandard
+
+            reader = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True)
+            view = memoryview(out)
+            while pos < size:
+                got = reader.readinto(view[pos : pos + min(_PIECE_BYTES, size - pos)])
+                if got == 0:
+                    break
+                pos += got
+            extra = reader.read(1) if pos == size else b""
+        else:
+            import lz4.frame
+
+            decompressor = lz4.frame.LZ4FrameDecompressor()
+            source = data
+            extra = b""
+            while True:
+                piece = decompressor.decompress(
+                    source, max_length=min(_PIECE_BYTES, size - pos + 1)
+                )
+                source = b""
+                if pos + len(piece) > size:
+                    extra = piece
+                    break
+                out[pos : pos + len(piece)] = piece
+                pos += len(piece)
+                if decompressor.eof or (not piece and decompressor.needs_input):
+                    break
+    except Exception as exc:  # zstandard.ZstdError, lz4's RuntimeError: damaged data
+        raise CorruptFileError(
+            path, f"{where}: {compression} data is damaged ({type(exc).__name__}: {exc})"
+        ) from None
+    if extra:
+        raise CorruptFileError(
+            path, f"{where}: decompresses to more than the {size} bytes the chunk says"
+        )
+    if pos != size:
+        raise CorruptFileError(path, f"{where}: decompressed to {pos} bytes, the chunk says {size}")
     return out
 
 
