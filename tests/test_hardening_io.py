@@ -180,3 +180,104 @@ def test_real_chunks_stay_far_below_the_ratio_limit(tmp_path):
                 if isinstance(rec, Chunk)
             ]
         assert max(ratios) < MAX_CHUNK_RATIO / 4
+
+
+# --- samples: a whole short session, as tests/test_bad_input.py ----------------------------
+
+
+@pytest.fixture(scope="module")
+def base():
+    """A short whole session (rest, push, 20 s spin, brake, rest) at 200 Hz, stamps and samples."""
+    truth = table2(rng=np.random.default_rng(8)).truth
+    scenario = Scenario(truth=truth, duration_s=20.0, info=SessionInfo(radius_m=0.28))
+    sim = simulate_session(scenario, np.random.default_rng(9), SessionPlan(rest_before_s=3.0))
+    rec = sim.recording
+    return recording_stamps_ns(rec), rec.accel_mps2.copy()
+
+
+def _write(tmp_path, stamps, accel, name="hostile.mcap", **kwargs):
+    kwargs.setdefault("session", {"radius_m": "0.28"})
+    path = tmp_path / name
+    write_accel_mcap(path, stamps, accel, **kwargs)
+    return path
+
+
+DAY_NS = 86_400 * 10**9
+
+
+# --- item 1: isolated late timestamps ---------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("where", "shift_ns"),
+    [
+        (1500, DAY_NS),  # one stamp a day late, mid-file
+        (1500, 11 * DAY_NS),  # 11 days late
+        (-1, DAY_NS),  # the last stamp a day late
+        (0, -(1 << 30) * 10**9),  # bit 30 of the first stamp's sec flipped (1.7e9 has it set)
+        (2500, (1 << 20) * 10**9),  # bit 20 of sec flipped, mid-file
+        (2500, 300_000_000),  # 0.3 s late: it would land among other samples
+    ],
+)
+def test_isolated_stray_stamps_are_dropped_with_a_note(tmp_path, base, where, shift_ns):
+    stamps, accel = base
+    bad = stamps.copy()
+    bad[where] += shift_ns
+    rec = read_recording(_write(tmp_path, bad, accel))
+    keep = np.ones(stamps.size, bool)
+    keep[where] = False
+    np.testing.assert_array_equal(recording_stamps_ns(rec), stamps[keep])
+    np.testing.assert_array_equal(rec.accel_mps2, accel[keep])
+    note = next(n for n in rec.notes if "stray timestamps" in n)
+    assert note.startswith("dropped 1 sample(s)")
+    assert not any("gap" in n for n in rec.notes)
+
+
+def test_a_stray_batch_of_json_stamps_is_dropped(tmp_path, base):
+    stamps, accel = base
+    bad = stamps.copy()
+    bad[1000:1010] += 5 * DAY_NS  # one message of 10 samples with a corrupt clock
+    rec = read_recording(_write(tmp_path, bad, accel, encoding="json", batch_size=10))
+    assert rec.samples == stamps.size - 10
+    assert any(n.startswith("dropped 10 sample(s) with stray") for n in rec.notes)
+
+
+def test_a_delayed_packet_that_fills_its_hole_is_sorted_not_dropped(tmp_path, base):
+    stamps, accel = base
+    order = np.arange(stamps.size)
+    late = order[1000:1010].copy()  # written 2 s after it was sampled
+    order = np.concatenate([order[:1000], order[1010:1410], late, order[1410:]])
+    rec = read_recording(_write(tmp_path, stamps[order], accel[order]))
+    np.testing.assert_array_equal(recording_stamps_ns(rec), stamps)
+    np.testing.assert_array_equal(rec.accel_mps2, accel)
+    assert not any("stray" in n for n in rec.notes)
+
+
+def test_a_recording_that_resumes_after_a_real_gap_keeps_its_first_samples(tmp_path, base):
+    stamps, accel = base
+    early = stamps.copy()
+    early[:5] -= 10 * 10**9  # five samples, then the link was down for 10 s
+    rec = read_recording(_write(tmp_path, early, accel))
+    assert rec.samples == stamps.size
+    assert any("gap" in n for n in rec.notes)
+
+
+# --- item 5: messages out of order -------------------------------------------------------
+
+
+def test_pairwise_swapped_messages_are_sorted(tmp_path, base):
+    stamps, accel = base
+    order = np.arange(stamps.size - stamps.size % 2).reshape(-1, 2)[:, ::-1].reshape(-1)
+    rec = read_recording(_write(tmp_path, stamps[order], accel[order]))
+    np.testing.assert_array_equal(recording_stamps_ns(rec), stamps[np.sort(order)])
+    np.testing.assert_array_equal(rec.accel_mps2, accel[np.sort(order)])
+    assert any(f"sorted {order.size // 2} out-of-order" in n for n in rec.notes)
+
+
+def test_writer_threads_a_few_messages_apart_are_sorted(tmp_path, base):
+    stamps, accel = base
+    rng = np.random.default_rng(3)
+    order = np.argsort(np.arange(stamps.size) + rng.uniform(0, 8, stamps.size), kind="stable")
+    rec = read_recording(_write(tmp_path, stamps[order], accel[order]))
+    np.testing.assert_array_equal(recording_stamps_ns(rec), stamps)
+    assert any("out-of-order timestamp steps into time order" in n for n in rec.notes)

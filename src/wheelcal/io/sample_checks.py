@@ -51,6 +51,10 @@ class InputPolicy:
 
     max_nonfinite_fraction: float = 0.01
     max_backward_fraction: float = 0.01
+    max_reorder_s: float = 1.0
+    stray_stamp_steps: float = 20.0
+    max_stray_run: int = 64
+    max_stray_fraction: float = 0.01
     max_duplicate_fraction: float = 0.05
     gap_factor: float = 3.0
     max_clipped_fraction: float = 0.20
@@ -115,6 +119,7 @@ def clean_samples(
         raise SampleError(path, "the accelerometer topic holds no samples")
 
     t, a = _drop_nonfinite(path, t, a, policy, notes)
+    t, a = _drop_stray_stamps(t, a, policy, notes)
     t, a = _order(path, t, a, policy, notes)
     t, a = _merge_duplicates(path, t, a, policy, notes)
     _report_gaps(t, policy, notes)
@@ -147,6 +152,78 @@ def _drop_nonfinite(path, t, a, policy, notes):
     return t[~bad], a[~bad]
 
 
+def _typical_step_ns(t: np.ndarray) -> float:
+    """The median positive step between stamps (0 if there is none)."""
+    d = np.diff(t)
+    d = d[d > 0]
+    return float(np.median(d)) if d.size else 0.0
+
+
+def _drop_stray_stamps(t, a, policy, notes):
+    """Drop short runs of samples whose stamps are far from where they sit (corrupt stamps).
+
+    A run of at most ``max_stray_run`` samples bounded by jumps of more than
+    ``stray_stamp_steps`` sampling steps is *stray* when its stamps have no
+    place among the others: sorting would put them among other samples (no
+    hole of their size there), or beyond the recording's ends (a stamp a day
+    late, a flipped bit of ``sec``).  Samples that fill a hole are merely out
+    of order and left to :func:`_order`.  A run at the file's start or end is
+    stray only when it lies farther from the rest than the rest's own span
+    (a recording may start or end after a real gap).  At most
+    ``max_stray_fraction`` of the samples are dropped; more is no outlier.
+    """
+    if t.size < 3:
+        return t, a
+    dt = _typical_step_ns(t)
+    if dt <= 0:
+        return t, a
+    d = np.diff(t)
+    far = policy.stray_stamp_steps * dt
+    jumps = np.flatnonzero(np.abs(d) > far)
+    allowed = int(policy.max_stray_fraction * t.size)
+    if jumps.size == 0 or jumps.size > 2 * allowed + 2:
+        return t, a
+    # Candidate runs [start, stop): between two jumps, or from an end to a jump.
+    bounds = np.concatenate([[-1], jumps, [t.size - 1]])
+    starts, stops = bounds[:-1] + 1, bounds[1:] + 1
+    short = (stops - starts) <= policy.max_stray_run
+    short &= (stops - starts) < t.size // 2
+    if not np.any(short):
+        return t, a
+    ordered = np.sort(t)
+    stray = np.zeros(t.size, bool)
+    for start, stop in zip(starts[short].tolist(), stops[short].tolist(), strict=True):
+        run = t[start:stop]
+        lo, hi = int(run.min()), int(run.max())
+        inside = int(np.searchsorted(ordered, hi, "right") - np.searchsorted(ordered, lo, "left"))
+        below = np.searchsorted(ordered, lo, "left") - 1
+        above = np.searchsorted(ordered, hi, "right")
+        edge = start == 0 or stop == t.size
+        if inside > run.size:  # sorting would interleave them with other samples
+            is_stray = True
+        elif below < 0 or above >= ordered.size:  # beyond an end of the other samples
+            if below < 0:
+                distance, rest_span = int(ordered[above]) - hi, int(ordered[-1] - ordered[above])
+            else:
+                distance, rest_span = lo - int(ordered[below]), int(ordered[below] - ordered[0])
+            is_stray = distance > (max(far, rest_span) if edge else far)
+        else:  # among the others: stray unless they fill a hole of their size
+            hole = int(ordered[above]) - int(ordered[below])
+            is_stray = hole < (run.size + 0.5) * dt
+        if is_stray:
+            stray[start:stop] = True
+    count = int(stray.sum())
+    if count == 0 or count > allowed:
+        return t, a
+    where = ", ".join(f"sample {int(i)}" for i in np.flatnonzero(stray)[:3])
+    more = ", …" if count > 3 else ""
+    notes.append(
+        f"dropped {count} sample(s) with stray timestamps far from their neighbours "
+        f"({where}{more}; a corrupt or late stamp)"
+    )
+    return t[~stray], a[~stray]
+
+
 def _short_steps(t: np.ndarray, dt_ns: float) -> int:
     """Forward steps (zero included) shorter than half the typical interval."""
     d = np.diff(t)
@@ -154,22 +231,31 @@ def _short_steps(t: np.ndarray, dt_ns: float) -> int:
 
 
 def _order(path, t, a, policy, notes):
+    """Sort stamps that are locally out of order (several writer threads); refuse chaos.
+
+    MCAP does not require log-time order.  Sorting is safe when every
+    backward step is short (at most ``max_reorder_s``) — or when there are
+    few (``max_backward_fraction``) — and the sorted stamps are as regular as
+    the file's own (sorting creates no interleaving of two time ranges).
+    """
     d = np.diff(t)
     backward = int(np.count_nonzero(d < 0))
     if backward == 0:
         return t, a
-    if backward > policy.max_backward_fraction * t.size:
+    worst = int(np.argmin(d))
+    local = -int(d[worst]) <= policy.max_reorder_s * 1e9
+    if backward > policy.max_backward_fraction * t.size and not local:
         raise SampleError(
             path,
-            f"timestamps go backwards {backward} times in {t.size} samples: the order of "
-            "the samples is chaotic and cannot be repaired",
+            f"timestamps go backwards {backward} times in {t.size} samples (by up to "
+            f"{-d[worst] * 1e-9:.3g} s): the order of the samples is chaotic and cannot "
+            "be repaired",
         )
-    dt_ns = float(np.median(np.abs(d[d != 0]))) if np.any(d != 0) else 0.0
     order = np.argsort(t, kind="stable")
     sorted_t = t[order]
+    dt_ns = _typical_step_ns(sorted_t)
     created = _short_steps(sorted_t, dt_ns) - _short_steps(t, dt_ns)
     if created > 2:
-        worst = int(np.argmin(d))
         raise SampleError(
             path,
             f"timestamps jump back by {-d[worst] * 1e-9:.3f} s at sample {worst + 1}, and "
