@@ -35,6 +35,7 @@ from itertools import chain
 
 import numpy as np
 
+from wheelcal.io.growing import GrowingColumns
 from wheelcal.io.mcap_scan import MessageBlock
 
 ACCEL_BATCH_SCHEMA_NAME = "wheelcal.AccelBatch"
@@ -130,10 +131,13 @@ def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, n
     return out.time_ns, out.accel
 
 
-def decode_accel_batch(blocks: tuple[MessageBlock, ...], optional: bool = True) -> AccelBatchArrays:
+def decode_accel_batch(
+    blocks: tuple[MessageBlock, ...], optional: bool = True, first_message: int = 0
+) -> AccelBatchArrays:
     """As :func:`decode_accel_blocks`, with the optional ``gyro`` and ``temperature_c``.
 
-    ``optional=False`` ignores them (they are then not even parsed).
+    ``optional=False`` ignores them (they are then not even parsed);
+    ``first_message`` is the channel's index of the first message (for errors).
 
     Raises
     ------
@@ -163,9 +167,17 @@ def decode_accel_batch(blocks: tuple[MessageBlock, ...], optional: bool = True) 
     joined = b"[" + b",".join(payloads) + b"]"
     try:
         messages = json.loads(joined)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        bad = _message_at(payloads, getattr(exc, "pos", 0))
+    except json.JSONDecodeError as exc:
+        bad = first_message + _message_at(payloads, exc.pos)
         raise AccelBatchError(f"message {bad} is not valid JSON ({exc})") from None
+    except UnicodeDecodeError as exc:
+        bad = first_message + _message_at(payloads, exc.start)
+        raise AccelBatchError(f"message {bad} is not valid UTF-8 ({exc.reason})") from None
+    except RecursionError:
+        bad = first_message + _first_too_deep(payloads)
+        raise AccelBatchError(
+            f"message {bad} is nested too deeply to be a wheelcal.AccelBatch (corrupt)"
+        ) from None
     if len(messages) != len(payloads):
         raise AccelBatchError("a message holds more than one JSON value")
     try:
@@ -323,6 +335,57 @@ def _arrow_optional(column, per_message: np.ndarray, width: int) -> np.ndarray |
     block[row_ok] = values.reshape(-1, width)
     out[where] = block
     return out
+
+
+def _first_too_deep(payloads: list[bytes]) -> int:
+    """Index of the first payload that :func:`json.loads` cannot parse for its depth."""
+    for i, payload in enumerate(payloads):
+        try:
+            json.loads(payload)
+        except RecursionError:
+            return i
+        except ValueError:
+            continue
+    return 0
+
+
+class AccelBatchSink:
+    """Decodes an AccelBatch channel block by block as the scan finds it (see ``scan_mcap``).
+
+    Keeps the decoded columns only (no message text); a decoding error is kept
+    and raised by :meth:`result`.
+    """
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._columns = GrowingColumns()
+        self._error: AccelBatchError | None = None
+
+    def add(self, block: MessageBlock) -> None:
+        """Decode one block's messages into the columns."""
+        first = self.count
+        self.count += block.count
+        if self._error is not None or block.count == 0:
+            return
+        try:
+            out = decode_accel_batch((block,), optional=True, first_message=first)
+        except AccelBatchError as exc:
+            self._error = exc
+            return
+        self._columns.append(
+            time_ns=out.time_ns, accel=out.accel, gyro=out.gyro, temperature_c=out.temperature_c
+        )
+
+    def result(self) -> AccelBatchArrays:
+        """All samples of the channel; raises the first decoding error."""
+        if self._error is not None:
+            raise self._error
+        columns = self._columns.finish()
+        if not columns:
+            return AccelBatchArrays(np.empty(0, np.int64), np.empty((0, 3)))
+        return AccelBatchArrays(
+            columns["time_ns"], columns["accel"], columns.get("gyro"), columns.get("temperature_c")
+        )
 
 
 def _message_at(payloads: list[bytes], pos: int) -> int:

@@ -37,13 +37,15 @@ their length, as the spec asks of readers.
 
 from __future__ import annotations
 
+import mmap
 import os
+import stat
 import struct
 import zlib
 from dataclasses import dataclass, field
 from enum import IntEnum
-from pathlib import Path
 from types import MappingProxyType
+from typing import Protocol
 
 import numpy as np
 
@@ -130,10 +132,14 @@ class McapScan:
     blocks: MappingProxyType  # channel id -> tuple[MessageBlock, ...]
     chunks: int
     chunks_without_crc: int
+    #: channel id -> the sink that consumed its messages (see :func:`scan_mcap`).
+    sinks: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
 
     def message_count(self, channel_id: int) -> int:
         """Number of messages of one channel."""
-        return sum(block.count for block in self.blocks.get(channel_id, ()))
+        sink = self.sinks.get(channel_id)
+        held = sum(block.count for block in self.blocks.get(channel_id, ()))
+        return held + (sink.count if sink is not None else 0)
 
     def schema_of(self, channel: ChannelRecord) -> SchemaRecord | None:
         """The channel's schema (``None`` for schema id 0, "no schema")."""
@@ -408,15 +414,26 @@ def _decompress(path: str, compression: str, data, size: int, where: str):
     return out
 
 
+class MessageSink(Protocol):
+    """Consumes one channel's message blocks as the scan finds them (so chunks can go)."""
+
+    count: int  # messages consumed
+
+    def add(self, block: MessageBlock) -> None:
+        """Take the messages of one block (the block's buffer is not kept)."""
+
+
 class _Collector:
     """Accumulates schemas, channels, metadata and message blocks during a scan."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, sink_for=None) -> None:
         self.path = path
         self.schemas: dict[int, SchemaRecord] = {}
         self.channels: dict[int, ChannelRecord] = {}
         self.metadata: list[tuple[str, MappingProxyType]] = []
         self.blocks: dict[int, list[MessageBlock]] = {}
+        self.sink_for = sink_for
+        self.sinks: dict[int, MessageSink] = {}
 
     def fail(self, where: str):
         return lambda text: CorruptFileError(self.path, f"{where}: {text}")
@@ -456,16 +473,31 @@ class _Collector:
         for cid in np.unique(channel).tolist():
             sel = channel == cid
             block = MessageBlock(buf, payload_offsets[sel], payload_lengths[sel], log_time[sel])
-            self.blocks.setdefault(cid, []).append(block)
+            sink = self.sinks.get(cid)
+            if sink is None and cid not in self.blocks and self.sink_for is not None:
+                known = self.channels.get(cid)  # a channel defined after its messages: keep
+                if known is not None:
+                    sink = self.sink_for(known, self.schemas.get(known.schema_id))
+                    if sink is not None:
+                        self.sinks[cid] = sink
+            if sink is not None:
+                sink.add(block)
+            else:
+                self.blocks.setdefault(cid, []).append(block)
 
 
-def scan_mcap(path: str | os.PathLike) -> McapScan:
+def scan_mcap(path: str | os.PathLike, sink_for=None) -> McapScan:
     """Walk an MCAP file, verify its CRCs, and index its messages by channel.
 
     Parameters
     ----------
     path:
         The file.
+    sink_for:
+        Optional ``(ChannelRecord, SchemaRecord | None) -> MessageSink | None``,
+        asked once per channel at its first messages: a sink consumes that
+        channel's blocks as they are found (decoding them), so no chunk is kept
+        after it was walked; ``None`` keeps the channel's blocks in ``blocks``.
 
     Returns
     -------
@@ -481,21 +513,14 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
         compressed data, or any CRC mismatch.
     """
     name = str(path)
-    try:
-        buf = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise NotMcapError(name, "no such file") from None
-    except OSError as exc:
-        raise NotMcapError(name, f"cannot be read ({exc.strerror})") from None
-    if not buf:
-        raise NotMcapError(name, "the file is empty (0 bytes), not an MCAP recording")
-    if not buf.startswith(MAGIC):
+    buf = _map_file(name)
+    if buf[: len(MAGIC)] != MAGIC:
         hint = " (it looks like text, e.g. a CSV: see `wheelcal convert`)" if _is_text(buf) else ""
         raise NotMcapError(name, f"not an MCAP file: it does not start with the MCAP magic{hint}")
 
-    col = _Collector(name)
+    col = _Collector(name, sink_for)
     size = len(buf)
-    complete = size >= 2 * len(MAGIC) and buf.endswith(MAGIC)
+    complete = size >= 2 * len(MAGIC) and buf[size - len(MAGIC) :] == MAGIC
     end = size - len(MAGIC) if complete else size
     ops, starts, lengths = _walk_records(
         buf,
@@ -564,6 +589,8 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
         col.definitions(data, c_ops, c_starts, c_lengths, where)
         col.messages(data, c_ops, c_starts, c_lengths, where)
         chunks += 1
+        del data, table, c_ops, c_starts, c_lengths, records
+        _release(buf, chunk_start, chunk_start + 9 + chunk_length)
     # After the chunks, so a damaged chunk is reported as precisely as possible.
     _check_section_crcs(name, buf, starts, data_end_at, footer)
     # Summary section: repeated schemas and channels (harmless duplicates by id).
@@ -575,7 +602,7 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
     keep = (s_ops == Opcode.SCHEMA) | (s_ops == Opcode.CHANNEL)
     col.definitions(buf, s_ops[keep], s_starts[keep], s_lengths[keep], "summary section")
 
-    for cid in col.blocks:
+    for cid in list(col.blocks) + list(col.sinks):
         if cid not in col.channels:
             raise CorruptFileError(name, f"messages refer to channel {cid}, which is never defined")
     return McapScan(
@@ -588,6 +615,7 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
         blocks=MappingProxyType({k: tuple(v) for k, v in col.blocks.items()}),
         chunks=chunks,
         chunks_without_crc=chunks_without_crc,
+        sinks=MappingProxyType(col.sinks),
     )
 
 
@@ -596,7 +624,7 @@ def _check_section_crcs(name, buf, starts, data_end_at, footer) -> None:
     if data_end_at.size:
         at = int(starts[data_end_at[0]])
         stored = int.from_bytes(buf[at + 9 : at + 13], "little")
-        if stored and zlib.crc32(memoryview(buf)[:at]) != stored:
+        if stored and _crc32(buf, 0, at) != stored:
             raise CorruptFileError(
                 name, "data-section CRC mismatch: the file's data section is damaged"
             )
@@ -605,8 +633,60 @@ def _check_section_crcs(name, buf, starts, data_end_at, footer) -> None:
     summary_crc = int.from_bytes(buf[f_at + 25 : f_at + 29], "little")
     if summary_crc and summary_start:
         # Spec: CRC of the summary section through the footer's summary_offset_start field.
-        if zlib.crc32(memoryview(buf)[summary_start : f_at + 25]) != summary_crc:
+        if _crc32(buf, summary_start, f_at + 25) != summary_crc:
             raise CorruptFileError(name, "summary CRC mismatch: the file's summary is damaged")
+
+
+def _map_file(name: str):
+    """The file's bytes, memory-mapped (read-only); errors for what is no readable file.
+
+    Mapped, not read: the scan walks the file once and hands each chunk's pages
+    back to the kernel (:func:`_release`), so a long recording does not sit in
+    memory twice (compressed and decoded).  A FIFO, device or directory is
+    refused before it is opened (reading a FIFO would wait for a writer).
+    """
+    try:
+        info = os.stat(name)
+    except FileNotFoundError:
+        raise NotMcapError(name, "no such file") from None
+    except OSError as exc:
+        raise NotMcapError(name, f"cannot be read ({exc.strerror})") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise NotMcapError(name, "is a directory, not an MCAP recording")
+    if not stat.S_ISREG(info.st_mode):
+        kind = "a FIFO (named pipe)" if stat.S_ISFIFO(info.st_mode) else "not a regular file"
+        raise NotMcapError(
+            name, f"is {kind}: wheelcal reads recordings from regular files (save it first)"
+        )
+    if info.st_size == 0:
+        raise NotMcapError(name, "the file is empty (0 bytes), not an MCAP recording")
+    try:
+        with open(name, "rb") as stream:
+            return mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError) as exc:
+        raise NotMcapError(
+            name, f"cannot be read ({getattr(exc, 'strerror', None) or exc})"
+        ) from None
+
+
+def _release(buf, start: int, stop: int) -> None:
+    """Give the pages of ``buf[start:stop]`` back to the kernel (a mapped file re-reads them)."""
+    if isinstance(buf, mmap.mmap) and hasattr(mmap, "MADV_DONTNEED"):
+        aligned = start - start % mmap.PAGESIZE
+        if stop > aligned:
+            buf.madvise(mmap.MADV_DONTNEED, aligned, stop - aligned)
+
+
+def _crc32(buf, start: int, stop: int) -> int:
+    """CRC-32 of ``buf[start:stop]``, in pieces whose pages are released after use."""
+    crc = 0
+    view = memoryview(buf)
+    for at in range(start, stop, _PIECE_BYTES):
+        end = min(at + _PIECE_BYTES, stop)
+        crc = zlib.crc32(view[at:end], crc)
+        _release(buf, at, end)
+    view.release()
+    return crc
 
 
 def _is_text(buf: bytes) -> bool:
