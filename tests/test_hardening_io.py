@@ -281,3 +281,98 @@ def test_writer_threads_a_few_messages_apart_are_sorted(tmp_path, base):
     rec = read_recording(_write(tmp_path, stamps[order], accel[order]))
     np.testing.assert_array_equal(recording_stamps_ns(rec), stamps)
     assert any("out-of-order timestamp steps into time order" in n for n in rec.notes)
+
+
+# --- item 7: gross outliers ---------------------------------------------------------------
+
+
+def _read_strict(path, **kwargs):
+    """read_recording with every numpy / Python warning turned into an error."""
+    import warnings
+
+    with warnings.catch_warnings(), np.errstate(all="raise"):
+        warnings.simplefilter("error")
+        return read_recording(path, **kwargs)
+
+
+def test_a_single_huge_sample_is_dropped_without_warnings(tmp_path, base):
+    stamps, accel = base
+    bad = accel.copy()
+    bad[2000, 1] = 1e300
+    rec = _read_strict(_write(tmp_path, stamps, bad))
+    keep = np.arange(stamps.size) != 2000
+    np.testing.assert_array_equal(rec.accel_mps2, accel[keep])
+    note = next(n for n in rec.notes if "gross outlier" in n)
+    assert note.startswith("dropped 1 gross outlier") and "1e+300" in note
+
+
+def test_twenty_spikes_of_200_mps2_are_dropped(tmp_path, base):
+    stamps, accel = base
+    bad = accel.copy()
+    where = np.random.default_rng(4).choice(np.arange(100, stamps.size - 100), 20, replace=False)
+    bad[where, 0] += 200.0
+    rec = read_recording(_write(tmp_path, stamps, bad))
+    keep = np.ones(stamps.size, bool)
+    keep[where] = False
+    np.testing.assert_array_equal(rec.accel_mps2, accel[keep])
+    assert any(n.startswith("dropped 20 gross outlier") for n in rec.notes)
+
+
+def test_a_pair_of_adjacent_glitches_is_dropped(tmp_path, base):
+    stamps, accel = base
+    bad = accel.copy()
+    bad[3000:3002, 2] = -500.0
+    rec = read_recording(_write(tmp_path, stamps, bad))
+    assert rec.samples == stamps.size - 2
+    assert any(n.startswith("dropped 2 gross outlier") for n in rec.notes)
+
+
+def test_a_huge_sample_no_longer_shrinks_the_window(tmp_path):
+    """The issue's case: one 1e300 sample shrank the free-spin window from 87 s to 31 s."""
+    from wheelcal import api
+    from wheelcal.simulate.hostile import clean
+
+    rec = clean(np.random.default_rng(5), duration_s=40.0).recording
+    stamps = recording_stamps_ns(rec)
+    good = _write(tmp_path, stamps, rec.accel_mps2, name="good.mcap")
+    bad_accel = rec.accel_mps2.copy()
+    bad_accel[rec.samples // 2, 0] = 1e300
+    bad = _write(tmp_path, stamps, bad_accel, name="bad.mcap")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        window_bad = api.calibrate(bad).window_s
+    window_good = api.calibrate(good).window_s
+    assert window_bad == pytest.approx(window_good, abs=0.05)
+
+
+def _hostile_good_sessions():
+    from wheelcal.simulate import hostile
+
+    rng = np.random.default_rng(11)
+    yield "clean", hostile.clean(rng).recording
+    yield "10 samples per turn", hostile.sampled_at(rng, 40.0, omega_radps=25.0).recording
+    yield "fast spin, 1 kHz", hostile.sampled_at(rng, 1000.0, omega_radps=25.0).recording
+    yield "rising to 24.6 rad/s", hostile.rising(rng).recording
+    yield "vibration 0.3", hostile.vibrating(rng, 0.3).recording
+    yield "vibration 0.7", hostile.vibrating(rng, 0.7).recording
+    yield "saturated ±2 g", hostile.saturated(rng).recording
+    yield "saturated ±1.5 g, 3 LSB", hostile.saturated(rng, 1.5, 3.0).recording
+    yield "motor steps", hostile.motor_steps(rng).recording
+
+
+def test_good_data_has_no_gross_outliers():
+    """Rails, centripetal swings at high ω, heavy vibration: nothing is flagged."""
+    from wheelcal.io.sample_checks import InputPolicy, clean_samples
+
+    for name, rec in _hostile_good_sessions():
+        out = clean_samples(
+            name,
+            recording_stamps_ns(rec),
+            rec.accel_mps2,
+            unit="m/s^2",
+            full_scale_g=None,
+            policy=InputPolicy(max_clipped_fraction=0.5),  # outliers only, not clipping
+        )
+        assert not any("gross outlier" in n for n in out.notes), (name, out.notes)

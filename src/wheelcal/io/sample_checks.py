@@ -58,6 +58,10 @@ class InputPolicy:
     max_duplicate_fraction: float = 0.05
     gap_factor: float = 3.0
     max_clipped_fraction: float = 0.20
+    outlier_sigmas: float = 25.0
+    outlier_floor_g: float = 1.5
+    max_physical_g: float = 1000.0
+    max_outlier_fraction: float = 0.01
     clip_run_samples: int = 3
     rail_jitter_counts: float = 2.0
     clip_margin: float = 0.995
@@ -123,6 +127,7 @@ def clean_samples(
     t, a = _order(path, t, a, policy, notes)
     t, a = _merge_duplicates(path, t, a, policy, notes)
     _report_gaps(t, policy, notes)
+    t, a = _drop_gross_outliers(path, t, a, policy, notes)
     t, a, rails = _drop_clipped(path, t, a, full_scale_g, policy, notes)
     if policy.check_units:
         _check_units(path, a, unit)
@@ -296,6 +301,72 @@ def _merge_duplicates(path, t, a, policy, notes):
         parts.append(f"{averaged} stamps with differing values averaged")
     notes.append(f"{count} samples repeated a timestamp: " + ", ".join(parts))
     return unique_t, out
+
+
+_BLOCK_ROWS = 1 << 16  # rows per piece of the running median (bounded temporaries)
+
+
+def _median5_residual(a: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """``a[start:stop]`` minus the running median of 5 (per axis; the ends reflected)."""
+    lo, hi = max(start - 2, 0), min(stop + 2, a.shape[0])
+    x = a[lo:hi]
+    pad = (2 - (start - lo), 2 - (hi - stop))
+    if pad != (0, 0):
+        x = np.pad(x, (pad, (0, 0)), mode="reflect" if x.shape[0] > 2 else "edge")
+    windows = np.lib.stride_tricks.sliding_window_view(x, 5, axis=0)  # (m, 3, 5)
+    median = np.partition(windows, 2, axis=-1)[..., 2]
+    return a[start:stop] - median
+
+
+def _drop_gross_outliers(path, t, a, policy, notes):
+    """Drop single samples (or pairs) far from their neighbours: bit errors, glitches.
+
+    A sample is a gross outlier when it differs from the running median of
+    five (its own and two neighbours each side) by more than
+    ``outlier_sigmas`` robust σ of that difference (1.4826 × its median
+    absolute value, per axis) *and* by more than ``outlier_floor_g`` g — so
+    the signal itself never is one: a wheel's fastest change, gravity turning
+    once per revolution, moves a sample at most ~1 g from that median at
+    8 samples per turn; the centripetal part changes slowly; a clipped rail is
+    flat; vibration is noise, which robust σ measures.  Values beyond
+    ``max_physical_g`` (no accelerometer reads 1000 g) are outliers whatever
+    their neighbours.  More than ``max_outlier_fraction`` is refused.
+    """
+    n = t.size
+    if n < 5:
+        return t, a
+    g = STANDARD_GRAVITY_MPS2
+    with np.errstate(all="ignore"):
+        # The scale, from at most ~200k rows (evenly spread) of the residual.
+        rows = np.arange(0, n, max(1, n // 200_000))
+        around = np.clip(rows[:, None] + np.arange(-2, 3), 0, n - 1)
+        near = a[around]  # (m, 5, 3)
+        probe = np.abs(a[rows] - np.partition(near, 2, axis=1)[:, 2])
+        sigma = 1.4826 * np.median(probe, axis=0)
+        limit = np.maximum(policy.outlier_sigmas * sigma, policy.outlier_floor_g * g)
+        bad = np.zeros(n, bool)
+        for start in range(0, n, _BLOCK_ROWS):
+            stop = min(start + _BLOCK_ROWS, n)
+            r = _median5_residual(a, start, stop)
+            bad[start:stop] = np.any(np.abs(r) > limit, axis=1)
+        bad |= np.any(np.abs(a) > policy.max_physical_g * g, axis=1)
+    count = int(bad.sum())
+    if count == 0:
+        return t, a
+    if count > policy.max_outlier_fraction * n:
+        raise SampleError(
+            path,
+            f"{count} of {n} samples ({_pct(count, n)}) jump far from their neighbours "
+            f"(more than {policy.outlier_floor_g:g} g and {policy.outlier_sigmas:g} robust σ "
+            "from the running median): the data are too damaged to clean",
+        )
+    worst = int(np.argmax(np.where(bad, np.max(np.abs(a), axis=1), -np.inf)))
+    notes.append(
+        f"dropped {count} gross outlier sample(s) ({_pct(count, n)}) far from their "
+        f"neighbours (largest |a| = {np.max(np.abs(a[worst])):.3g} m/s² at "
+        f"t = {(t[worst] - t[0]) * 1e-9:.3f} s)"
+    )
+    return t[~bad], a[~bad]
 
 
 def _report_gaps(t, policy, notes):
