@@ -15,7 +15,7 @@ import zlib
 import numpy as np
 import pytest
 
-from wheelcal.io import CorruptFileError, read_recording, write_accel_mcap
+from wheelcal.io import CorruptFileError, InputError, read_recording, write_accel_mcap
 from wheelcal.io.mcap_scan import MAGIC
 from wheelcal.io.mcap_writer import recording_stamps_ns
 from wheelcal.recording import SessionInfo
@@ -376,3 +376,128 @@ def test_good_data_has_no_gross_outliers():
             policy=InputPolicy(max_clipped_fraction=0.5),  # outliers only, not clipping
         )
         assert not any("gross outlier" in n for n in out.notes), (name, out.notes)
+
+
+# --- item 7: non-regular files, misleading messages, convert -------------------------------
+
+
+def test_a_fifo_is_refused_without_waiting_for_a_writer(tmp_path):
+    fifo = tmp_path / "live.mcap"
+    os.mkfifo(fifo)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    out = subprocess.run(
+        [sys.executable, "-c", _READ_SCRIPT, str(fifo)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=30,
+    )
+    assert out.stdout.startswith("NotMcapError") and "live.mcap: is a FIFO" in out.stdout
+
+
+def test_a_directory_is_refused(tmp_path):
+    (tmp_path / "dir.mcap").mkdir()
+    with pytest.raises(InputError, match=r"dir\.mcap: is a directory"):
+        read_recording(tmp_path / "dir.mcap")
+
+
+def _write_raw(path, schema_name, schema_encoding, schema_data, message_encoding, payloads, stamps):
+    from mcap.writer import Writer
+
+    with open(path, "wb") as stream:
+        writer = Writer(stream)
+        writer.start()
+        sid = writer.register_schema(schema_name, schema_encoding, schema_data)
+        cid = writer.register_channel("/imu", message_encoding, sid)
+        for stamp, payload in zip(stamps.tolist(), payloads, strict=True):
+            writer.add_message(cid, log_time=stamp, data=payload, publish_time=stamp)
+        writer.add_metadata("wheelcal.session", {"radius_m": "0.28"})
+        writer.finish()
+    return path
+
+
+def _json_file(tmp_path, base, damage):
+    from wheelcal.io.accel_json import encode_accel_batches, schema_bytes
+
+    stamps, accel = base
+    payloads = [payload for _, payload in encode_accel_batches(stamps, accel, 1)]
+    damage(payloads)
+    return _write_raw(
+        tmp_path / "msgs.mcap",
+        "wheelcal.AccelBatch",
+        "jsonschema",
+        schema_bytes(),
+        "json",
+        payloads,
+        stamps,
+    )
+
+
+def test_invalid_utf8_names_the_message(tmp_path, base):
+    def damage(payloads):
+        payloads[1234] = payloads[1234].replace(b'"accel"', b'"acc\xffl"')
+
+    with pytest.raises(
+        InputError, match=r"msgs\.mcap: topic /imu: message 1234 is not valid UTF-8"
+    ):
+        read_recording(_json_file(tmp_path, base, damage))
+
+
+def test_deeply_nested_json_is_a_corrupt_message(tmp_path, base):
+    def damage(payloads):
+        payloads[4321] = b"[" * 200_000 + b"]" * 200_000
+
+    with pytest.raises(InputError, match=r"msgs\.mcap: topic /imu: message 4321 is nested too"):
+        read_recording(_json_file(tmp_path, base, damage))
+
+
+def test_imu_size_error_names_the_offending_message(tmp_path, base):
+    from wheelcal.io.imu_cdr import IMU_MSGDEF, encode_imu_messages
+
+    stamps, accel = base
+    payloads = encode_imu_messages(stamps, accel, "imu")
+    size = len(payloads[0])
+    payloads[77] = payloads[77] + bytes(8)
+    path = _write_raw(
+        tmp_path / "imu.mcap",
+        "sensor_msgs/msg/Imu",
+        "ros2msg",
+        IMU_MSGDEF.encode(),
+        "cdr",
+        payloads,
+        stamps,
+    )
+    with pytest.raises(
+        InputError, match=rf"message 77's size .* \({size + 8} bytes, expected {size}\)"
+    ):
+        read_recording(path)
+
+
+def test_unit_hint_for_a_ros2_file_names_the_command_line_option(tmp_path, base):
+    stamps, accel = base
+    path = _write(tmp_path, stamps, accel / 9.80665, encoding="ros2")
+    with pytest.raises(InputError, match=r"look like g") as caught:
+        read_recording(path)
+    message = str(caught.value)
+    assert "--accel-unit g" in message and "REP 103" in message
+    assert "metadata" not in message
+
+
+def test_one_sample_a_second_is_refused_before_any_fit(tmp_path):
+    n = 200
+    stamps = 1_700_000_000_000_000_000 + 10**9 * np.arange(n, dtype=np.int64)
+    angle = 2.0 * np.arange(n)
+    accel = np.stack([7 * np.cos(angle), 7 * np.sin(angle), np.full(n, 6.5)], axis=1)
+    with pytest.raises(InputError, match=r"1 s apart \(1 Hz\).*at least 10 samples per second"):
+        read_recording(_write(tmp_path, stamps, accel))
+
+
+def test_csv_field_over_128_kb_names_the_file_and_line(tmp_path):
+    from wheelcal.io import convert_csv
+
+    csv_path = tmp_path / "huge.csv"
+    rows = ["# exported", "t,ax,ay,az", "0,1,2,9.8", "0.01,1," + "9" * 200_000 + ",9.8"]
+    csv_path.write_text("\n".join(rows) + "\n")
+    with pytest.raises(InputError, match=r"huge\.csv: line 4: cannot be read as CSV"):
+        convert_csv(csv_path, tmp_path / "out.mcap")
+    assert not (tmp_path / "out.mcap").exists()

@@ -451,6 +451,7 @@ def read_recording(
         unit=unit,
         full_scale_g=info.full_scale_g,
         policy=policy,
+        unit_remedy=_unit_remedy(chosen, unit),
     )
     extra_notes: list[str] = []
     gyro_rows = None
@@ -487,6 +488,21 @@ def read_recording(
         gyro_radps=gyro_rows,
         temperature_c=temp_rows,
         clip_limits_mps2=clean.clip_limits_mps2,
+    )
+
+
+def _unit_remedy(chosen: AccelTopic, unit: str) -> str:
+    """How to state the right accelerometer unit for this file's format."""
+    other = "m/s^2" if unit == "g" else "g"
+    if chosen.encoding == "ros2":
+        return (
+            f"read it with --accel-unit {other} (Python: accel_unit={other!r}); "
+            "sensor_msgs/msg/Imu carries m/s² by REP 103, so the driver that wrote "
+            "this file should be fixed"
+        )
+    return (
+        f"state the unit: --accel-unit {other} on the command line (Python: "
+        f"accel_unit={other!r}), or the channel's metadata unit ('g' or 'm/s^2') in the file"
     )
 
 

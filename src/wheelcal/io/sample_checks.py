@@ -66,6 +66,7 @@ class InputPolicy:
     rail_jitter_counts: float = 2.0
     clip_margin: float = 0.995
     min_duration_s: float = 10.0
+    min_rate_hz: float = 10.0
     min_samples: int = 100
     check_units: bool = True
 
@@ -93,6 +94,7 @@ def clean_samples(
     unit: str,
     full_scale_g: float | None,
     policy: InputPolicy,
+    unit_remedy: str | None = None,
 ) -> CleanSamples:
     """Repair what can be repaired, refuse the rest (see the module docstring).
 
@@ -110,6 +112,9 @@ def clean_samples(
         The sensor's range if known, for clipping.
     policy:
         Thresholds.
+    unit_remedy:
+        How to state the right unit for this file's format (for the unit
+        check's message); ``None``: ``--accel-unit`` or the channel metadata.
 
     Raises
     ------
@@ -129,8 +134,9 @@ def clean_samples(
     _report_gaps(t, policy, notes)
     t, a = _drop_gross_outliers(path, t, a, policy, notes)
     t, a, rails = _drop_clipped(path, t, a, full_scale_g, policy, notes)
+    _check_rate(path, t, policy)
     if policy.check_units:
-        _check_units(path, a, unit)
+        _check_units(path, a, unit, unit_remedy)
     duration_s = (t[-1] - t[0]) * 1e-9 if t.size else 0.0
     if t.size < policy.min_samples or duration_s < policy.min_duration_s:
         raise SampleError(
@@ -473,11 +479,26 @@ def rest_level(accel: np.ndarray, block: int = 50) -> float | None:
     return float(np.median(level[quiet]))
 
 
-def _check_units(path, a, unit):
+def _check_rate(path, t, policy):
+    """Refuse samples too sparse for a spinning wheel (e.g. one per second), before any fit."""
+    if t.size < 2:
+        return
+    dt_s = _typical_step_ns(t) * 1e-9
+    if dt_s > 0 and 1.0 / dt_s < policy.min_rate_hz:
+        raise SampleError(
+            path,
+            f"the samples are {dt_s:.3g} s apart ({1.0 / dt_s:.3g} Hz): a wheel turning once "
+            f"a second would get fewer than {policy.min_rate_hz * 1.0:g} samples per turn; "
+            f"a calibration needs at least {policy.min_rate_hz:g} samples per second "
+            "(record the sensor at its output rate, typically 100–1000 Hz)",
+        )
+
+
+def _check_units(path, a, unit, remedy=None):
     g = STANDARD_GRAVITY_MPS2
     rest = rest_level(a)
     other = "m/s^2" if unit == "g" else "g"
-    fix = (
+    fix = remedy or (
         f"state the unit: --accel-unit {other} on the command line, or the channel's "
         "metadata unit ('g' or 'm/s^2') in the file"
     )
