@@ -320,6 +320,18 @@ def _merge_duplicates(path, t, a, policy, notes):
 _BLOCK_ROWS = 1 << 14  # rows per piece of the running median (bounded temporaries)
 
 
+def _median5(p: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray, e: np.ndarray):
+    """Element-wise median of five arrays with nine min/max operations (no sorting).
+
+    Of the four values p, q, r, s the smallest and the largest lie on either
+    side of the five's median, so dropping them leaves it: the median of the
+    middle two of the four and ``e``.
+    """
+    low = np.maximum(np.minimum(p, q), np.minimum(r, s))  # middle two of p, q, r, s
+    high = np.minimum(np.maximum(p, q), np.maximum(r, s))
+    return np.maximum(np.minimum(low, high), np.minimum(np.maximum(low, high), e))
+
+
 def _median5_residual(a: np.ndarray, start: int, stop: int) -> np.ndarray:
     """``a[start:stop]`` minus the running median of 5 (per axis; the ends reflected)."""
     lo, hi = max(start - 2, 0), min(stop + 2, a.shape[0])
@@ -327,8 +339,8 @@ def _median5_residual(a: np.ndarray, start: int, stop: int) -> np.ndarray:
     pad = (2 - (start - lo), 2 - (hi - stop))
     if pad != (0, 0):
         x = np.pad(x, (pad, (0, 0)), mode="reflect" if x.shape[0] > 2 else "edge")
-    windows = np.lib.stride_tricks.sliding_window_view(x, 5, axis=0)  # (m, 3, 5)
-    median = np.partition(windows, 2, axis=-1)[..., 2]
+    m = x.shape[0] - 4
+    median = _median5(x[0:m], x[1 : m + 1], x[3 : m + 3], x[4 : m + 4], x[2 : m + 2])
     return a[start:stop] - median
 
 
@@ -350,20 +362,32 @@ def _drop_gross_outliers(path, t, a, policy, notes):
     if n < 5:
         return t, a
     g = STANDARD_GRAVITY_MPS2
+    floor = policy.outlier_floor_g * g
+    wild_limit = policy.max_physical_g * g
     with np.errstate(all="ignore"):
-        # The scale, from ~20k rows (evenly spread) of the residual: ample for a median.
-        rows = np.arange(0, n, max(1, n // 20_000))
-        around = np.clip(rows[:, None] + np.arange(-2, 3), 0, n - 1)
-        near = a[around]  # (m, 5, 3)
-        probe = np.abs(a[rows] - np.partition(near, 2, axis=1)[:, 2])
-        sigma = 1.4826 * np.median(probe, axis=0)
-        limit = np.maximum(policy.outlier_sigmas * sigma, policy.outlier_floor_g * g)
-        bad = np.zeros(n, bool)
+        # One pass for candidates beyond the floor (good data has none: done) ...
+        rows, residuals = [], []
         for start in range(0, n, _BLOCK_ROWS):
             stop = min(start + _BLOCK_ROWS, n)
-            r = _median5_residual(a, start, stop)
-            wild = np.abs(a[start:stop]) > policy.max_physical_g * g
-            bad[start:stop] = np.any((np.abs(r) > limit) | wild, axis=1)
+            r = np.abs(_median5_residual(a, start, stop))
+            piece = a[start:stop]
+            if piece.max() > wild_limit or piece.min() < -wild_limit:
+                r[np.any(np.abs(piece) > wild_limit, axis=1)] = np.inf
+            hit = np.flatnonzero((r > floor).any(axis=1))
+            if hit.size:
+                rows.append(hit + start)
+                residuals.append(r[hit])
+        if not rows:
+            return t, a
+        # ... then the noise scale, from ~20k rows (evenly spread): ample for a median.
+        probe_rows = np.arange(0, n, max(1, n // 20_000))
+        near = a[np.clip(probe_rows[:, None] + np.arange(-2, 3), 0, n - 1)]  # (m, 5, 3)
+        centre = _median5(near[:, 0], near[:, 1], near[:, 3], near[:, 4], near[:, 2])
+        sigma = 1.4826 * np.median(np.abs(a[probe_rows] - centre), axis=0)
+        limit = np.maximum(policy.outlier_sigmas * sigma, floor)
+        rows, residuals = np.concatenate(rows), np.concatenate(residuals)
+        bad = np.zeros(n, bool)
+        bad[rows[np.any(residuals > limit, axis=1)]] = True
     count = int(bad.sum())
     if count == 0:
         return t, a
