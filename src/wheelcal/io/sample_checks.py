@@ -8,13 +8,23 @@ with an error naming the file, when a repair would invent data:
 defect                      repaired when                       refused when
 ==========================  ==================================  ===========================
 NaN / inf samples           ≤ 1 % of samples: dropped           more
-samples out of order        ≤ 1 % backward steps, and sorting   more, or sorting interleaves
-                            restores a regular grid: sorted     two time ranges (clock reset)
+stray timestamps            short runs (≤ 64 samples) that      never (more than 1 % are
+                            jump > 20 steps away and have no    left to the order check)
+                            place among the others (a day
+                            late, a flipped bit): ≤ 1 % dropped
+samples out of order        ≤ 1 % backward steps, or any        many steps back by more than
+                            number of steps back by ≤ 1 s       1 s (chaotic), or sorting
+                            (writer threads), and sorting       interleaves two time ranges
+                            restores a regular grid: sorted     (clock reset)
 duplicate timestamps        ≤ 5 %: identical rows dropped,      more (stamps per packet,
                             differing rows averaged             not per sample)
 gaps                        always kept (real timestamps),      never
                             reported
+gross outliers              > 25 robust σ and > 1.5 g from      more than 1 %
+                            the running median of 5, or
+                            beyond 1000 g: ≤ 1 % dropped
 clipped samples             ≤ 20 %: dropped                     more
+too sparse                  —                                   < 10 samples per second
 unit mislabel (g as m/s²)   never (ambiguous fixes are          at rest |a| ≈ 1 (or ≈ 96),
                             guesses)                            or median |a| ≪ g
 too short                   —                                   < 10 s or < 100 samples
