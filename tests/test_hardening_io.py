@@ -501,3 +501,18 @@ def test_csv_field_over_128_kb_names_the_file_and_line(tmp_path):
     with pytest.raises(InputError, match=r"huge\.csv: line 4: cannot be read as CSV"):
         convert_csv(csv_path, tmp_path / "out.mcap")
     assert not (tmp_path / "out.mcap").exists()
+
+
+def test_a_bad_optional_gyro_matters_only_when_the_gyro_is_read(tmp_path, base):
+    """Decoding chunk by chunk must not make an unread optional field refuse a file."""
+    import json
+
+    def damage(payloads):
+        message = json.loads(payloads[50])
+        message["gyro"] = [[1.0, 2.0]]  # two numbers: not a gyro row
+        payloads[50] = json.dumps(message).encode()
+
+    path = _json_file(tmp_path, base, damage)
+    assert read_recording(path, gyro=False, temperature=False).samples == base[0].size
+    with pytest.raises(InputError, match=r'every "gyro" entry must be three numbers'):
+        read_recording(path)

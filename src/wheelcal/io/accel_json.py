@@ -360,6 +360,7 @@ class AccelBatchSink:
         self.count = 0
         self._columns = GrowingColumns()
         self._error: AccelBatchError | None = None
+        self._optional_error: AccelBatchError | None = None
 
     def add(self, block: MessageBlock) -> None:
         """Decode one block's messages into the columns."""
@@ -370,16 +371,25 @@ class AccelBatchSink:
         try:
             out = decode_accel_batch((block,), optional=True, first_message=first)
         except AccelBatchError as exc:
-            self._error = exc
-            return
+            try:  # a defect in the optional gyro / temperature only matters if they are read
+                out = decode_accel_batch((block,), optional=False, first_message=first)
+            except AccelBatchError:
+                self._error = exc
+                return
+            self._optional_error = self._optional_error or exc
         self._columns.append(
             time_ns=out.time_ns, accel=out.accel, gyro=out.gyro, temperature_c=out.temperature_c
         )
 
-    def result(self) -> AccelBatchArrays:
-        """All samples of the channel; raises the first decoding error."""
+    def result(self, optional: bool = True) -> AccelBatchArrays:
+        """All samples of the channel; raises the first decoding error.
+
+        ``optional=False``: errors in ``gyro`` / ``temperature_c`` do not count.
+        """
         if self._error is not None:
             raise self._error
+        if optional and self._optional_error is not None:
+            raise self._optional_error
         columns = self._columns.finish()
         if not columns:
             return AccelBatchArrays(np.empty(0, np.int64), np.empty((0, 3)))

@@ -267,7 +267,7 @@ def _decode(
                 )
             return _Decoded(stamp, accel, rate if gyro else None, None, notes)
         if sink is not None and not blocks:
-            batch = sink.result()
+            batch = sink.result(optional=gyro or temperature)
         else:
             batch = decode_accel_batch(blocks, optional=gyro or temperature)
         temp = None
