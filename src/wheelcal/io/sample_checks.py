@@ -141,10 +141,11 @@ def clean_samples(
     t, a = _drop_stray_stamps(t, a, policy, notes)
     t, a = _order(path, t, a, policy, notes)
     t, a = _merge_duplicates(path, t, a, policy, notes)
-    _report_gaps(t, policy, notes)
+    step_ns = _typical_step_ns(t)  # sorted and unique from here on
+    _report_gaps(t, step_ns, policy, notes)
     t, a = _drop_gross_outliers(path, t, a, policy, notes)
     t, a, rails = _drop_clipped(path, t, a, full_scale_g, policy, notes)
-    _check_rate(path, t, policy)
+    _check_rate(path, t.size, step_ns, policy)
     if policy.check_units:
         _check_units(path, a, unit, unit_remedy)
     duration_s = (t[-1] - t[0]) * 1e-9 if t.size else 0.0
@@ -418,11 +419,10 @@ def _drop_gross_outliers(path, t, a, policy, notes):
     return t[~bad], a[~bad]
 
 
-def _report_gaps(t, policy, notes):
+def _report_gaps(t, dt_ns, policy, notes):
     d = np.diff(t)
     if d.size == 0:
         return
-    dt_ns = _typical_step_ns(t)  # t is sorted and unique here: every step is positive
     gaps = np.flatnonzero(d > policy.gap_factor * dt_ns)
     if gaps.size == 0:
         return
@@ -527,11 +527,11 @@ def rest_level(accel: np.ndarray, block: int = 50) -> float | None:
     return float(np.median(level[quiet]))
 
 
-def _check_rate(path, t, policy):
+def _check_rate(path, samples, step_ns, policy):
     """Refuse samples too sparse for a spinning wheel (e.g. one per second), before any fit."""
-    if t.size < 2:
+    if samples < 2:
         return
-    dt_s = _typical_step_ns(t) * 1e-9
+    dt_s = step_ns * 1e-9
     if dt_s > 0 and 1.0 / dt_s < policy.min_rate_hz:
         raise SampleError(
             path,
