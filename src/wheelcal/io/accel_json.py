@@ -267,8 +267,8 @@ def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytes | None:
 
     When a chunk holds only this channel's messages back to back, the payloads
     are separated by exactly the 31 header bytes of each next record: a copy of
-    the stretch with those bytes turned into blanks and a newline is the
-    newline-delimited text (JSON allows the blanks).  Otherwise None.
+    the stretch without those bytes, a newline in their place, is the
+    newline-delimited text.  Otherwise None.
     """
     if len(blocks) != 1 or blocks[0].count < 2:
         return None
@@ -278,10 +278,11 @@ def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytes | None:
     if not np.all(starts[1:] - gap_starts == _RECORD_GAP):
         return None
     first, last = int(starts[0]), int(starts[-1] + lengths[-1])
-    text = np.frombuffer(block.buffer, np.uint8, count=last - first, offset=first).copy()
-    gaps = (gap_starts - first)[:, None] + np.arange(_RECORD_GAP)
-    text[gaps] = ord(" ")
-    text[gaps[:, -1]] = ord("\n")
+    stretch = np.frombuffer(block.buffer, np.uint8, count=last - first, offset=first)
+    keep = np.ones(stretch.size, bool)
+    keep[(gap_starts - first)[:, None] + np.arange(1, _RECORD_GAP)] = False
+    text = stretch[keep]
+    text[gap_starts - first - np.arange(gap_starts.size) * (_RECORD_GAP - 1)] = ord("\n")
     return text.tobytes()
 
 
