@@ -41,6 +41,18 @@ SESSION_FACT_KEYS = (
 )
 
 
+def _frozen_or_copy(values) -> np.ndarray:
+    """A float64 array the recording can keep: a read-only float64 array as it is, else a copy.
+
+    Read-only arrays are taken without a copy (a 2.9 M-sample recording is
+    70 MB per copy): whoever passes one promises not to change its memory
+    through another view.  The reader hands over its arrays this way.
+    """
+    if isinstance(values, np.ndarray) and values.dtype == np.float64 and not values.flags.writeable:
+        return values
+    return np.array(values, dtype=float)
+
+
 class RecordingError(ValueError):
     """A recording that cannot be calibrated, with the reason in words."""
 
@@ -144,8 +156,8 @@ class Recording:
             limits = np.array(self.clip_limits_mps2, dtype=float).reshape(3, 2)
             limits.setflags(write=False)
             object.__setattr__(self, "clip_limits_mps2", limits)
-        t = np.array(self.time_s, dtype=float).reshape(-1)
-        a = np.array(self.accel_mps2, dtype=float)
+        t = _frozen_or_copy(self.time_s).reshape(-1)
+        a = _frozen_or_copy(self.accel_mps2)
         if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] != t.size:
             raise RecordingError(
                 f"{self.source}: need N times and (N, 3) samples, got {t.shape} and {a.shape}"

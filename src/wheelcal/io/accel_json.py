@@ -35,6 +35,7 @@ from itertools import chain
 
 import numpy as np
 
+from wheelcal.io.growing import GrowingColumns
 from wheelcal.io.mcap_scan import MessageBlock
 
 ACCEL_BATCH_SCHEMA_NAME = "wheelcal.AccelBatch"
@@ -130,10 +131,13 @@ def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, n
     return out.time_ns, out.accel
 
 
-def decode_accel_batch(blocks: tuple[MessageBlock, ...], optional: bool = True) -> AccelBatchArrays:
+def decode_accel_batch(
+    blocks: tuple[MessageBlock, ...], optional: bool = True, first_message: int = 0
+) -> AccelBatchArrays:
     """As :func:`decode_accel_blocks`, with the optional ``gyro`` and ``temperature_c``.
 
-    ``optional=False`` ignores them (they are then not even parsed).
+    ``optional=False`` ignores them (they are then not even parsed);
+    ``first_message`` is the channel's index of the first message (for errors).
 
     Raises
     ------
@@ -142,30 +146,38 @@ def decode_accel_batch(blocks: tuple[MessageBlock, ...], optional: bool = True) 
         three numbers nor null, or a ``gyro``/``temperature_c`` list whose
         length differs from the message's ``timestamps_ns``.
     """
-    payloads = [
-        block.buffer[start : start + length]
-        for block in blocks
-        for start, length in zip(
-            block.payload_offsets.tolist(), block.payload_lengths.tolist(), strict=True
-        )
-    ]
-    if not payloads:
-        return AccelBatchArrays(np.empty(0, np.int64), np.empty((0, 3)))
-    joined_lines = b"\n".join(payloads)
+    payloads = None
+    joined_lines = _lines_in_place(blocks)
+    if joined_lines is None:
+        payloads = _payload_list(blocks)
+        if not payloads:
+            return AccelBatchArrays(np.empty(0, np.int64), np.empty((0, 3)))
+        joined_lines = b"\n".join(payloads)
+    count = sum(block.count for block in blocks)
     # Accelerometer-only files stay on the old path.  A one-byte search (memchr, ~40× faster
     # than a substring search) for a letter that neither the required keys nor JSON numbers
     # contain ("g" of "gyro", "u" of "temperature_c") rules the keys out first.
     want_gyro = optional and b"g" in joined_lines and b'"gyro"' in joined_lines
     want_temp = optional and b"u" in joined_lines and b'"temperature_c"' in joined_lines
-    fast = _decode_with_arrow(payloads, joined_lines, want_gyro, want_temp)
+    fast = _decode_with_arrow(count, joined_lines, want_gyro, want_temp)
     if fast is not None:
         return fast
+    if payloads is None:
+        payloads = _payload_list(blocks)
     joined = b"[" + b",".join(payloads) + b"]"
     try:
         messages = json.loads(joined)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        bad = _message_at(payloads, getattr(exc, "pos", 0))
+    except json.JSONDecodeError as exc:
+        bad = first_message + _message_at(payloads, exc.pos)
         raise AccelBatchError(f"message {bad} is not valid JSON ({exc})") from None
+    except UnicodeDecodeError as exc:
+        bad = first_message + _message_at(payloads, exc.start)
+        raise AccelBatchError(f"message {bad} is not valid UTF-8 ({exc.reason})") from None
+    except RecursionError:
+        bad = first_message + _first_too_deep(payloads)
+        raise AccelBatchError(
+            f"message {bad} is nested too deeply to be a wheelcal.AccelBatch (corrupt)"
+        ) from None
     if len(messages) != len(payloads):
         raise AccelBatchError("a message holds more than one JSON value")
     try:
@@ -236,8 +248,46 @@ def _optional_rows(messages: list, counts: list[int], key: str, width: int) -> n
     return out if found else None
 
 
+def _payload_list(blocks: tuple[MessageBlock, ...]) -> list:
+    """Every message payload of the blocks, in order (one bytes object each)."""
+    return [
+        block.buffer[start : start + length]
+        for block in blocks
+        for start, length in zip(
+            block.payload_offsets.tolist(), block.payload_lengths.tolist(), strict=True
+        )
+    ]
+
+
+_RECORD_GAP = 9 + 22  # a Message record's opcode and length, then its header
+
+
+def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytes | None:
+    """The payloads of one block as lines, without a Python object per message, or None.
+
+    When a chunk holds only this channel's messages back to back, the payloads
+    are separated by exactly the 31 header bytes of each next record: a copy of
+    the stretch without those bytes, a newline in their place, is the
+    newline-delimited text.  Otherwise None.
+    """
+    if len(blocks) != 1 or blocks[0].count < 2:
+        return None
+    block = blocks[0]
+    starts, lengths = block.payload_offsets, block.payload_lengths
+    gap_starts = starts[:-1] + lengths[:-1]
+    if not np.all(starts[1:] - gap_starts == _RECORD_GAP):
+        return None
+    first, last = int(starts[0]), int(starts[-1] + lengths[-1])
+    stretch = np.frombuffer(block.buffer, np.uint8, count=last - first, offset=first)
+    keep = np.ones(stretch.size, bool)
+    keep[(gap_starts - first)[:, None] + np.arange(1, _RECORD_GAP)] = False
+    text = stretch[keep]
+    text[gap_starts - first - np.arange(gap_starts.size) * (_RECORD_GAP - 1)] = ord("\n")
+    return text.tobytes()
+
+
 def _decode_with_arrow(
-    payloads: list, joined: bytes, want_gyro: bool, want_temp: bool
+    count: int, joined: bytes, want_gyro: bool, want_temp: bool
 ) -> AccelBatchArrays | None:
     """Parse with Arrow's C++ JSON reader (single thread), or None to use json.loads.
 
@@ -251,7 +301,7 @@ def _decode_with_arrow(
         import pyarrow.json as pa_json
     except ImportError:  # rerun-sdk brings pyarrow; without it, json.loads still works
         return None
-    if joined.count(b"\n") != len(payloads) - 1:
+    if joined.count(b"\n") != count - 1:
         return None
     fields = [("timestamps_ns", pa.list_(pa.int64())), ("accel", pa.list_(pa.list_(pa.float64())))]
     if want_gyro:
@@ -268,7 +318,7 @@ def _decode_with_arrow(
         )
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
         return None
-    if table.num_rows != len(payloads):
+    if table.num_rows != count:
         return None
     stamps = table.column("timestamps_ns").combine_chunks()
     batches = table.column("accel").combine_chunks()
@@ -323,6 +373,67 @@ def _arrow_optional(column, per_message: np.ndarray, width: int) -> np.ndarray |
     block[row_ok] = values.reshape(-1, width)
     out[where] = block
     return out
+
+
+def _first_too_deep(payloads: list[bytes]) -> int:
+    """Index of the first payload that :func:`json.loads` cannot parse for its depth."""
+    for i, payload in enumerate(payloads):
+        try:
+            json.loads(payload)
+        except RecursionError:
+            return i
+        except ValueError:
+            continue
+    return 0
+
+
+class AccelBatchSink:
+    """Decodes an AccelBatch channel block by block as the scan finds it (see ``scan_mcap``).
+
+    Keeps the decoded columns only (no message text); a decoding error is kept
+    and raised by :meth:`result`.
+    """
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._columns = GrowingColumns()
+        self._error: AccelBatchError | None = None
+        self._optional_error: AccelBatchError | None = None
+
+    def add(self, block: MessageBlock) -> None:
+        """Decode one block's messages into the columns."""
+        first = self.count
+        self.count += block.count
+        if self._error is not None or block.count == 0:
+            return
+        try:
+            out = decode_accel_batch((block,), optional=True, first_message=first)
+        except AccelBatchError as exc:
+            try:  # a defect in the optional gyro / temperature only matters if they are read
+                out = decode_accel_batch((block,), optional=False, first_message=first)
+            except AccelBatchError:
+                self._error = exc
+                return
+            self._optional_error = self._optional_error or exc
+        self._columns.append(
+            time_ns=out.time_ns, accel=out.accel, gyro=out.gyro, temperature_c=out.temperature_c
+        )
+
+    def result(self, optional: bool = True) -> AccelBatchArrays:
+        """All samples of the channel; raises the first decoding error.
+
+        ``optional=False``: errors in ``gyro`` / ``temperature_c`` do not count.
+        """
+        if self._error is not None:
+            raise self._error
+        if optional and self._optional_error is not None:
+            raise self._optional_error
+        columns = self._columns.finish()
+        if not columns:
+            return AccelBatchArrays(np.empty(0, np.int64), np.empty((0, 3)))
+        return AccelBatchArrays(
+            columns["time_ns"], columns["accel"], columns.get("gyro"), columns.get("temperature_c")
+        )
 
 
 def _message_at(payloads: list[bytes], pos: int) -> int:

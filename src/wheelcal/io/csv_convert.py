@@ -203,6 +203,22 @@ def _lines(path: str, text: str, delimiter: str | None) -> tuple[list[str], str,
     return lines, delimiter, notes
 
 
+def _file_line(text: str, lines: list[str], kept_line: int) -> int:
+    """The file's line number (1-based) of ``lines[kept_line - 1]`` (comments skipped)."""
+    if not 1 <= kept_line <= len(lines):
+        return kept_line
+    target = kept_line - 1
+    count = 0
+    wanted = lines[target]
+    seen = sum(1 for line in lines[:target] if line == wanted)
+    for number, line in enumerate(text.splitlines(), start=1):
+        if line == wanted:
+            if count == seen:
+                return number
+            count += 1
+    return kept_line
+
+
 def _find(path: str, header: list[str], wanted: Column, role: str) -> int:
     """The index of an explicitly given column (exact name, else case-insensitive)."""
     if isinstance(wanted, int):
@@ -501,7 +517,15 @@ def convert_csv(
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, f"cannot be read as text ({exc})") from None
     lines, delimiter, notes = _lines(path, text, layout.delimiter)
-    rows = list(csv.reader(io.StringIO("\n".join(lines)), delimiter=delimiter))
+    reader = csv.reader(io.StringIO("\n".join(lines)), delimiter=delimiter)
+    try:
+        rows = list(reader)
+    except csv.Error as exc:
+        raise InputError(
+            path,
+            f"line {_file_line(text, lines, reader.line_num)}: cannot be read as CSV ({exc}); "
+            "no field of a sensor log is that long or quoted so (a damaged or foreign file?)",
+        ) from None
     header = rows[0]
     if not layout.by_index:
         while header and not header[-1].strip():

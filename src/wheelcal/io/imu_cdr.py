@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from wheelcal.io.growing import GrowingColumns
 from wheelcal.io.mcap_scan import MessageBlock
 
 IMU_SCHEMA_NAME = "sensor_msgs/msg/Imu"
@@ -166,61 +167,130 @@ def decode_imu_with_gyro(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, 
     return _decode(blocks, gyro=True)
 
 
+def _decode_block(block: MessageBlock, gyro: bool, first_message: int = 0) -> tuple:
+    """Stamps, log times, accelerations and (None or) gyro rows of one block.
+
+    ``first_message`` is the channel's index of the block's first message
+    (for error messages).
+    """
+    arr = np.frombuffer(block.buffer, dtype=np.uint8)
+    off = block.payload_offsets
+    short = block.payload_lengths < 4 + 12 + _TAIL_BYTES
+    if np.any(short):
+        at = int(np.argmax(short))
+        raise ImuLayoutError(
+            f"message {first_message + at} is too short to be a sensor_msgs/msg/Imu "
+            f"({int(block.payload_lengths[at])} bytes)"
+        )
+    kind = arr[off + 1]
+    bad = (arr[off] != 0) | (kind > 1)
+    if np.any(bad):
+        raise ImuLayoutError(
+            f"message {first_message + int(np.argmax(bad))} is not plain CDR "
+            "(encapsulation kind is not CDR_LE/BE)"
+        )
+    sec = np.empty(off.size, np.int64)
+    nsec = np.empty(off.size, np.int64)
+    accel = np.empty((off.size, 3))
+    rate = None
+    for endian, code in (("<", 1), (">", 0)):
+        sel = np.flatnonzero(kind == code)
+        if sel.size == 0:
+            continue
+        body = off[sel] + 4
+        sec[sel] = _gather(arr, body, endian + "i4")
+        nsec[sel] = _gather(arr, body + 4, endian + "u4")
+        str_len = _gather(arr, body + 8, endian + "u4").astype(np.int64)
+        q = (12 + str_len + 7) // 8 * 8
+        expected = 4 + q + _TAIL_BYTES
+        actual = block.payload_lengths[sel]
+        # CDR allows up to 3 bytes of final padding (XCDR options field).
+        wrong = (actual < expected) | (actual > expected + 3)
+        if np.any(wrong):
+            at = int(np.argmax(wrong))
+            raise ImuLayoutError(
+                f"message {first_message + int(sel[at])}'s size does not match the "
+                f"sensor_msgs/msg/Imu layout ({int(actual[at])} bytes, expected "
+                f"{int(expected[at])})"
+            )
+        accel[sel] = _gather(arr, body + q + _ACCEL_AT, endian + "f8", 3)
+        if gyro:
+            # Covariance element 0 == -1: "no estimate" (the message definition).
+            present = _gather(arr, body + q + _GYRO_COV_AT, endian + "f8") != -1.0
+            if np.any(present):
+                if rate is None:
+                    rate = np.full((off.size, 3), np.nan)
+                rows = sel[present]
+                rate[rows] = _gather(arr, body[present] + q[present] + _GYRO_AT, endian + "f8", 3)
+    late = nsec >= 1_000_000_000
+    if np.any(late):
+        raise ImuLayoutError(
+            f"message {first_message + int(np.argmax(late))}: header.stamp.nanosec is 1e9 or more"
+        )
+    return sec * 1_000_000_000 + nsec, block.log_time_ns, accel, rate
+
+
 def _decode(blocks: tuple[MessageBlock, ...], gyro: bool) -> tuple:
     stamps, logs, accels, gyros = [], [], [], []
     any_gyro = False
+    first = 0
     for block in blocks:
         if block.count == 0:
             continue
-        arr = np.frombuffer(block.buffer, dtype=np.uint8)
-        off = block.payload_offsets
-        if np.any(block.payload_lengths < 4 + 12 + _TAIL_BYTES):
-            raise ImuLayoutError("a message is too short to be a sensor_msgs/msg/Imu")
-        kind = arr[off + 1]
-        if np.any(arr[off] != 0) or np.any(kind > 1):
-            raise ImuLayoutError("a message is not plain CDR (encapsulation kind is not CDR_LE/BE)")
-        sec = np.empty(off.size, np.int64)
-        nsec = np.empty(off.size, np.int64)
-        accel = np.empty((off.size, 3))
-        rate = np.full((off.size, 3), np.nan) if gyro else None
-        for endian, code in (("<", 1), (">", 0)):
-            sel = np.flatnonzero(kind == code)
-            if sel.size == 0:
-                continue
-            body = off[sel] + 4
-            sec[sel] = _gather(arr, body, endian + "i4")
-            nsec[sel] = _gather(arr, body + 4, endian + "u4")
-            str_len = _gather(arr, body + 8, endian + "u4").astype(np.int64)
-            q = (12 + str_len + 7) // 8 * 8
-            expected = 4 + q + _TAIL_BYTES
-            actual = block.payload_lengths[sel]
-            # CDR allows up to 3 bytes of final padding (XCDR options field).
-            if np.any(actual < expected) or np.any(actual > expected + 3):
-                raise ImuLayoutError(
-                    "a message's size does not match the sensor_msgs/msg/Imu layout "
-                    f"({int(actual[0])} bytes, expected {int(expected[0])})"
-                )
-            accel[sel] = _gather(arr, body + q + _ACCEL_AT, endian + "f8", 3)
-            if gyro:
-                # Covariance element 0 == -1: "no estimate" (the message definition).
-                present = _gather(arr, body + q + _GYRO_COV_AT, endian + "f8") != -1.0
-                if np.any(present):
-                    any_gyro = True
-                    rows = sel[present]
-                    rate[rows] = _gather(
-                        arr, body[present] + q[present] + _GYRO_AT, endian + "f8", 3
-                    )
-        if np.any(nsec >= 1_000_000_000):
-            raise ImuLayoutError("header.stamp.nanosec is 1e9 or more")
-        stamps.append(sec * 1_000_000_000 + nsec)
-        logs.append(block.log_time_ns)
+        stamp, log, accel, rate = _decode_block(block, gyro, first)
+        first += block.count
+        stamps.append(stamp)
+        logs.append(log)
         accels.append(accel)
-        gyros.append(rate)
+        any_gyro |= rate is not None
+        gyros.append(rate if rate is not None else np.full((stamp.size, 3), np.nan))
     if not stamps:
         empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3)))
         return (*empty, None)
-    rate_all = np.concatenate(gyros) if any_gyro else None
+    rate_all = np.concatenate(gyros) if any_gyro and gyro else None
     return np.concatenate(stamps), np.concatenate(logs), np.concatenate(accels), rate_all
+
+
+class ImuSink:
+    """Decodes an Imu channel block by block as the scan finds it (see ``scan_mcap``).
+
+    Keeps per sample the time (``header.stamp``, or the log time where the
+    stamp is zero), the acceleration and, when any message has one, the gyro:
+    24–56 B instead of the message's ~340.  A decoding error is kept and
+    raised by :meth:`result`.
+    """
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.unstamped = 0
+        self._columns = GrowingColumns()
+        self._error: ImuLayoutError | None = None
+
+    def add(self, block: MessageBlock) -> None:
+        """Decode one block's messages into the columns."""
+        first = self.count
+        self.count += block.count
+        if self._error is not None or block.count == 0:
+            return
+        try:
+            stamp, log, accel, rate = _decode_block(block, True, first)
+        except ImuLayoutError as exc:
+            self._error = exc
+            return
+        zero = stamp == 0
+        if np.any(zero):
+            self.unstamped += int(zero.sum())
+            stamp = np.where(zero, log, stamp)
+        self._columns.append(time_ns=stamp, accel=accel, gyro=rate)
+
+    def result(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """(time_ns, accel, gyro or None) of every message; raises the first decoding error."""
+        if self._error is not None:
+            raise self._error
+        columns = self._columns.finish()
+        if not columns:
+            return np.empty(0, np.int64), np.empty((0, 3)), None
+        return columns["time_ns"], columns["accel"], columns.get("gyro")
 
 
 def encode_imu_messages(

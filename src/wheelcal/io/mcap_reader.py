@@ -50,6 +50,7 @@ from wheelcal.io.accel_json import (
     UNIT_KEY,
     UNITS,
     AccelBatchError,
+    AccelBatchSink,
     decode_accel_batch,
 )
 from wheelcal.io.errors import InputError, TopicError
@@ -59,10 +60,10 @@ from wheelcal.io.imu_cdr import (
     IMU_SCHEMA_NAME,
     ROS2_SCHEMA_ENCODING,
     ImuLayoutError,
-    decode_imu_blocks,
+    ImuSink,
     decode_imu_with_gyro,
 )
-from wheelcal.io.mcap_scan import ChannelRecord, McapScan, scan_mcap
+from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord, scan_mcap
 from wheelcal.io.sample_checks import InputPolicy, clean_samples
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
 from wheelcal.io.temperature_align import temperature_at
@@ -90,7 +91,10 @@ class AccelTopic:
 
 
 def _kind(scan: McapScan, channel: ChannelRecord) -> str | None:
-    schema = scan.schema_of(channel)
+    return _kind_of(channel, scan.schema_of(channel))
+
+
+def _kind_of(channel: ChannelRecord, schema: SchemaRecord | None) -> str | None:
     if schema is None:
         return None
     if (
@@ -105,7 +109,59 @@ def _kind(scan: McapScan, channel: ChannelRecord) -> str | None:
         and channel.message_encoding == JSON_MESSAGE_ENCODING
     ):
         return "json"
+    if (
+        schema.encoding == ROS2_SCHEMA_ENCODING
+        and schema.name in _TEMPERATURE_NAMES
+        and channel.message_encoding == CDR_MESSAGE_ENCODING
+    ):
+        return "temperature"
     return None
+
+
+class _CountSink:
+    """Counts a channel's messages that the reader never decodes (their chunks can go)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def add(self, block) -> None:
+        self.count += block.count
+
+
+class _TemperatureSink:
+    """Decodes a Temperature channel block by block; a decoding error is kept for later."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._parts: list[tuple[np.ndarray, ...]] = []
+        self._error: ImuLayoutError | None = None
+
+    def add(self, block) -> None:
+        self.count += block.count
+        if self._error is None and block.count:
+            try:
+                self._parts.append(decode_temperature_blocks((block,)))
+            except ImuLayoutError as exc:
+                self._error = exc
+
+    def result(self) -> tuple[np.ndarray, ...]:
+        if self._error is not None:
+            raise self._error
+        if not self._parts:
+            return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0)
+        return tuple(np.concatenate(column) for column in zip(*self._parts, strict=True))
+
+
+def _sink_for(channel: ChannelRecord, schema: SchemaRecord | None):
+    """What consumes a channel's messages during the scan (nothing keeps whole chunks)."""
+    kind = _kind_of(channel, schema)
+    if kind == "ros2":
+        return ImuSink()
+    if kind == "json":
+        return AccelBatchSink()
+    if kind == "temperature":
+        return _TemperatureSink()
+    return _CountSink()
 
 
 def accel_topics(scan: McapScan) -> list[AccelTopic]:
@@ -113,7 +169,7 @@ def accel_topics(scan: McapScan) -> list[AccelTopic]:
     out = []
     for channel in scan.channels.values():
         kind = _kind(scan, channel)
-        if kind is None:
+        if kind not in ("ros2", "json"):
             continue
         unit = channel.metadata.get(UNIT_KEY, "m/s^2") if kind == "json" else "m/s^2"
         out.append(
@@ -192,22 +248,28 @@ def _decode(
     scan: McapScan, chosen: AccelTopic, where: str, gyro: bool, temperature: bool
 ) -> _Decoded:
     blocks = scan.blocks.get(chosen.channel_id, ())
+    sink = scan.sinks.get(chosen.channel_id)
     notes: list[str] = []
     try:
         if chosen.encoding == "ros2":
-            if gyro:
-                stamp, log_time, accel, rate = decode_imu_with_gyro(blocks)
+            if sink is not None and not blocks:
+                stamp, accel, rate = sink.result()
+                unstamped = sink.unstamped
             else:
-                (stamp, log_time, accel), rate = decode_imu_blocks(blocks), None
-            unstamped = stamp == 0
-            if np.any(unstamped):
-                stamp = np.where(unstamped, log_time, stamp)
+                stamp, log_time, accel, rate = decode_imu_with_gyro(blocks)
+                zero = stamp == 0
+                unstamped = int(zero.sum())
+                if unstamped:
+                    stamp = np.where(zero, log_time, stamp)
+            if unstamped:
                 notes.append(
-                    f"{int(unstamped.sum())} messages had a zero header.stamp; "
-                    "their log time was used"
+                    f"{unstamped} messages had a zero header.stamp; their log time was used"
                 )
-            return _Decoded(stamp, accel, rate, None, notes)
-        batch = decode_accel_batch(blocks, optional=gyro or temperature)
+            return _Decoded(stamp, accel, rate if gyro else None, None, notes)
+        if sink is not None and not blocks:
+            batch = sink.result(optional=gyro or temperature)
+        else:
+            batch = decode_accel_batch(blocks, optional=gyro or temperature)
         temp = None
         if temperature and batch.temperature_c is not None:
             temp = (batch.time_ns, batch.temperature_c)
@@ -271,7 +333,11 @@ def _temperature_topic(
         return None
     channel = chosen[0]
     try:
-        stamp, log_time, temp = decode_temperature_blocks(scan.blocks.get(channel.id, ()))
+        sink = scan.sinks.get(channel.id)
+        if sink is not None and not scan.blocks.get(channel.id):
+            stamp, log_time, temp = sink.result()
+        else:
+            stamp, log_time, temp = decode_temperature_blocks(scan.blocks.get(channel.id, ()))
     except ImuLayoutError as exc:
         raise InputError(scan.path, f"topic {channel.topic}: {exc}") from None
     if stamp.size == 0:
@@ -347,7 +413,7 @@ def read_recording(
     policy = policy or InputPolicy()
     if gyro_unit is not None and gyro_unit not in GYRO_UNITS:
         raise InputError(path, f"gyro unit {gyro_unit!r} is not one of {list(GYRO_UNITS)}")
-    scan = scan_mcap(path)
+    scan = scan_mcap(path, sink_for=_sink_for)
     chosen = choose_topic(scan, topic)
     where = f"topic {chosen.topic}"
     records = [dict(values) for name, values in scan.metadata if name == SESSION_METADATA_NAME]
@@ -361,7 +427,8 @@ def read_recording(
     decoded = _decode(scan, chosen, where, gyro, temperature)
     time_ns, accel, notes = decoded.time_ns, decoded.accel, decoded.notes
     if unit == "g":
-        accel = accel * STANDARD_GRAVITY_MPS2  # CONTRACT: g always means 9.80665 m/s²
+        # CONTRACT: g always means 9.80665 m/s² (in place: the decoded array is ours).
+        accel = np.multiply(accel, STANDARD_GRAVITY_MPS2, out=accel)
         notes.append("samples converted from g (9.80665 m/s²)")
     raw_gyro = decoded.gyro
     if raw_gyro is not None and _gyro_unit(scan, chosen, where, gyro_unit) == "deg/s":
@@ -370,13 +437,21 @@ def read_recording(
     temp_source = None
     if temperature:
         temp_source = _temperature_source(scan, chosen, decoded, temperature_topic, notes)
+    if scan.chunks_without_crc:
+        notes.append(
+            f"{scan.chunks_without_crc} of {scan.chunks} chunks carry no CRC; "
+            "their integrity could not be verified"
+        )
+    path_name = scan.path
+    del decoded, scan  # the decoded columns are all that is left of the file
     clean = clean_samples(
-        f"{scan.path} ({where})",
+        f"{path_name} ({where})",
         time_ns,
         accel,
         unit=unit,
         full_scale_g=info.full_scale_g,
         policy=policy,
+        unit_remedy=_unit_remedy(chosen, unit),
     )
     extra_notes: list[str] = []
     gyro_rows = None
@@ -389,7 +464,7 @@ def read_recording(
             "gyro_unit='deg/s'"
         )
         gyro_rows, gyro_notes = check_gyro(
-            f"{scan.path} ({where})", aligned, info.gyro_full_scale_dps, unit_hint=hint
+            f"{path_name} ({where})", aligned, info.gyro_full_scale_dps, unit_hint=hint
         )
         extra_notes += gyro_notes
     temp_rows = None
@@ -397,24 +472,52 @@ def read_recording(
         what, stamps, values = temp_source
         temp_rows, temp_notes = temperature_at(what, stamps, values, clean.time_ns)
         extra_notes += temp_notes
-    if scan.chunks_without_crc:
-        notes.append(
-            f"{scan.chunks_without_crc} of {scan.chunks} chunks carry no CRC; "
-            "their integrity could not be verified"
-        )
+    del time_ns, accel, raw_gyro, temp_source
     epoch = int(clean.time_ns[0])
+    time_s = _seconds_since(clean.time_ns, epoch)
+    accel_mps2 = clean.accel_mps2
+    accel_mps2.setflags(write=False)  # handed over: Recording keeps read-only arrays as they are
     return Recording(
-        time_s=(clean.time_ns - epoch) * 1e-9,
-        accel_mps2=clean.accel_mps2,
+        time_s=time_s,
+        accel_mps2=accel_mps2,
         info=info,
         epoch_unix_ns=epoch,
-        source=scan.path,
+        source=path_name,
         topic=chosen.topic,
         notes=tuple(notes) + clean.notes + tuple(extra_notes),
         gyro_radps=gyro_rows,
         temperature_c=temp_rows,
         clip_limits_mps2=clean.clip_limits_mps2,
     )
+
+
+def _unit_remedy(chosen: AccelTopic, unit: str) -> str:
+    """How to state the right accelerometer unit for this file's format."""
+    other = "m/s^2" if unit == "g" else "g"
+    if chosen.encoding == "ros2":
+        return (
+            f"read it with --accel-unit {other} (Python: accel_unit={other!r}); "
+            "sensor_msgs/msg/Imu carries m/s² by REP 103, so the driver that wrote "
+            "this file should be fixed"
+        )
+    return (
+        f"state the unit: --accel-unit {other} on the command line (Python: "
+        f"accel_unit={other!r}), or the channel's metadata unit ('g' or 'm/s^2') in the file"
+    )
+
+
+def _seconds_since(time_ns: np.ndarray, epoch_ns: int) -> np.ndarray:
+    """Read-only seconds since ``epoch_ns``, computed in the stamps' own memory (consumed).
+
+    (A 2.9 M-sample recording's stamps and seconds would otherwise coexist.)
+    """
+    if not (time_ns.flags.writeable and time_ns.flags.c_contiguous):
+        time_ns = np.array(time_ns, dtype=np.int64)
+    time_ns -= epoch_ns
+    seconds = time_ns.view(np.float64)
+    np.multiply(time_ns, 1e-9, out=seconds, casting="unsafe")
+    seconds.setflags(write=False)
+    return seconds
 
 
 def _temperature_source(

@@ -37,13 +37,15 @@ their length, as the spec asks of readers.
 
 from __future__ import annotations
 
+import mmap
 import os
+import stat
 import struct
 import zlib
 from dataclasses import dataclass, field
 from enum import IntEnum
-from pathlib import Path
 from types import MappingProxyType
+from typing import Protocol
 
 import numpy as np
 
@@ -130,10 +132,14 @@ class McapScan:
     blocks: MappingProxyType  # channel id -> tuple[MessageBlock, ...]
     chunks: int
     chunks_without_crc: int
+    #: channel id -> the sink that consumed its messages (see :func:`scan_mcap`).
+    sinks: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
 
     def message_count(self, channel_id: int) -> int:
         """Number of messages of one channel."""
-        return sum(block.count for block in self.blocks.get(channel_id, ()))
+        sink = self.sinks.get(channel_id)
+        held = sum(block.count for block in self.blocks.get(channel_id, ()))
+        return held + (sink.count if sink is not None else 0)
 
     def schema_of(self, channel: ChannelRecord) -> SchemaRecord | None:
         """The channel's schema (``None`` for schema id 0, "no schema")."""
@@ -323,43 +329,111 @@ def _message_index_offsets(buf: bytes, starts, lengths) -> np.ndarray:
     return np.concatenate(out) if out else np.empty(0, np.int64)
 
 
-def _decompress(path: str, compression: str, data: bytes, size: int, where: str) -> bytes:
+#: Largest plausible ratio of a chunk's claimed uncompressed size to its compressed size.
+#: ROS 2 Imu and AccelBatch chunks reach ~40× with zstd (a sensor at rest, exactly
+#: constant samples; noisy floats ~11×) and ~17× with lz4 (measured with this writer):
+#: 200× leaves a margin of five, while a zero-filled "decompression bomb" claims
+#: thousands.  ``MAX_CHUNK_SLACK_BYTES`` lets tiny chunks (headers, a few records) pass.
+MAX_CHUNK_RATIO = 200
+MAX_CHUNK_SLACK_BYTES = 1 << 16
+#: Absolute cap on one chunk's uncompressed size (writers use 1–8 MiB chunks).
+MAX_CHUNK_BYTES = 512 << 20
+_PIECE_BYTES = 4 << 20  # decompress in pieces of at most this size
+
+
+def _decompress(path: str, compression: str, data, size: int, where: str):
+    """The chunk's records, decompressed into one buffer of the claimed ``size``.
+
+    The claimed size is judged *before* anything is allocated (at most
+    ``MAX_CHUNK_RATIO`` × the compressed size, and ``MAX_CHUNK_BYTES``), and
+    the data are decompressed in bounded pieces into that buffer, so a chunk
+    whose data would expand beyond its claim (or a zstd frame that states no
+    content size, or a false one) fails after at most ``size`` bytes.
+    """
     if compression == "":
-        out = data
-    elif compression == "zstd":
-        import zstandard
-
-        try:
-            out = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-        except zstandard.ZstdError as exc:
-            raise CorruptFileError(path, f"{where}: zstd data is damaged ({exc})") from None
-    elif compression == "lz4":
-        import lz4.frame
-
-        try:
-            out = lz4.frame.decompress(data)
-        except RuntimeError as exc:
-            raise CorruptFileError(path, f"{where}: lz4 data is damaged ({exc})") from None
-    else:
+        if len(data) != size:
+            raise CorruptFileError(
+                path, f"{where}: holds {len(data)} bytes of records, the chunk says {size}"
+            )
+        return data
+    if compression not in ("zstd", "lz4"):
         raise CorruptFileError(
             path, f"{where}: unsupported chunk compression {compression!r} (need zstd, lz4, none)"
         )
-    if len(out) != size:
+    limit = min(MAX_CHUNK_RATIO * len(data) + MAX_CHUNK_SLACK_BYTES, MAX_CHUNK_BYTES)
+    if size > limit:
         raise CorruptFileError(
-            path, f"{where}: decompressed to {len(out)} bytes, the chunk says {size}"
+            path,
+            f"{where}: claims {size} bytes uncompressed from {len(data)} compressed bytes "
+            f"(ratio {size / max(len(data), 1):.0f}); wheelcal accepts at most "
+            f"{MAX_CHUNK_RATIO}× and {MAX_CHUNK_BYTES >> 20} MiB per chunk (a damaged file "
+            "or a decompression bomb)",
         )
+    out = bytearray(size)
+    pos = 0
+    try:
+        if compression == "zstd":
+            import zstandard
+
+            reader = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True)
+            view = memoryview(out)
+            while pos < size:
+                got = reader.readinto(view[pos : pos + min(_PIECE_BYTES, size - pos)])
+                if got == 0:
+                    break
+                pos += got
+            extra = reader.read(1) if pos == size else b""
+        else:
+            import lz4.frame
+
+            decompressor = lz4.frame.LZ4FrameDecompressor()
+            source = data
+            extra = b""
+            while True:
+                piece = decompressor.decompress(
+                    source, max_length=min(_PIECE_BYTES, size - pos + 1)
+                )
+                source = b""
+                if pos + len(piece) > size:
+                    extra = piece
+                    break
+                out[pos : pos + len(piece)] = piece
+                pos += len(piece)
+                if decompressor.eof or (not piece and decompressor.needs_input):
+                    break
+    except Exception as exc:  # zstandard.ZstdError, lz4's RuntimeError: damaged data
+        raise CorruptFileError(
+            path, f"{where}: {compression} data is damaged ({type(exc).__name__}: {exc})"
+        ) from None
+    if extra:
+        raise CorruptFileError(
+            path, f"{where}: decompresses to more than the {size} bytes the chunk says"
+        )
+    if pos != size:
+        raise CorruptFileError(path, f"{where}: decompressed to {pos} bytes, the chunk says {size}")
     return out
+
+
+class MessageSink(Protocol):
+    """Consumes one channel's message blocks as the scan finds them (so chunks can go)."""
+
+    count: int  # messages consumed
+
+    def add(self, block: MessageBlock) -> None:
+        """Take the messages of one block (the block's buffer is not kept)."""
 
 
 class _Collector:
     """Accumulates schemas, channels, metadata and message blocks during a scan."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, sink_for=None) -> None:
         self.path = path
         self.schemas: dict[int, SchemaRecord] = {}
         self.channels: dict[int, ChannelRecord] = {}
         self.metadata: list[tuple[str, MappingProxyType]] = []
         self.blocks: dict[int, list[MessageBlock]] = {}
+        self.sink_for = sink_for
+        self.sinks: dict[int, MessageSink] = {}
 
     def fail(self, where: str):
         return lambda text: CorruptFileError(self.path, f"{where}: {text}")
@@ -399,16 +473,31 @@ class _Collector:
         for cid in np.unique(channel).tolist():
             sel = channel == cid
             block = MessageBlock(buf, payload_offsets[sel], payload_lengths[sel], log_time[sel])
-            self.blocks.setdefault(cid, []).append(block)
+            sink = self.sinks.get(cid)
+            if sink is None and cid not in self.blocks and self.sink_for is not None:
+                known = self.channels.get(cid)  # a channel defined after its messages: keep
+                if known is not None:
+                    sink = self.sink_for(known, self.schemas.get(known.schema_id))
+                    if sink is not None:
+                        self.sinks[cid] = sink
+            if sink is not None:
+                sink.add(block)
+            else:
+                self.blocks.setdefault(cid, []).append(block)
 
 
-def scan_mcap(path: str | os.PathLike) -> McapScan:
+def scan_mcap(path: str | os.PathLike, sink_for=None) -> McapScan:
     """Walk an MCAP file, verify its CRCs, and index its messages by channel.
 
     Parameters
     ----------
     path:
         The file.
+    sink_for:
+        Optional ``(ChannelRecord, SchemaRecord | None) -> MessageSink | None``,
+        asked once per channel at its first messages: a sink consumes that
+        channel's blocks as they are found (decoding them), so no chunk is kept
+        after it was walked; ``None`` keeps the channel's blocks in ``blocks``.
 
     Returns
     -------
@@ -424,21 +513,14 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
         compressed data, or any CRC mismatch.
     """
     name = str(path)
-    try:
-        buf = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise NotMcapError(name, "no such file") from None
-    except OSError as exc:
-        raise NotMcapError(name, f"cannot be read ({exc.strerror})") from None
-    if not buf:
-        raise NotMcapError(name, "the file is empty (0 bytes), not an MCAP recording")
-    if not buf.startswith(MAGIC):
+    buf = _map_file(name)
+    if buf[: len(MAGIC)] != MAGIC:
         hint = " (it looks like text, e.g. a CSV: see `wheelcal convert`)" if _is_text(buf) else ""
         raise NotMcapError(name, f"not an MCAP file: it does not start with the MCAP magic{hint}")
 
-    col = _Collector(name)
+    col = _Collector(name, sink_for)
     size = len(buf)
-    complete = size >= 2 * len(MAGIC) and buf.endswith(MAGIC)
+    complete = size >= 2 * len(MAGIC) and buf[size - len(MAGIC) :] == MAGIC
     end = size - len(MAGIC) if complete else size
     ops, starts, lengths = _walk_records(
         buf,
@@ -507,6 +589,8 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
         col.definitions(data, c_ops, c_starts, c_lengths, where)
         col.messages(data, c_ops, c_starts, c_lengths, where)
         chunks += 1
+        del data, table, c_ops, c_starts, c_lengths, records
+        _release(buf, chunk_start, chunk_start + 9 + chunk_length)
     # After the chunks, so a damaged chunk is reported as precisely as possible.
     _check_section_crcs(name, buf, starts, data_end_at, footer)
     # Summary section: repeated schemas and channels (harmless duplicates by id).
@@ -518,7 +602,7 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
     keep = (s_ops == Opcode.SCHEMA) | (s_ops == Opcode.CHANNEL)
     col.definitions(buf, s_ops[keep], s_starts[keep], s_lengths[keep], "summary section")
 
-    for cid in col.blocks:
+    for cid in list(col.blocks) + list(col.sinks):
         if cid not in col.channels:
             raise CorruptFileError(name, f"messages refer to channel {cid}, which is never defined")
     return McapScan(
@@ -531,6 +615,7 @@ def scan_mcap(path: str | os.PathLike) -> McapScan:
         blocks=MappingProxyType({k: tuple(v) for k, v in col.blocks.items()}),
         chunks=chunks,
         chunks_without_crc=chunks_without_crc,
+        sinks=MappingProxyType(col.sinks),
     )
 
 
@@ -539,7 +624,7 @@ def _check_section_crcs(name, buf, starts, data_end_at, footer) -> None:
     if data_end_at.size:
         at = int(starts[data_end_at[0]])
         stored = int.from_bytes(buf[at + 9 : at + 13], "little")
-        if stored and zlib.crc32(memoryview(buf)[:at]) != stored:
+        if stored and _crc32(buf, 0, at) != stored:
             raise CorruptFileError(
                 name, "data-section CRC mismatch: the file's data section is damaged"
             )
@@ -548,8 +633,60 @@ def _check_section_crcs(name, buf, starts, data_end_at, footer) -> None:
     summary_crc = int.from_bytes(buf[f_at + 25 : f_at + 29], "little")
     if summary_crc and summary_start:
         # Spec: CRC of the summary section through the footer's summary_offset_start field.
-        if zlib.crc32(memoryview(buf)[summary_start : f_at + 25]) != summary_crc:
+        if _crc32(buf, summary_start, f_at + 25) != summary_crc:
             raise CorruptFileError(name, "summary CRC mismatch: the file's summary is damaged")
+
+
+def _map_file(name: str):
+    """The file's bytes, memory-mapped (read-only); errors for what is no readable file.
+
+    Mapped, not read: the scan walks the file once and hands each chunk's pages
+    back to the kernel (:func:`_release`), so a long recording does not sit in
+    memory twice (compressed and decoded).  A FIFO, device or directory is
+    refused before it is opened (reading a FIFO would wait for a writer).
+    """
+    try:
+        info = os.stat(name)
+    except FileNotFoundError:
+        raise NotMcapError(name, "no such file") from None
+    except OSError as exc:
+        raise NotMcapError(name, f"cannot be read ({exc.strerror})") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise NotMcapError(name, "is a directory, not an MCAP recording")
+    if not stat.S_ISREG(info.st_mode):
+        kind = "a FIFO (named pipe)" if stat.S_ISFIFO(info.st_mode) else "not a regular file"
+        raise NotMcapError(
+            name, f"is {kind}: wheelcal reads recordings from regular files (save it first)"
+        )
+    if info.st_size == 0:
+        raise NotMcapError(name, "the file is empty (0 bytes), not an MCAP recording")
+    try:
+        with open(name, "rb") as stream:
+            return mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError) as exc:
+        raise NotMcapError(
+            name, f"cannot be read ({getattr(exc, 'strerror', None) or exc})"
+        ) from None
+
+
+def _release(buf, start: int, stop: int) -> None:
+    """Give the pages of ``buf[start:stop]`` back to the kernel (a mapped file re-reads them)."""
+    if isinstance(buf, mmap.mmap) and hasattr(mmap, "MADV_DONTNEED"):
+        aligned = start - start % mmap.PAGESIZE
+        if stop > aligned:
+            buf.madvise(mmap.MADV_DONTNEED, aligned, stop - aligned)
+
+
+def _crc32(buf, start: int, stop: int) -> int:
+    """CRC-32 of ``buf[start:stop]``, in pieces whose pages are released after use."""
+    crc = 0
+    view = memoryview(buf)
+    for at in range(start, stop, _PIECE_BYTES):
+        end = min(at + _PIECE_BYTES, stop)
+        crc = zlib.crc32(view[at:end], crc)
+        _release(buf, at, end)
+    view.release()
+    return crc
 
 
 def _is_text(buf: bytes) -> bool:
