@@ -5,7 +5,10 @@ are there), two ROS 2 Imu MCAP recordings written by
 :func:`wheelcal.io.write_recording` from :func:`wheelcal.simulate.simulate`:
 
 * ``long``: one hour at 200 Hz (720,000 samples, table II bench);
-* ``fast``: 29 s at 100 kHz (2.9 M samples).
+* ``fast``: 29 s at 100 kHz (2.9 M samples);
+* ``small``: 90 s at 200 Hz (18,001 samples): what a calibration costs whatever its size
+  (modules imported on the way, the fit's fixed buffers), so that the large files' growth
+  per sample can be told from it (the ``marginal`` column).
 
 Then measures, each in a fresh subprocess, the peak resident set size
 (``ru_maxrss`` of the child, via ``resource.getrusage(RUSAGE_CHILDREN)`` —
@@ -15,7 +18,8 @@ measured by a tiny launcher process so that every figure is that one child's):
 * (b) reading only: :func:`wheelcal.io.read_recording`;
 * (c) the whole ``wheelcal calibrate FILE --out DIR``.
 
-and prints MB and bytes per sample above the baseline.  The target (issue 16)
+and prints MB, bytes per sample above the baseline, and the marginal bytes per sample
+(above the ``small`` file's peak, per extra sample).  The target (issue 16)
 is ≤ 100 B per sample for (c); the samples themselves are 24 B (float64 × 3).
 Run: ``python benchmarks/bench_memory.py [--dir DIR] [--only long|fast]``.
 """
@@ -31,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-FILES = {"long": (3600.0, 200.0), "fast": (29.0, 100_000.0)}
+FILES = {"small": (90.0, 200.0), "long": (3600.0, 200.0), "fast": (29.0, 100_000.0)}
 
 _LAUNCH = """
 import resource, subprocess, sys
@@ -107,7 +111,11 @@ def main() -> None:
         paths = {name: generate(directory, name) for name in names}
         base, _ = peak_rss_bytes([sys.executable, "-c", _BASELINE])
         print(f"baseline (import wheelcal): {base / 1e6:7.1f} MB")
-        print(f"{'file':6s} {'samples':>10s} {'what':10s} {'peak MB':>9s} {'B/sample':>9s}")
+        print(
+            f"{'file':6s} {'samples':>10s} {'what':10s} {'peak MB':>9s} {'B/sample':>9s}"
+            f" {'marginal':>9s}"
+        )
+        small: dict[str, tuple[int, int]] = {}
         for name, path in paths.items():
             duration_s, rate_hz = FILES[name]
             samples = round(duration_s * rate_hz) + 1
@@ -126,9 +134,15 @@ def main() -> None:
             for what, argv in runs.items():
                 peak, rc = peak_rss_bytes(argv)
                 status = "" if rc == 0 else f"   (exit {rc})"
+                if name == "small":
+                    small[what] = (peak, samples)
+                marginal = ""
+                if what in small and name != "small":
+                    p0, n0 = small[what]
+                    marginal = f"{(peak - p0) / (samples - n0):9.1f}"
                 print(
                     f"{name:6s} {samples:10,d} {what:10s} {peak / 1e6:9.1f} "
-                    f"{(peak - base) / samples:9.1f}{status}"
+                    f"{(peak - base) / samples:9.1f} {marginal:>9s}{status}"
                 )
 
 

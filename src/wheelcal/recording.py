@@ -182,7 +182,7 @@ class Recording:
             object.__setattr__(self, "temperature_c", self._checked_temperature(t.size))
 
     def _checked_gyro(self, n: int) -> np.ndarray:
-        w = np.array(self.gyro_radps, dtype=float)
+        w = _frozen_or_copy(self.gyro_radps)
         if w.shape != (n, 3):
             raise RecordingError(
                 f"{self.source}: gyro_radps must be (N, 3) = ({n}, 3), got {w.shape}"
@@ -200,7 +200,7 @@ class Recording:
         return w
 
     def _checked_temperature(self, n: int) -> np.ndarray:
-        temp = np.array(self.temperature_c, dtype=float).reshape(-1)
+        temp = _frozen_or_copy(self.temperature_c).reshape(-1)
         if temp.size != n:
             raise RecordingError(
                 f"{self.source}: temperature_c needs one value per sample ({n}), got {temp.size}"
@@ -252,9 +252,19 @@ class Recording:
 
     def window(self, start_s: float, end_s: float) -> Recording:
         """The samples with start_s <= t <= end_s (times keep their epoch), every channel."""
-        keep = (self.time_s >= start_s) & (self.time_s <= end_s)
-        if keep.sum() < 2:
+        # Times increase strictly: the window is one slice, and its arrays are read-only
+        # views of this recording's (no copy, see _frozen_or_copy).
+        lo = int(np.searchsorted(self.time_s, start_s, side="left"))
+        hi = int(np.searchsorted(self.time_s, end_s, side="right"))
+        if hi - lo < 2:
             raise RecordingError(
                 f"{self.source}: window [{start_s:.3f}, {end_s:.3f}] s holds fewer than two samples"
             )
-        return self.select(keep)
+        part = slice(lo, hi)
+        return replace(
+            self,
+            time_s=self.time_s[part],
+            accel_mps2=self.accel_mps2[part],
+            gyro_radps=None if self.gyro_radps is None else self.gyro_radps[part],
+            temperature_c=None if self.temperature_c is None else self.temperature_c[part],
+        )

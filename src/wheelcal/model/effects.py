@@ -316,13 +316,18 @@ def cubic_bspline_basis(
 
 _BASIS_CACHE: dict = {}
 _BASIS_CACHE_SIZE = 256
+#: At most this many bytes of bases are remembered (oldest dropped first): the cache
+#: must not grow with the recording (a 2.9 M-sample motion check left ~116 B per sample).
+_BASIS_CACHE_MAX_BYTES = 64 * 2**20
 
 
 def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, first: int):
     """:func:`cubic_bspline_basis`, remembered: a fit evaluates the same times many times.
 
     The key holds the times' bytes (hashed with their length and ends), so a
-    different time array never hits; the arrays returned are read-only.
+    different time array never hits; the arrays returned are read-only.  At
+    most :data:`_BASIS_CACHE_SIZE` entries and :data:`_BASIS_CACHE_MAX_BYTES`
+    are kept; a basis larger than that is computed and not kept.
     """
     key = (
         hash(t.tobytes()),
@@ -338,10 +343,19 @@ def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, f
         hit = cubic_bspline_basis(t, start_s, spacing_s, count, first)
         for array in hit:
             array.setflags(write=False)
-        if len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE:
+        size = sum(array.nbytes for array in hit)
+        if size > _BASIS_CACHE_MAX_BYTES:
+            return hit
+        while _BASIS_CACHE and (
+            len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE or _cache_bytes() + size > _BASIS_CACHE_MAX_BYTES
+        ):
             _BASIS_CACHE.pop(next(iter(_BASIS_CACHE)))
         _BASIS_CACHE[key] = hit
     return hit
+
+
+def _cache_bytes() -> int:
+    return sum(array.nbytes for hit in _BASIS_CACHE.values() for array in hit)
 
 
 class SpinSpline(_SpinEffect):
