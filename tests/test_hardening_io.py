@@ -401,11 +401,21 @@ def test_a_directory_is_refused(tmp_path):
         read_recording(tmp_path / "dir.mcap")
 
 
-def _write_raw(path, schema_name, schema_encoding, schema_data, message_encoding, payloads, stamps):
-    from mcap.writer import Writer
+def _write_raw(
+    path,
+    schema_name,
+    schema_encoding,
+    schema_data,
+    message_encoding,
+    payloads,
+    stamps,
+    compression="zstd",
+):
+    from mcap.writer import CompressionType, Writer
 
     with open(path, "wb") as stream:
-        writer = Writer(stream)
+        kind = CompressionType[compression.upper()] if compression else CompressionType.NONE
+        writer = Writer(stream, compression=kind)
         writer.start()
         sid = writer.register_schema(schema_name, schema_encoding, schema_data)
         cid = writer.register_channel("/imu", message_encoding, sid)
@@ -416,7 +426,7 @@ def _write_raw(path, schema_name, schema_encoding, schema_data, message_encoding
     return path
 
 
-def _json_file(tmp_path, base, damage):
+def _json_file(tmp_path, base, damage, compression="zstd"):
     from wheelcal.io.accel_json import encode_accel_batches, schema_bytes
 
     stamps, accel = base
@@ -430,6 +440,7 @@ def _json_file(tmp_path, base, damage):
         "json",
         payloads,
         stamps,
+        compression,
     )
 
 
@@ -443,12 +454,13 @@ def test_invalid_utf8_names_the_message(tmp_path, base):
         read_recording(_json_file(tmp_path, base, damage))
 
 
-def test_deeply_nested_json_is_a_corrupt_message(tmp_path, base):
+@pytest.mark.parametrize("compression", ["zstd", ""])  # "": chunks read from the mapped file
+def test_deeply_nested_json_is_a_corrupt_message(tmp_path, base, compression):
     def damage(payloads):
         payloads[4321] = b"[" * 200_000 + b"]" * 200_000
 
     with pytest.raises(InputError, match=r"msgs\.mcap: topic /imu: message 4321 is nested too"):
-        read_recording(_json_file(tmp_path, base, damage))
+        read_recording(_json_file(tmp_path, base, damage, compression))
 
 
 def test_imu_size_error_names_the_offending_message(tmp_path, base):

@@ -379,7 +379,7 @@ def _first_too_deep(payloads: list[bytes]) -> int:
     """Index of the first payload that :func:`json.loads` cannot parse for its depth."""
     for i, payload in enumerate(payloads):
         try:
-            json.loads(payload)
+            json.loads(bytes(payload))  # payloads may be memoryviews of the mapped file
         except RecursionError:
             return i
         except ValueError:
