@@ -58,6 +58,8 @@ from wheelcal.recording import Recording, RecordingError
 GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling")
 #: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
 _STAGE1_SAMPLES = 3000
+#: Stage 2's last Gauss–Newton step is taken without a Jacobian when below √this σ.
+_FINAL_STEP_TOL = 0.1
 
 
 @dataclass(frozen=True)
@@ -256,19 +258,27 @@ class JointFit:
         # Stage 2: noise model from the full residual, whitened refit on all samples.
         # The accumulations carry the sensitivities to the fixed quantities as
         # extra columns, so the last one also gives the systematic budget.
-        noise = self._noise_model(residual_of(out.params, tc, v, layout))
+        start = out.params
+        if gyro is None and not self.effects:
+            # The canonical twin: the twins' offsets differ by far more than σ, so the
+            # decimated fit already tells them apart, and the end point is then
+            # canonical too (no second Jacobian pass for the other twin in stage 3).
+            start = choose_twin(start).chosen
+        noise = self._noise_model(residual_of(start, tc, v, layout))
         gyro2 = gyro_noise = None
         if gyro is not None:
-            gyro_noise = self._noise_model(gyro - gyro_prediction(out.params, gyro_t, layout))
+            gyro_noise = self._noise_model(gyro - gyro_prediction(start, gyro_t, layout))
             gyro2 = (gyro_t, gyro, gyro_noise)
         out = levenberg_marquardt(
             _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2),
-            out.params,
+            start,
             layout,
             self.max_iterations,
             tol=1e-3,  # stop when the next step would be < 0.03 σ
             initial_damping=1e-9,  # warm start: Gauss–Newton steps
             jacobian_on_trial=True,  # ... which are accepted: one pass per step
+            # The last step (< 0.3 σ) needs no Jacobian: the cost confirms it.
+            final_step_tol=None if gyro is not None else _FINAL_STEP_TOL,
         )
         iterations = out.iterations
         converged = out.converged
