@@ -37,7 +37,12 @@ from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.initial import InitialGuess, initial_guess
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, accumulate
+from wheelcal.estimate.normal_equations import (
+    CHUNK_SAMPLES,
+    NormalEquations,
+    accumulate,
+    whitened_cost,
+)
 from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.systematic import (
@@ -269,8 +274,10 @@ class JointFit:
         if gyro is not None:
             gyro_noise = self._noise_model(gyro - gyro_prediction(start, gyro_t, layout))
             gyro2 = (gyro_t, gyro, gyro_noise)
+        normal_fn = _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2)
+        last_residual = _LastResidual(normal_fn, tc, v, layout, noise) if gyro is None else None
         out = levenberg_marquardt(
-            _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2),
+            last_residual or normal_fn,
             start,
             layout,
             self.max_iterations,
@@ -298,7 +305,9 @@ class JointFit:
         names, values, g = report_transform(params, layout)
         cov = transform_covariance(g, cov_x)
         std = np.sqrt(np.diag(cov))
-        residual = residual_of(params, tc, v, layout)
+        residual = last_residual.at(params) if last_residual is not None else None
+        if residual is None:
+            residual = residual_of(params, tc, v, layout)
 
         gravity_std = self.gravity_std_mps2
         if gravity_std is None:
@@ -362,6 +371,33 @@ class JointFit:
         if self.coloured_noise:
             return NoiseModel.estimate(residual, self.max_ar_order)
         return NoiseModel.white(np.std(residual, axis=0))
+
+
+class _LastResidual:
+    """``normal_fn`` whose cost-only evaluations keep their residual (data − model).
+
+    The LM's last step is confirmed by a cost-only pass at the final parameters;
+    keeping that pass's residual saves the result a model evaluation.
+    """
+
+    def __init__(self, normal_fn, tc, v, layout: ParameterLayout, noise: NoiseModel) -> None:
+        self._normal_fn = normal_fn
+        self._args = (tc, v, layout)
+        self._noise = noise
+        self._params: CalibrationParams | None = None
+        self._residual: np.ndarray | None = None
+
+    def __call__(self, params: CalibrationParams, want_jacobian: bool) -> NormalEquations:
+        if want_jacobian:
+            return self._normal_fn(params, True)
+        residual = residual_of(params, *self._args)
+        self._params, self._residual = params, residual
+        rows = max(residual.shape[0] - self._noise.order, 0)
+        return NormalEquations(whitened_cost(residual, self._noise), None, None, 3 * rows)
+
+    def at(self, params: CalibrationParams) -> np.ndarray | None:
+        """The kept residual if it was evaluated at ``params`` itself, else None."""
+        return self._residual if params is self._params else None
 
 
 def _same_point(a: CalibrationParams, b: CalibrationParams) -> bool:
