@@ -103,3 +103,19 @@ def test_the_result_residual_is_the_confirming_pass_residual():
     result = JointFit().fit(recording)
     again = residual_of(result.params, result.centred_time_s, recording.accel_mps2, result.layout)
     assert np.array_equal(result.residual_mps2, again)
+
+
+def test_stage1_takes_its_last_step_confirmed_by_the_cost(monkeypatch):
+    recording = simulate(table1(), np.random.default_rng(0)).recording
+    decimated: list[bool] = []
+    original = joint_module.accumulate
+
+    def counting(params, t_s, *args, jacobian=True, **kwargs):
+        if t_s.size < recording.samples:
+            decimated.append(jacobian)
+        return original(params, t_s, *args, jacobian=jacobian, **kwargs)
+
+    monkeypatch.setattr(joint_module, "accumulate", counting)
+    JointFit().fit(recording)
+    # Two Jacobian passes on the decimated copy (before: three), the last step's cost.
+    assert decimated.count(True) == 2 and decimated[-1] is False

@@ -65,6 +65,8 @@ GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling")
 _STAGE1_SAMPLES = 3000
 #: Stage 2's last Gauss–Newton step is taken without a Jacobian when below √this σ.
 _FINAL_STEP_TOL = 0.1
+#: The same for stage 1 (it only needs to get close: stage 2 iterates from there).
+_STAGE1_FINAL_STEP_TOL = 10.0
 
 
 @dataclass(frozen=True)
@@ -259,6 +261,8 @@ class JointFit:
             # The gyro-aided start (rate measured, phase demodulated) is close and the
             # spline enters linearly: Gauss–Newton steps (2 instead of 7 on a clean spin).
             initial_damping=1e-7 if gyro is not None else 1e-3,
+            # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
+            final_step_tol=None if gyro is not None else _STAGE1_FINAL_STEP_TOL,
         )
         # Stage 2: noise model from the full residual, whitened refit on all samples.
         # The accumulations carry the sensitivities to the fixed quantities as
