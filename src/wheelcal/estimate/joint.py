@@ -7,10 +7,15 @@ Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound
 
 1. start from the closed-form guess of :mod:`wheelcal.estimate.initial` (the
    data and the radius only — never the truth);
-2. least squares with per-axis weights from a first-difference noise estimate;
+2. least squares with per-axis weights from a first-difference noise estimate
+   (on a decimated copy: it only needs to get within a few σ);
 3. estimate the noise model (AR colour per axis, cross-axis correlation) from
    full residual and refit the whitened (generalised least squares) problem on
-   every sample;
+   every sample, from the canonical twin (the smaller offset: the decimated fit
+   already tells the twins apart).  From 5–10 σ away this takes two passes with
+   the Jacobian; the last Gauss–Newton step (< 0.3 σ) is confirmed by the cost
+   alone (:mod:`wheelcal.estimate.levenberg_marquardt`), whose residual is the
+   result's;
 4. choose the discrete twin with the smaller offset, and compute the covariance
    from the Fisher information, the systematic budget and the identifiability
    verdict there.  (Stage 2 moves the estimate by a small fraction of σ, so the
