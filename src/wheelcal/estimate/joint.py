@@ -7,10 +7,15 @@ Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound
 
 1. start from the closed-form guess of :mod:`wheelcal.estimate.initial` (the
    data and the radius only — never the truth);
-2. least squares with per-axis weights from a first-difference noise estimate;
+2. least squares with per-axis weights from a first-difference noise estimate
+   (on a decimated copy: it only needs to get within a few σ);
 3. estimate the noise model (AR colour per axis, cross-axis correlation) from
    full residual and refit the whitened (generalised least squares) problem on
-   every sample;
+   every sample, from the canonical twin (the smaller offset: the decimated fit
+   already tells the twins apart).  From 5–10 σ away this takes two passes with
+   the Jacobian; the last Gauss–Newton step (< 0.3 σ) is confirmed by the cost
+   alone (:mod:`wheelcal.estimate.levenberg_marquardt`), whose residual is the
+   result's;
 4. choose the discrete twin with the smaller offset, and compute the covariance
    from the Fisher information, the systematic budget and the identifiability
    verdict there.  (Stage 2 moves the estimate by a small fraction of σ, so the
@@ -37,7 +42,12 @@ from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.initial import InitialGuess, initial_guess
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, accumulate
+from wheelcal.estimate.normal_equations import (
+    CHUNK_SAMPLES,
+    NormalEquations,
+    accumulate,
+    whitened_cost,
+)
 from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.systematic import (
@@ -58,6 +68,10 @@ from wheelcal.recording import Recording, RecordingError
 GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling")
 #: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
 _STAGE1_SAMPLES = 3000
+#: Stage 2's last Gauss–Newton step is taken without a Jacobian when below √this σ.
+_FINAL_STEP_TOL = 0.1
+#: The same for stage 1 (it only needs to get close: stage 2 iterates from there).
+_STAGE1_FINAL_STEP_TOL = 10.0
 
 
 @dataclass(frozen=True)
@@ -252,23 +266,35 @@ class JointFit:
             # The gyro-aided start (rate measured, phase demodulated) is close and the
             # spline enters linearly: Gauss–Newton steps (2 instead of 7 on a clean spin).
             initial_damping=1e-7 if gyro is not None else 1e-3,
+            # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
+            final_step_tol=None if gyro is not None else _STAGE1_FINAL_STEP_TOL,
         )
         # Stage 2: noise model from the full residual, whitened refit on all samples.
         # The accumulations carry the sensitivities to the fixed quantities as
         # extra columns, so the last one also gives the systematic budget.
-        noise = self._noise_model(residual_of(out.params, tc, v, layout))
+        start = out.params
+        if gyro is None and not self.effects:
+            # The canonical twin: the twins' offsets differ by far more than σ, so the
+            # decimated fit already tells them apart, and the end point is then
+            # canonical too (no second Jacobian pass for the other twin in stage 3).
+            start = choose_twin(start).chosen
+        noise = self._noise_model(residual_of(start, tc, v, layout))
         gyro2 = gyro_noise = None
         if gyro is not None:
-            gyro_noise = self._noise_model(gyro - gyro_prediction(out.params, gyro_t, layout))
+            gyro_noise = self._noise_model(gyro - gyro_prediction(start, gyro_t, layout))
             gyro2 = (gyro_t, gyro, gyro_noise)
+        normal_fn = _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2)
+        last_residual = _LastResidual(normal_fn, tc, v, layout, noise) if gyro is None else None
         out = levenberg_marquardt(
-            _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2),
-            out.params,
+            last_residual or normal_fn,
+            start,
             layout,
             self.max_iterations,
             tol=1e-3,  # stop when the next step would be < 0.03 σ
             initial_damping=1e-9,  # warm start: Gauss–Newton steps
             jacobian_on_trial=True,  # ... which are accepted: one pass per step
+            # The last step (< 0.3 σ) needs no Jacobian: the cost confirms it.
+            final_step_tol=None if gyro is not None else _FINAL_STEP_TOL,
         )
         iterations = out.iterations
         converged = out.converged
@@ -288,7 +314,9 @@ class JointFit:
         names, values, g = report_transform(params, layout)
         cov = transform_covariance(g, cov_x)
         std = np.sqrt(np.diag(cov))
-        residual = residual_of(params, tc, v, layout)
+        residual = last_residual.at(params) if last_residual is not None else None
+        if residual is None:
+            residual = residual_of(params, tc, v, layout)
 
         gravity_std = self.gravity_std_mps2
         if gravity_std is None:
@@ -352,6 +380,33 @@ class JointFit:
         if self.coloured_noise:
             return NoiseModel.estimate(residual, self.max_ar_order)
         return NoiseModel.white(np.std(residual, axis=0))
+
+
+class _LastResidual:
+    """``normal_fn`` whose cost-only evaluations keep their residual (data − model).
+
+    The LM's last step is confirmed by a cost-only pass at the final parameters;
+    keeping that pass's residual saves the result a model evaluation.
+    """
+
+    def __init__(self, normal_fn, tc, v, layout: ParameterLayout, noise: NoiseModel) -> None:
+        self._normal_fn = normal_fn
+        self._args = (tc, v, layout)
+        self._noise = noise
+        self._params: CalibrationParams | None = None
+        self._residual: np.ndarray | None = None
+
+    def __call__(self, params: CalibrationParams, want_jacobian: bool) -> NormalEquations:
+        if want_jacobian:
+            return self._normal_fn(params, True)
+        residual = residual_of(params, *self._args)
+        self._params, self._residual = params, residual
+        rows = max(residual.shape[0] - self._noise.order, 0)
+        return NormalEquations(whitened_cost(residual, self._noise), None, None, 3 * rows)
+
+    def at(self, params: CalibrationParams) -> np.ndarray | None:
+        """The kept residual if it was evaluated at ``params`` itself, else None."""
+        return self._residual if params is self._params else None
 
 
 def _same_point(a: CalibrationParams, b: CalibrationParams) -> bool:

@@ -154,6 +154,20 @@ def accumulate(
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
 
 
+def whitened_cost(residual: np.ndarray, noise: NoiseModel, chunk: int = CHUNK_SAMPLES) -> float:
+    """‖r̃‖² of a residual (N, 3) already evaluated, whitened in chunks as :func:`accumulate`.
+
+    The residual's sign does not matter (data − model or model − data).
+    """
+    p = noise.order
+    cost = 0.0
+    for start in range(0, residual.shape[0], chunk):
+        stop = min(residual.shape[0], start + chunk)
+        rw, _ = noise.whiten(residual[max(0, start - p) : stop])
+        cost += float(np.sum(rw * rw))
+    return cost
+
+
 def add_gram(
     hess: np.ndarray, grad: np.ndarray, jt: np.ndarray, r: np.ndarray, index: np.ndarray
 ) -> None:
