@@ -1,0 +1,111 @@
+"""This tree's calibration against an earlier revision's, interleaved in one process.
+
+Extracts ``src/wheelcal`` at ``--ref`` (a git revision) into a temporary folder
+as the package ``wheelcal_ref`` (its imports renamed), then times, one BLAS
+thread, alternating round by round on the same 90 s / 200 Hz Table I
+recording:
+
+* the joint fit (``JointFit().fit``) of both;
+* the whole calibration (``SessionFit().run``: window search, fit, noise
+  reference, motion check, gates) of both;
+
+and prints both medians and the median of the per-round ratios (robust to the
+load of a shared machine drifting within seconds).  It also prints the largest
+difference of the sensor parameters between the two, in the new fit's σ.
+
+Run:  python benchmarks/bench_versus.py --ref 7870c1d [--repeats 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from _timing import fmt, interleaved_times
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def extract(ref: str, into: Path) -> None:
+    """``src/wheelcal`` at ``ref`` as the package ``into/wheelcal_ref``."""
+    archive = subprocess.run(
+        ["git", "-C", str(ROOT), "archive", ref, "src/wheelcal"],
+        check=True,
+        capture_output=True,
+    ).stdout
+    subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
+    package = into / "wheelcal_ref"
+    (into / "src" / "wheelcal").rename(package)
+    pattern = re.compile(r"\bwheelcal(?=[.\s])")
+    for path in package.rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        path.write_text(
+            "\n".join(
+                pattern.sub("wheelcal_ref", line)
+                if line.lstrip().startswith(("from wheelcal", "import wheelcal"))
+                else line
+                for line in text.splitlines()
+            )
+            + "\n",
+            encoding="utf-8",
+        )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--ref", required=True, help="git revision to compare with, e.g. 7870c1d")
+    ap.add_argument("--repeats", type=int, default=30)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        extract(args.ref, Path(tmp))
+        sys.path.insert(0, tmp)
+        from wheelcal_ref.estimate.joint import JointFit as RefJoint
+        from wheelcal_ref.estimate.session_fit import SessionFit as RefSession
+        from wheelcal_ref.simulate import simulate as ref_simulate
+        from wheelcal_ref.simulate import table1 as ref_table1
+
+        from wheelcal.estimate.joint import JointFit
+        from wheelcal.estimate.session_fit import SessionFit
+        from wheelcal.runtime import tune_allocator
+        from wheelcal.simulate import simulate, table1
+
+        with threadpool_limits(1):
+            tune_allocator()
+            rec = simulate(table1(), np.random.default_rng(0)).recording
+            ref_rec = ref_simulate(ref_table1(), np.random.default_rng(0)).recording
+            same = np.array_equal(rec.accel_mps2, ref_rec.accel_mps2)
+            ts = interleaved_times(
+                {
+                    "joint fit, ref": lambda: RefJoint().fit(ref_rec),
+                    "joint fit, now": lambda: JointFit().fit(rec),
+                    "calibration, ref": lambda: RefSession().run(ref_rec),
+                    "calibration, now": lambda: SessionFit().run(rec),
+                },
+                args.repeats,
+            )
+            new = SessionFit().run(rec).result
+            old = RefSession().run(ref_rec).result
+        print(f"reference {args.ref}; same simulated samples in both: {same}; one BLAS thread")
+        for name, values in ts.items():
+            print(f"{name:18s}: {fmt(values)}")
+        for what in ("joint fit", "calibration"):
+            ratios = [a / b for a, b in zip(ts[f"{what}, ref"], ts[f"{what}, now"], strict=True)]
+            print(f"{what:18s}: ref / now per round, median {statistics.median(ratios):.2f}x")
+        worst = max(
+            abs(new.value_of(n) - old.value_of(n)) / new.std_of(n)
+            for n in new.names
+            if n.startswith(("gain_", "offset_"))
+        )
+        print(f"largest change of a gain or offset between the two: {worst:.3f} σ")
+
+
+if __name__ == "__main__":
+    main()
