@@ -37,7 +37,7 @@ from wheelcal.estimate.information import scaled_pinv
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.normal_equations import accumulate
 from wheelcal.estimate.result import CalibrationResult
-from wheelcal.model.effects import SpinSpline
+from wheelcal.model.effects import SpinSpline, basis_cache_off
 from wheelcal.model.forward import candidate_columns
 from wheelcal.model.parameters import AXES
 
@@ -152,7 +152,8 @@ def check_motion(
         return None
     spline = SpinSpline(float(tc[0]), float(tc[-1]), spacing)
     layout = result.layout
-    h, g = _normal_with_spline(result, accel_mps2, noise, spline)
+    with basis_cache_off():  # every part is visited once
+        h, g = _normal_with_spline(result, accel_mps2, noise, spline)
     size = layout.size
     h_bb_inv = scaled_pinv(h[:size, :size])
     h_inv = scaled_pinv(h)
