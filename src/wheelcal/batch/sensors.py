@@ -74,7 +74,8 @@ def write_sensor_calibrations(
     """
     by_sensor: dict[str, list[Mapping]] = defaultdict(list)
     for cal in calibrations:
-        by_sensor[str(cal.get("source", {}).get("sensor_id") or "")].append(cal)
+        source = getattr(cal, "document", cal).get("source", {})  # read, don't deep-copy
+        by_sensor[str(source.get("sensor_id") or "")].append(cal)
     fits = {
         s.get("sensor_id", ""): s.get("sensor_fit")
         for s in (closure or {}).get("sensors", [])

@@ -88,6 +88,7 @@ def _list(values) -> list:
 
 def session_estimate(calibration: Mapping) -> SessionEstimate:
     """The pooling input of one session's calibration dictionary (nulls become NaN)."""
+    calibration = getattr(calibration, "document", calibration)  # read, don't deep-copy
     source = calibration.get("source", {})
     where = source.get("file", "?")
     try:
