@@ -528,3 +528,31 @@ def test_a_bad_optional_gyro_matters_only_when_the_gyro_is_read(tmp_path, base):
     assert read_recording(path, gyro=False, temperature=False).samples == base[0].size
     with pytest.raises(InputError, match=r'every "gyro" entry must be three numbers'):
         read_recording(path)
+
+
+def _block_of(payloads):
+    from wheelcal.io.mcap_scan import MessageBlock
+
+    buffer = b"".join(payloads)
+    lengths = np.array([len(p) for p in payloads], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    return MessageBlock(buffer, offsets, lengths, np.arange(len(payloads), dtype=np.int64))
+
+
+def test_temperature_size_error_names_the_offending_message():
+    from wheelcal.io.temperature_cdr import (
+        TemperatureLayoutError,
+        decode_temperature_blocks,
+        encode_temperature_messages,
+    )
+
+    stamps = np.arange(20, dtype=np.int64) * 10_000_000
+    payloads = encode_temperature_messages(stamps, np.full(20, 25.0), "imu")
+    size = len(payloads[0])
+    _, _, temps = decode_temperature_blocks((_block_of(payloads[:10]), _block_of(payloads[10:])))
+    np.testing.assert_array_equal(temps, 25.0)
+    payloads[13] = payloads[13] + bytes(8)
+    with pytest.raises(
+        TemperatureLayoutError, match=rf"message 13's size .* \({size + 8} bytes, expected {size}\)"
+    ):
+        decode_temperature_blocks((_block_of(payloads[:10]), _block_of(payloads[10:])))

@@ -28,6 +28,8 @@ a channel whose schema is not really ``sensor_msgs/msg/Imu``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from wheelcal.io.growing import GrowingColumns
@@ -167,6 +169,43 @@ def decode_imu_with_gyro(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, 
     return _decode(blocks, gyro=True)
 
 
+@dataclass(frozen=True)
+class StampedHeader:
+    """The ``std_msgs/Header`` of one block's messages of one byte order."""
+
+    sec: np.ndarray
+    nsec: np.ndarray
+    body: np.ndarray  # byte offset of each message's body (after the 4-byte encapsulation)
+    q: np.ndarray  # the header's size, padded to 8 (the first field after it starts there)
+    #: (block index, its size, the size its layout needs) of the first message of the
+    #: wrong size, or None.
+    wrong_size: tuple[int, int, int] | None
+
+
+def stamped_header(
+    arr: np.ndarray, block: MessageBlock, sel: np.ndarray, endian: str, tail_bytes: int
+) -> StampedHeader:
+    """Stamps and layout of the messages ``sel`` of ``block`` (one byte order).
+
+    A stamped message is the header (stamp, frame_id string) and ``tail_bytes``
+    of fixed fields after it, 8-aligned; CDR allows up to 3 bytes of final
+    padding (XCDR options field).
+    """
+    body = block.payload_offsets[sel] + 4
+    sec = _gather(arr, body, endian + "i4")
+    nsec = _gather(arr, body + 4, endian + "u4")
+    str_len = _gather(arr, body + 8, endian + "u4").astype(np.int64)
+    q = (12 + str_len + 7) // 8 * 8
+    expected = 4 + q + tail_bytes
+    actual = block.payload_lengths[sel]
+    wrong = (actual < expected) | (actual > expected + 3)
+    wrong_size = None
+    if np.any(wrong):
+        at = int(np.argmax(wrong))
+        wrong_size = (int(sel[at]), int(actual[at]), int(expected[at]))
+    return StampedHeader(sec, nsec, body, q, wrong_size)
+
+
 def _decode_block(block: MessageBlock, gyro: bool, first_message: int = 0) -> tuple:
     """Stamps, log times, accelerations and (None or) gyro rows of one block.
 
@@ -197,21 +236,13 @@ def _decode_block(block: MessageBlock, gyro: bool, first_message: int = 0) -> tu
         sel = np.flatnonzero(kind == code)
         if sel.size == 0:
             continue
-        body = off[sel] + 4
-        sec[sel] = _gather(arr, body, endian + "i4")
-        nsec[sel] = _gather(arr, body + 4, endian + "u4")
-        str_len = _gather(arr, body + 8, endian + "u4").astype(np.int64)
-        q = (12 + str_len + 7) // 8 * 8
-        expected = 4 + q + _TAIL_BYTES
-        actual = block.payload_lengths[sel]
-        # CDR allows up to 3 bytes of final padding (XCDR options field).
-        wrong = (actual < expected) | (actual > expected + 3)
-        if np.any(wrong):
-            at = int(np.argmax(wrong))
+        header = stamped_header(arr, block, sel, endian, _TAIL_BYTES)
+        sec[sel], nsec[sel], body, q = header.sec, header.nsec, header.body, header.q
+        if header.wrong_size is not None:
+            at, actual, expected = header.wrong_size
             raise ImuLayoutError(
-                f"message {first_message + int(sel[at])}'s size does not match the "
-                f"sensor_msgs/msg/Imu layout ({int(actual[at])} bytes, expected "
-                f"{int(expected[at])})"
+                f"message {first_message + at}'s size does not match the "
+                f"sensor_msgs/msg/Imu layout ({actual} bytes, expected {expected})"
             )
         accel[sel] = _gather(arr, body + q + _ACCEL_AT, endian + "f8", 3)
         if gyro:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.io.imu_cdr import _CDR_LE, ImuLayoutError, _gather
+from wheelcal.io.imu_cdr import _CDR_LE, ImuLayoutError, _gather, stamped_header
 from wheelcal.io.mcap_scan import MessageBlock
 
 TEMPERATURE_SCHEMA_NAME = "sensor_msgs/msg/Temperature"
@@ -74,7 +74,9 @@ def decode_temperature_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndar
         A message whose size or encapsulation does not fit the layout.
     """
     stamps, logs, temps = [], [], []
+    first = 0  # the channel's index of the block's first message
     for block in blocks:
+        first, before = first + block.count, first
         if block.count == 0:
             continue
         arr = np.frombuffer(block.buffer, dtype=np.uint8)
@@ -93,19 +95,15 @@ def decode_temperature_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndar
             sel = np.flatnonzero(kind == code)
             if sel.size == 0:
                 continue
-            body = off[sel] + 4
-            sec[sel] = _gather(arr, body, endian + "i4")
-            nsec[sel] = _gather(arr, body + 4, endian + "u4")
-            str_len = _gather(arr, body + 8, endian + "u4").astype(np.int64)
-            q = (12 + str_len + 7) // 8 * 8
-            expected = 4 + q + _TAIL_BYTES
-            actual = block.payload_lengths[sel]
-            if np.any(actual < expected) or np.any(actual > expected + 3):
+            header = stamped_header(arr, block, sel, endian, _TAIL_BYTES)
+            sec[sel], nsec[sel] = header.sec, header.nsec
+            if header.wrong_size is not None:
+                at, actual, expected = header.wrong_size
                 raise TemperatureLayoutError(
-                    "a message's size does not match the sensor_msgs/msg/Temperature layout "
-                    f"({int(actual[0])} bytes, expected {int(expected[0])})"
+                    f"message {before + at}'s size does not match the "
+                    f"sensor_msgs/msg/Temperature layout ({actual} bytes, expected {expected})"
                 )
-            temp[sel] = _gather(arr, body + q, endian + "f8")
+            temp[sel] = _gather(arr, header.body + header.q, endian + "f8")
         if np.any(nsec >= 1_000_000_000):
             raise TemperatureLayoutError("header.stamp.nanosec is 1e9 or more")
         stamps.append(sec * 1_000_000_000 + nsec)
