@@ -19,7 +19,6 @@ behave the same.  Computing and writing are separate:
 from __future__ import annotations
 
 import os
-import stat
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -31,6 +30,7 @@ from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.session_fit import SessionFit, WindowChoice
 from wheelcal.estimate.window import FreeSpinWindow
+from wheelcal.io.file_kind import special_file_kind
 from wheelcal.recording import (
     SESSION_FACT_KEYS,
     CalibrationRefused,
@@ -339,8 +339,7 @@ def calibrate_session(
     source = str(path)
     stem = stem or session_stem(path)
     try:
-        check_regular_file(path)
-        outcome = replace(compute_session(path, options), stem=stem)
+        outcome = replace(compute_session(path, options), stem=stem)  # the reader refuses FIFOs
         return write_session(outcome, options, out_dir, provenance, durable)
     except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:
         return failed_outcome(source, stem, out_dir, describe_error(exc), exc)
@@ -372,25 +371,6 @@ def check_regular_file(path: str | Path) -> None:
     kind = special_file_kind(path)
     if kind is not None:
         raise RecordingError(f"{path}: is {kind}, not a recording file; give an .mcap file")
-
-
-def special_file_kind(path: str | Path) -> str | None:
-    """What ``path`` is when it exists and is not a regular file (``"a FIFO ..."``), else None."""
-    try:
-        mode = os.stat(path).st_mode
-    except OSError:
-        return None
-    if stat.S_ISREG(mode):
-        return None
-    if stat.S_ISDIR(mode):
-        return "a folder"
-    if stat.S_ISFIFO(mode):
-        return "a FIFO (named pipe)"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
 
 
 def failed_outcome(

@@ -32,9 +32,10 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
-    from wheelcal.batch.session import describe_error, special_file_kind
+    from wheelcal.batch.session import describe_error
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.io.apply_calibration import apply_calibration
+    from wheelcal.io.file_kind import special_file_kind
 
     for what, path in (("CAL.json", args.calibration), ("IN.mcap", args.source)):
         kind = special_file_kind(path)

@@ -50,6 +50,7 @@ from typing import Protocol
 import numpy as np
 
 from wheelcal.io.errors import CorruptFileError, NotMcapError
+from wheelcal.io.file_kind import special_kind
 
 MAGIC = b"\x89MCAP0\r\n"
 MESSAGE_HEADER_BYTES = 22  # channel u16, sequence u32, log_time u64, publish_time u64
@@ -653,8 +654,8 @@ def _map_file(name: str):
         raise NotMcapError(name, f"cannot be read ({exc.strerror})") from None
     if stat.S_ISDIR(info.st_mode):
         raise NotMcapError(name, "is a directory, not an MCAP recording")
-    if not stat.S_ISREG(info.st_mode):
-        kind = "a FIFO (named pipe)" if stat.S_ISFIFO(info.st_mode) else "not a regular file"
+    kind = special_kind(info.st_mode)
+    if kind is not None:
         raise NotMcapError(
             name, f"is {kind}: wheelcal reads recordings from regular files (save it first)"
         )
