@@ -34,7 +34,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from wheelcal.io.calibration import Calibration
+from wheelcal.io.calibration import Calibration, read_only_document
 from wheelcal.model.parameters import AXES
 
 REPORT_PARAMETERS = (
@@ -60,11 +60,6 @@ _RATIO_NOTE = (
     "ratio = observed std / std predicted by the per-session uncertainties (≈ 1 when the model "
     "and the σ are right; the paper's IV-B found 3.5 for offsets). ⚠ marks p < 0.01."
 )
-
-
-def _read_only(calibration: Mapping) -> Mapping:
-    """The document itself: a :class:`Calibration`'s item access deep-copies every value."""
-    return getattr(calibration, "document", calibration)
 
 
 def _finite(x) -> float | None:
@@ -248,7 +243,7 @@ def session_notes(calibration: Mapping, outliers: Sequence[Mapping] = ()) -> lis
     warnings, parameters the recording could not determine, a fit that did not
     converge, and the report's outlier flags.
     """
-    calibration = _read_only(calibration)
+    calibration = read_only_document(calibration)
     src = calibration.get("source", {})
     fit = calibration.get("fit", {})
     notes = list(src.get("notes", []))
@@ -269,7 +264,7 @@ def session_entry(
     session: Mapping, calibration: Mapping | None, outliers: Sequence[Mapping] = ()
 ) -> dict:
     """One ``per_session`` entry of ``report.json``: status, counts and notes."""
-    calibration = None if calibration is None else _read_only(calibration)
+    calibration = None if calibration is None else read_only_document(calibration)
     file = session["file"]
     entry = {
         "file": file,
@@ -498,7 +493,7 @@ def sessions_csv(calibrations: list[dict], per_session: Sequence[Mapping] | None
     and the appended columns carry the status, the reader's dropped and clipped
     sample counts, the number of notes and their text.
     """
-    calibrations = [_read_only(c) for c in calibrations]
+    calibrations = [read_only_document(c) for c in calibrations]
     names = [
         p for p in REPORT_PARAMETERS if any(p in c.get("parameters", {}) for c in calibrations)
     ]

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from wheelcal.diagnose.pooling import pool_sessions
+from wheelcal.io.calibration import read_only_document
 from wheelcal.io.sensor_calibration_json import (
     joint_estimate,
     sensor_calibration_dict,
@@ -74,7 +75,7 @@ def write_sensor_calibrations(
     """
     by_sensor: dict[str, list[Mapping]] = defaultdict(list)
     for cal in calibrations:
-        source = getattr(cal, "document", cal).get("source", {})  # read, don't deep-copy
+        source = read_only_document(cal).get("source", {})
         by_sensor[str(source.get("sensor_id") or "")].append(cal)
     fits = {
         s.get("sensor_id", ""): s.get("sensor_fit")

@@ -56,6 +56,15 @@ def _thawed(value):
     return value
 
 
+def read_only_document(calibration: Mapping) -> Mapping:
+    """The contract document to read from: a :class:`Calibration`'s own (no copy), else as given.
+
+    A :class:`Calibration`'s item access returns a fresh deep copy each time
+    (callers may change it); code that only reads many values uses this.
+    """
+    return calibration.document if isinstance(calibration, Calibration) else calibration
+
+
 @dataclass(frozen=True, eq=False)
 class Calibration(Mapping):
     """One session's calibration: the contract document, typed.

@@ -44,6 +44,7 @@ from wheelcal.diagnose.pooling import (
     SessionEstimate,
 )
 from wheelcal.io.atomic import atomic_write_text
+from wheelcal.io.calibration import read_only_document
 from wheelcal.io.calibration_json import SENSOR_CALIBRATION_FORMAT as FORMAT
 from wheelcal.model.parameters import AXES
 
@@ -88,7 +89,7 @@ def _list(values) -> list:
 
 def session_estimate(calibration: Mapping) -> SessionEstimate:
     """The pooling input of one session's calibration dictionary (nulls become NaN)."""
-    calibration = getattr(calibration, "document", calibration)  # read, don't deep-copy
+    calibration = read_only_document(calibration)
     source = calibration.get("source", {})
     where = source.get("file", "?")
     try:

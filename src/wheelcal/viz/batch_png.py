@@ -25,6 +25,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from wheelcal.io.calibration import read_only_document
+
 OVERVIEW_FILE = "overview.png"
 MISSING_MATPLOTLIB = "matplotlib is not installed (pip install 'wheelcal[plots]')"
 PANEL_PARAMETERS = (
@@ -82,8 +84,7 @@ def overview_png(
     if not calibrations:
         return None, "no session was calibrated"
     numbers = list(numbers) if numbers is not None else list(range(1, len(calibrations) + 1))
-    # Read, never copy: a Calibration's item access returns a fresh deep copy each time.
-    calibrations = [getattr(cal, "document", cal) for cal in calibrations]
+    calibrations = [read_only_document(cal) for cal in calibrations]
     groups: dict[tuple[str, str], list[int]] = {}
     for i, cal in enumerate(calibrations):
         src = cal.get("source", {})
