@@ -242,13 +242,7 @@ class Recording:
         keep = np.asarray(keep, dtype=bool)
         if keep.sum() < 2:
             raise RecordingError(f"{self.source}: fewer than two samples left")
-        return replace(
-            self,
-            time_s=self.time_s[keep],
-            accel_mps2=self.accel_mps2[keep],
-            gyro_radps=None if self.gyro_radps is None else self.gyro_radps[keep],
-            temperature_c=None if self.temperature_c is None else self.temperature_c[keep],
-        )
+        return self._take(keep)
 
     def window(self, start_s: float, end_s: float) -> Recording:
         """The samples with start_s <= t <= end_s (times keep their epoch), every channel."""
@@ -260,11 +254,14 @@ class Recording:
             raise RecordingError(
                 f"{self.source}: window [{start_s:.3f}, {end_s:.3f}] s holds fewer than two samples"
             )
-        part = slice(lo, hi)
+        return self._take(slice(lo, hi))
+
+    def _take(self, index: np.ndarray | slice) -> Recording:
+        """Every channel at ``index`` (a mask copies; a slice keeps read-only views)."""
         return replace(
             self,
-            time_s=self.time_s[part],
-            accel_mps2=self.accel_mps2[part],
-            gyro_radps=None if self.gyro_radps is None else self.gyro_radps[part],
-            temperature_c=None if self.temperature_c is None else self.temperature_c[part],
+            time_s=self.time_s[index],
+            accel_mps2=self.accel_mps2[index],
+            gyro_radps=None if self.gyro_radps is None else self.gyro_radps[index],
+            temperature_c=None if self.temperature_c is None else self.temperature_c[index],
         )
