@@ -21,21 +21,8 @@ from wheelcal.io import (
     write_recording,
 )
 from wheelcal.io.mcap_writer import ChannelData, accel_channel, recording_stamps_ns, write_channels
-from wheelcal.recording import SessionInfo
-from wheelcal.simulate import Scenario, table2
-from wheelcal.simulate.session import SessionPlan, simulate_session
 
 G = 9.80665
-
-
-@pytest.fixture(scope="module")
-def base():
-    """A short whole session (rest, push, 20 s spin, brake, rest) at 200 Hz, stamps and samples."""
-    truth = table2(rng=np.random.default_rng(8)).truth
-    scenario = Scenario(truth=truth, duration_s=20.0, info=SessionInfo(radius_m=0.28))
-    sim = simulate_session(scenario, np.random.default_rng(9), SessionPlan(rest_before_s=3.0))
-    rec = sim.recording
-    return recording_stamps_ns(rec), rec.accel_mps2.copy()
 
 
 def write(tmp_path, stamps, accel, name="bad.mcap", **kwargs):

@@ -18,9 +18,6 @@ import pytest
 from wheelcal.io import CorruptFileError, InputError, read_recording, write_accel_mcap
 from wheelcal.io.mcap_scan import MAGIC
 from wheelcal.io.mcap_writer import recording_stamps_ns
-from wheelcal.recording import SessionInfo
-from wheelcal.simulate import Scenario, table2
-from wheelcal.simulate.session import SessionPlan, simulate_session
 
 MIB = 1 << 20
 LIMIT_BYTES = 1536 * MIB  # the reader's process may use this much data at most
@@ -182,17 +179,7 @@ def test_real_chunks_stay_far_below_the_ratio_limit(tmp_path):
         assert max(ratios) < MAX_CHUNK_RATIO / 4
 
 
-# --- samples: a whole short session, as tests/test_bad_input.py ----------------------------
-
-
-@pytest.fixture(scope="module")
-def base():
-    """A short whole session (rest, push, 20 s spin, brake, rest) at 200 Hz, stamps and samples."""
-    truth = table2(rng=np.random.default_rng(8)).truth
-    scenario = Scenario(truth=truth, duration_s=20.0, info=SessionInfo(radius_m=0.28))
-    sim = simulate_session(scenario, np.random.default_rng(9), SessionPlan(rest_before_s=3.0))
-    rec = sim.recording
-    return recording_stamps_ns(rec), rec.accel_mps2.copy()
+# --- samples: the short session of conftest.py's `base` -----------------------------------
 
 
 def _write(tmp_path, stamps, accel, name="hostile.mcap", **kwargs):
