@@ -57,3 +57,60 @@ def test_band_floors_are_the_medians_of_each_band():
     power = rng.exponential(size=band.size)
     fast = _Bands(band, between).floor_sum(power)
     assert np.isclose(fast, _floor_sum_by_loop(power, band, between), rtol=1e-13, atol=0)
+
+
+def test_column_statistics_equal_numpys():
+    from wheelcal.estimate.columns import centred_rows, column_means, row_gram
+
+    x = np.random.default_rng(6).normal(3.0, 2.0, size=(5001, 3))
+    mean = column_means(x)
+    assert np.allclose(mean, x.mean(axis=0), rtol=1e-14, atol=0)
+    rows = centred_rows(x, mean)
+    assert rows.shape == (3, 5001) and rows.flags.c_contiguous
+    assert np.array_equal(rows, (x - mean).T)
+    assert np.allclose(row_gram(rows), rows @ rows.T, rtol=1e-13, atol=0)
+    assert np.array_equal(row_gram(rows), row_gram(rows).T)
+
+
+def test_legendre_normal_equations_give_polyfits_polynomial():
+    """The phase polynomial and the trend, as polyfit and lstsq gave them."""
+    from wheelcal.estimate.initial import _legendre_fit
+
+    rng = np.random.default_rng(7)
+    tau = np.linspace(-1.0, 1.0, 4341)
+    phase = 700.0 * tau - 9.0 * tau**2 + 0.3 * tau**3 + 0.01 * rng.standard_normal(tau.size)
+    legendre = np.polynomial.legendre.legvander(tau, 6)
+    gram = legendre.T @ legendre
+    coef = np.polynomial.legendre.leg2poly(_legendre_fit(legendre, gram, 4, phase))
+    expected = np.polynomial.polynomial.polyfit(tau, phase, 4)
+    assert np.allclose(coef, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+    y = rng.standard_normal((tau.size, 2)) + np.cos(3 * tau)[:, None]
+    fitted = legendre @ _legendre_fit(legendre, gram, 6, y)
+    by_svd = legendre @ np.linalg.lstsq(legendre, y, rcond=None)[0]
+    assert np.allclose(fitted, by_svd, rtol=0, atol=1e-13)
+
+
+def _dominant_frequency_by_fftfreq(u, rate_hz):
+    """The turn rate as the closed-form start computed it before: full FFT axis, (n, 2) input."""
+    z = u[:, 0] + 1j * u[:, 1]
+    nfft = 1 << int(np.ceil(np.log2(z.size)))
+    spec = np.abs(np.fft.fft(z - z.mean(), nfft))
+    freqs = np.fft.fftfreq(nfft, d=1.0 / rate_hz)
+    spec[0] = 0.0
+    return float(abs(freqs[int(np.argmax(spec))]))
+
+
+def test_dominant_frequency_of_the_wheel_plane_either_direction():
+    from wheelcal.estimate.initial import _dominant_frequency, _plane_signal
+
+    rng = np.random.default_rng(8)
+    t = np.arange(17364) / 200.0
+    for turn_hz in (1.43, -0.7, 37.1):  # the sign: the direction of turning
+        angle = 2 * np.pi * turn_hz * t
+        v = np.column_stack([3 * np.cos(angle), 2 * np.sin(angle), 0.01 * t + 9.0])
+        v += 0.05 * rng.standard_normal(v.shape)
+        found = _dominant_frequency(_plane_signal(v), 200.0)
+        assert abs(found - abs(turn_hz)) <= 200.0 / 32768
+        u = (v - v.mean(axis=0)) @ np.linalg.eigh(np.cov(v.T))[1][:, 1:]
+        assert found == _dominant_frequency_by_fftfreq(u, 200.0)
+        assert found == _dominant_frequency(np.ascontiguousarray(u.T), 200.0)

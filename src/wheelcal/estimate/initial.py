@@ -27,7 +27,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.fft import fft
 
+from wheelcal.estimate.columns import centred_rows, column_means, row_gram
 from wheelcal.estimate.decimation import thinning_stride
 from wheelcal.estimate.rotating import revolution_mean, rotating_phase
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
@@ -84,22 +86,26 @@ def initial_guess(
     v = v_all[::stride]
     half = max(np.abs(t).max(), 1e-9)
     tau = t / half
+    # One Legendre basis on τ ∈ [−1, 1] for the trend of step 1 and the phase of step 2.
+    legendre = np.polynomial.legendre.legvander(tau, max(_TREND_DEGREE, spin_degree + 1))
+    legendre_gram = legendre.T @ legendre
     notes: list[str] = []
 
     # 1. Wheel plane: principal directions of the centred signal.  For a free spin
     #    the slow part (r ω², offsets) is a smooth trend; for any other motion (the
     #    spline case: pushes, a motor's steps) it jumps, and only the mean over one
     #    revolution removes it whatever ω(t) does.
+    #    The signal is kept as rows (axis, sample): numpy is slow on (N, 3) columns.
     if spline is None:
-        vc = v - v.mean(axis=0)
+        vc = centred_rows(v, column_means(v))
     else:
         measured = None if omega_radps is None else np.asarray(omega_radps, float)[::stride]
-        vc = _rotating_part(v, t, 2 * np.pi * turn_hz_all, measured)
-    _, vecs = np.linalg.eigh(vc.T @ vc)
-    plane = vecs[:, 1:]
-    u = vc @ plane
+        vc = np.ascontiguousarray(_rotating_part(v, t, 2 * np.pi * turn_hz_all, measured).T)
+    _, vecs = np.linalg.eigh(row_gram(vc))
+    u = vecs[:, 1:].T @ vc  # (2, n): the plane's coordinates
     if spline is None:
-        u = u - _poly_trend(tau, u, _TREND_DEGREE)
+        trend = _legendre_fit(legendre, legendre_gram, _TREND_DEGREE, u.T)
+        u = u - trend.T @ legendre[:, : _TREND_DEGREE + 1].T
 
     # 2. Phase: smooth over ~1/8 turn, make the ellipse a circle, unwrap.
     rate_hz = 1.0 / np.median(np.diff(t))
@@ -107,16 +113,18 @@ def initial_guess(
     width = max(1, int(rate_hz / max(turn_hz, 1e-3) / 8))
     if width > 1:
         kernel = np.ones(width) / width
-        u = np.column_stack([np.convolve(u[:, k], kernel, mode="same") for k in range(2)])
-    cov2 = u.T @ u / len(u)
-    evals, evecs = np.linalg.eigh(cov2)
-    circle = u @ evecs / np.sqrt(np.maximum(evals, 1e-30))
+        u = np.vstack([np.convolve(u[k], kernel, mode="same") for k in range(2)])
+    evals, evecs = np.linalg.eigh(row_gram(u) / u.shape[1])
+    circle = (evecs.T @ u) / np.sqrt(np.maximum(evals, 1e-30))[:, None]  # (2, n)
     if omega_radps is None:
-        phase = np.unwrap(np.arctan2(circle[:, 1], circle[:, 0]))
+        phase = np.unwrap(np.arctan2(circle[1], circle[0]))
     else:
         measured = np.asarray(omega_radps, dtype=float)[::stride]
-        phase, omega_measured = _phase_from_rate(t, circle, measured)
-    phase_coef_tau = np.polynomial.polynomial.polyfit(tau, phase, spin_degree + 1)
+        phase, omega_measured = _phase_from_rate(t, circle.T, measured)
+    # The polynomial in τ through Legendre coefficients: the same least-squares
+    # polynomial as polyfit's, from a well-conditioned basis (normal equations suffice).
+    phase_legendre = _legendre_fit(legendre, legendre_gram, spin_degree + 1, phase)
+    phase_coef_tau = np.polynomial.legendre.leg2poly(phase_legendre)
     phase_coef = phase_coef_tau / half ** np.arange(spin_degree + 2)
     omega = np.arange(1, spin_degree + 2) * phase_coef[1:]  # ω_k = (k+1)·c_{k+1}
     spin = SpinParams(theta0_rad=phase_coef[0], omega_radps=omega)
@@ -136,7 +144,7 @@ def initial_guess(
     coef, *_ = np.linalg.lstsq(design, v, rcond=None)
     resid = v - design @ coef
     dof = max(len(t) - design.shape[1], 1)
-    s2 = np.sum(resid**2, axis=0) / dof
+    s2 = np.array([resid[:, k] @ resid[:, k] for k in range(3)]) / dof
     try:
         xtx_inv = np.linalg.inv(design.T @ design)
         se_c1 = np.sqrt(xtx_inv[1, 1] * s2.mean())
@@ -253,26 +261,34 @@ def _rotating_part(
 
 
 def _plane_signal(v: np.ndarray) -> np.ndarray:
-    """V projected on its two principal directions of largest variance (the wheel plane)."""
-    sub = v[:: max(1, v.shape[0] // 20000)]  # second moments need no anti-aliasing
-    mean = sub.mean(axis=0)
-    _, vecs = np.linalg.eigh((sub - mean).T @ (sub - mean))
-    return (v - mean) @ vecs[:, 1:]
+    """V projected on its two principal directions of largest variance (the wheel plane), (2, N)."""
+    step = max(1, v.shape[0] // 20000)  # second moments need no anti-aliasing
+    mean = column_means(v[::step])
+    centred = centred_rows(v, mean)
+    _, vecs = np.linalg.eigh(row_gram(centred[:, ::step]))
+    return vecs[:, 1:].T @ centred
 
 
-def _poly_trend(tau: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
-    basis = np.polynomial.legendre.legvander(tau, degree)
-    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-    return basis @ coef
+def _legendre_fit(legendre: np.ndarray, gram: np.ndarray, degree: int, y: np.ndarray) -> np.ndarray:
+    """Least-squares coefficients of y (n,) or (n, k) on the Legendre columns 0…degree.
+
+    ``legendre`` holds P₀…P_D at τ (n, D + 1) and ``gram`` its LᵀL.  On τ spread
+    over [−1, 1] the columns are near-orthogonal (LᵀL ≈ n·diag(1/(2j+1)), condition
+    ≈ 2D + 1), so the normal equations lose nothing and take a tenth of an SVD.
+    """
+    size = degree + 1
+    return np.linalg.solve(gram[:size, :size], legendre[:, :size].T @ y)
 
 
 def _dominant_frequency(u: np.ndarray, rate_hz: float) -> float:
-    z = u[:, 0] + 1j * u[:, 1]
+    """|f| of the strongest line of u[0] + i u[1] (u: (2, n)), DC left out."""
+    z = u[0] + 1j * u[1]
     nfft = 1 << int(np.ceil(np.log2(z.size)))  # power of two: fast and fine enough
-    spec = np.abs(np.fft.fft(z - z.mean(), nfft))
-    freqs = np.fft.fftfreq(nfft, d=1.0 / rate_hz)
+    spec = np.abs(fft(z - z.mean(), nfft))
     spec[0] = 0.0
-    return float(abs(freqs[int(np.argmax(spec))]))
+    k = int(np.argmax(spec))
+    # np.fft.fftfreq's value at bin k, without building the whole axis.
+    return float(abs((k if k < (nfft + 1) // 2 else k - nfft) * (1.0 / (nfft * (1.0 / rate_hz)))))
 
 
 def _scaled_gains(gw_x: np.ndarray, gw_y: np.ndarray) -> np.ndarray | None:
