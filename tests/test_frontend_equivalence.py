@@ -8,6 +8,7 @@ equal, or equal within round-off where the summation order changed.
 import dataclasses
 
 import numpy as np
+import pytest
 
 from wheelcal.recording import Recording
 
@@ -114,3 +115,49 @@ def test_dominant_frequency_of_the_wheel_plane_either_direction():
         u = (v - v.mean(axis=0)) @ np.linalg.eigh(np.cov(v.T))[1][:, 1:]
         assert found == _dominant_frequency_by_fftfreq(u, 200.0)
         assert found == _dominant_frequency(np.ascontiguousarray(u.T), 200.0)
+
+
+def test_window_search_low_pass_is_scipys_sosfiltfilt():
+    """The zero-phase filter with its start state solved once gives sosfiltfilt's numbers."""
+    from scipy import signal
+
+    from wheelcal.estimate.window import _lowpass
+
+    rng = np.random.default_rng(9)
+    for rate, size in ((50.0, 4501), (20.0, 200), (16.0, 10)):
+        rows = rng.standard_normal((3, size)).cumsum(axis=1)
+        design = _lowpass(min(8.0, 0.4 * rate), rate)
+        expected = signal.sosfiltfilt(design.sos, rows, axis=-1)
+        assert np.array_equal(design.filtfilt(rows), expected)
+        by_columns = signal.sosfiltfilt(design.sos, rows.T, axis=0)  # as the search filtered
+        assert np.array_equal(design.filtfilt(rows).T, by_columns)
+    with pytest.raises(ValueError, match="padlen"):  # too short to pad: as scipy says
+        design.filtfilt(rows[:, :9])
+
+
+def test_rotating_phase_and_revolution_mean_on_rows():
+    from wheelcal.estimate.rotating import revolution_mean, rotating_phase
+
+    rng = np.random.default_rng(10)
+    t = np.arange(3000) / 50.0
+    angle = 2 * np.pi * (1.2 * t - 0.004 * t**2)
+    v = np.vstack([np.cos(angle), np.sin(angle), 0.002 * t + 0.3])
+    v += 0.01 * rng.standard_normal(v.shape)
+    phase, radius = rotating_phase(v)
+    # As computed on (n, 3) columns: the same radius, the same phase up to a constant.
+    h = v.T
+    strong = np.linalg.norm(h, axis=1) > np.median(np.linalg.norm(h, axis=1))
+    vectors = np.linalg.eigh(h[strong].T @ h[strong])[1]
+    z = h @ vectors[:, 2] + 1j * (h @ vectors[:, 1])
+    expected = np.unwrap(np.angle(z))
+    expected = expected if expected[-1] > expected[0] else -expected
+    assert np.allclose(radius, np.abs(z), rtol=1e-13, atol=0)
+    assert np.allclose(np.diff(phase), np.diff(expected), rtol=0, atol=1e-12)
+    assert np.allclose(phase - phase[0], angle - angle[0], rtol=0, atol=0.1)
+    # The mean over one revolution (capped at max_half samples each side), sample by sample.
+    ramp = np.maximum.accumulate(phase)
+    mean = revolution_mean(v, ramp, 40)
+    for i in (0, 17, 1500, 2999):
+        inside = np.abs(ramp - ramp[i]) <= np.pi
+        inside &= np.abs(np.arange(ramp.size) - i) <= 40
+        assert np.allclose(mean[:, i], v[:, inside].mean(axis=1), rtol=0, atol=1e-12)

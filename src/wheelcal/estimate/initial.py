@@ -100,7 +100,7 @@ def initial_guess(
         vc = centred_rows(v, column_means(v))
     else:
         measured = None if omega_radps is None else np.asarray(omega_radps, float)[::stride]
-        vc = np.ascontiguousarray(_rotating_part(v, t, 2 * np.pi * turn_hz_all, measured).T)
+        vc = _rotating_part(v, t, 2 * np.pi * turn_hz_all, measured)
     _, vecs = np.linalg.eigh(row_gram(vc))
     u = vecs[:, 1:].T @ vc  # (2, n): the plane's coordinates
     if spline is None:
@@ -240,24 +240,25 @@ def _phase_from_rate(
 def _rotating_part(
     v: np.ndarray, t: np.ndarray, omega_radps: float, rate: np.ndarray | None
 ) -> np.ndarray:
-    """The samples minus their mean over one revolution.
+    """The samples (n, 3) minus their mean over one revolution, as rows (3, n).
 
     The revolutions are counted by the measured rate's integral when there is
     one (a gyro), else by a rough phase of the smoothed derivative.
     """
     rate_hz = 1.0 / np.median(np.diff(t))
+    rows = np.ascontiguousarray(v.T)
     if rate is not None:
         ramp = np.concatenate([[0.0], np.cumsum(np.abs(0.5 * (rate[1:] + rate[:-1])) * np.diff(t))])
     else:
         width = max(1, int(rate_hz * 2 * np.pi / max(omega_radps, 1e-3) / 8))
-        smooth = v
+        smooth = rows
         if width > 1:
             kernel = np.ones(width) / width
-            smooth = np.column_stack([np.convolve(v[:, k], kernel, mode="same") for k in range(3)])
-        rough, _ = rotating_phase(np.gradient(smooth, axis=0))
+            smooth = np.vstack([np.convolve(rows[k], kernel, mode="same") for k in range(3)])
+        rough, _ = rotating_phase(np.gradient(smooth, axis=1))
         ramp = np.maximum.accumulate(rough)
     max_half = int(np.pi / max(omega_radps / 8, 1e-3) * rate_hz)
-    return v - revolution_mean(v, ramp, max_half)
+    return rows - revolution_mean(rows, ramp, max_half)
 
 
 def _plane_signal(v: np.ndarray) -> np.ndarray:
