@@ -161,3 +161,39 @@ def test_rotating_phase_and_revolution_mean_on_rows():
         inside = np.abs(ramp - ramp[i]) <= np.pi
         inside &= np.abs(np.arange(ramp.size) - i) <= 40
         assert np.allclose(mean[:, i], v[:, inside].mean(axis=1), rtol=0, atol=1e-12)
+
+
+def test_rest_blocks_and_segments_as_numpy_computes_them():
+    from wheelcal.estimate.rests import _segment, block_statistics
+
+    rng = np.random.default_rng(11)
+    v = rng.normal([0.1, -0.2, 9.8], 0.05, size=(2013, 3))
+    means, stds = block_statistics(v, 20)
+    blocks = v[:2000].reshape(100, 20, 3)
+    assert means.shape == stds.shape == (100, 3)
+    assert np.allclose(means, blocks.mean(axis=1), rtol=1e-14, atol=0)
+    assert np.allclose(stds, blocks.std(axis=1, ddof=1), rtol=1e-12, atol=0)
+    segment = _segment(np.arange(2013) / 200.0, v)
+    assert np.allclose(segment.mean_mps2, v.mean(axis=0), rtol=1e-14, atol=0)
+    expected_std = np.std(v - v.mean(axis=0), axis=0, ddof=1)
+    assert np.allclose(segment.noise_std_mps2, expected_std, rtol=1e-13, atol=0)
+
+
+def test_noise_model_innovation_covariance_is_the_filtered_residuals_gram():
+    from wheelcal.estimate.noise_model import NoiseModel
+    from wheelcal.model.ar_process import fir_filter
+    from wheelcal.simulate import NoiseSpec
+
+    rng = np.random.default_rng(12)
+    x = NoiseSpec(0.08, bandwidth_hz=25.0).sample(20_000, 200.0, rng)
+    x = x @ np.array([[1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.2, 0.3, 1.0]]).T + 0.3
+    model = NoiseModel.estimate(x)
+    p = model.order
+    assert p > 0
+    centred = x - x.mean(axis=0)
+    innov = np.column_stack(
+        [fir_filter(a, centred[:, i])[p:] for i, a in enumerate(model.ar_polynomials)]
+    )
+    expected = innov.T @ innov / innov.shape[0]
+    expected += np.eye(3) * 1e-18 * np.trace(expected)
+    assert np.allclose(model.innovation_cov, expected, rtol=1e-12, atol=0)

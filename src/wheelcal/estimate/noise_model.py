@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.columns import column_means, row_gram
 from wheelcal.model.ar_process import ar_variance_gain, fir_filter
 
 
@@ -58,14 +59,14 @@ class NoiseModel:
     def estimate(cls, residual_mps2: np.ndarray, max_order: int = 10) -> NoiseModel:
         """Fit AR(p) per axis (Yule–Walker, p by AIC) and the innovation covariance."""
         r = np.asarray(residual_mps2, dtype=float)
-        mean = r.mean(axis=0)
+        mean = column_means(r)
         # One axis at a time: a few copies of one column, never of the whole (N, 3).
         polys = tuple(_yule_walker_aic(r[:, i] - mean[i], max_order) for i in range(3))
         p = max(a.size - 1 for a in polys)
-        innov = np.empty((max(r.shape[0] - p, 0), 3))
+        innov = np.empty((3, max(r.shape[0] - p, 0)))  # rows: contiguous per axis
         for i in range(3):
-            innov[:, i] = fir_filter(polys[i], r[:, i] - mean[i])[p:]
-        cov = innov.T @ innov / max(innov.shape[0], 1)
+            innov[i] = fir_filter(polys[i], r[:, i] - mean[i])[p:]
+        cov = row_gram(innov) / max(innov.shape[1], 1)
         # Guard against a degenerate axis (e.g. a constant channel).
         cov += np.eye(3) * 1e-18 * max(np.trace(cov), 1e-30)
         return cls(polys, cov)
