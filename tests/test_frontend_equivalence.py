@@ -197,3 +197,23 @@ def test_noise_model_innovation_covariance_is_the_filtered_residuals_gram():
     expected = innov.T @ innov / innov.shape[0]
     expected += np.eye(3) * 1e-18 * np.trace(expected)
     assert np.allclose(model.innovation_cov, expected, rtol=1e-12, atol=0)
+
+
+def test_start_regression_is_least_squares_when_well_or_ill_posed():
+    """Step 3 of the start: normal equations when well posed, the SVD when ω² hardly varies."""
+    from wheelcal.estimate.initial import _regression
+
+    rng = np.random.default_rng(13)
+    t = np.linspace(-40.0, 40.0, 4341)
+    theta = 9.0 * t - 0.05 * t**2
+    for omega, well_posed in ((9.0 - 0.1 * t, True), (9.0 + 1e-7 * t, False)):
+        design = np.column_stack([np.ones_like(t), omega**2, np.cos(theta), np.sin(theta)])
+        v = design @ rng.normal(size=(4, 3)) + 0.08 * rng.standard_normal((t.size, 3))
+        coef, xtx_inv = _regression(design, v)
+        expected = np.linalg.lstsq(design, v, rcond=None)[0]
+        assert np.allclose(design @ coef, design @ expected, rtol=0, atol=1e-9)
+        if well_posed:  # the coefficients and the inverse too
+            assert np.allclose(coef, expected, rtol=1e-9, atol=1e-12)
+            assert np.allclose(xtx_inv @ (design.T @ design), np.eye(4), atol=1e-9)
+        else:  # the SVD's minimum-norm solution
+            assert np.array_equal(coef, expected)

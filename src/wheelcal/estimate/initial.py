@@ -38,6 +38,8 @@ from wheelcal.model.effects import cubic_bspline_basis
 _TREND_DEGREE = 6
 _MAX_SAMPLES = 4000
 _RELIABLE_T_STAT = 10.0
+#: Above this condition number of DᵀD the regression of step 3 uses an SVD (error ≲ cond · ε).
+_NORMAL_EQUATIONS_MAX_COND = 1e8
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,15 +143,11 @@ def initial_guess(
         omega_t = omega_measured
     # 3. Linear regression on [1, ω², cosϑ', sinϑ'] (r ω̇ is left to the fit).
     design = np.column_stack([np.ones_like(t), omega_t**2, np.cos(theta), np.sin(theta)])
-    coef, *_ = np.linalg.lstsq(design, v, rcond=None)
+    coef, xtx_inv = _regression(design, v)
     resid = v - design @ coef
     dof = max(len(t) - design.shape[1], 1)
     s2 = np.array([resid[:, k] @ resid[:, k] for k in range(3)]) / dof
-    try:
-        xtx_inv = np.linalg.inv(design.T @ design)
-        se_c1 = np.sqrt(xtx_inv[1, 1] * s2.mean())
-    except np.linalg.LinAlgError:
-        se_c1 = np.inf
+    se_c1 = np.inf if xtx_inv is None else np.sqrt(xtx_inv[1, 1] * s2.mean())
     c0, c1, c_cos, c_sin = coef
     resolved = bool(np.linalg.norm(c1) > _RELIABLE_T_STAT * se_c1 * np.sqrt(3))
 
@@ -208,6 +206,23 @@ def initial_guess(
         notes=tuple(notes),
         implied_radius_m=implied_radius,
     )
+
+
+def _regression(design: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Least-squares coefficients of v on the columns of ``design``, and (DᵀD)⁻¹ (None: singular).
+
+    The normal equations (their matrix serves the t-test anyway) unless the columns
+    are nearly dependent (ω² almost constant): then the SVD's least squares.
+    """
+    gram = design.T @ design
+    if np.linalg.cond(gram) < _NORMAL_EQUATIONS_MAX_COND:
+        coef = np.linalg.solve(gram, design.T @ v)
+    else:
+        coef, *_ = np.linalg.lstsq(design, v, rcond=None)
+    try:
+        return coef, np.linalg.inv(gram)
+    except np.linalg.LinAlgError:
+        return coef, None
 
 
 def _phase_from_rate(
