@@ -217,3 +217,35 @@ def test_start_regression_is_least_squares_when_well_or_ill_posed():
             assert np.allclose(xtx_inv @ (design.T @ design), np.eye(4), atol=1e-9)
         else:  # the SVD's minimum-norm solution
             assert np.array_equal(coef, expected)
+
+
+def _yule_walker_by_toeplitz(x, max_order):
+    """AR(p) by AIC, each order's Yule–Walker equations solved directly."""
+    from scipy.linalg import solve_toeplitz
+
+    n = x.size
+    acov = np.array([x[: n - k] @ x[k:] for k in range(max_order + 1)]) / n
+    best, best_aic = np.ones(1), n * np.log(acov[0])
+    for k in range(1, max_order + 1):
+        a = solve_toeplitz(acov[:k], -acov[1 : k + 1])
+        aic = n * np.log(acov[0] + a @ acov[1 : k + 1]) + 2 * k
+        if aic < best_aic:
+            best, best_aic = np.concatenate([[1.0], a]), aic
+    return best
+
+
+def test_levinson_recursion_gives_the_yule_walker_solution_of_the_aic_order():
+    from wheelcal.estimate.noise_model import _yule_walker_aic
+    from wheelcal.simulate import NoiseSpec
+
+    rng = np.random.default_rng(14)
+    for bandwidth in (None, 60.0, 25.0, 8.0):
+        spec = NoiseSpec(0.08) if bandwidth is None else NoiseSpec(0.08, bandwidth_hz=bandwidth)
+        x = spec.sample(17_000, 200.0, rng)[:, 0]
+        x = x - x.mean()
+        for max_order in (6, 10):
+            fast = _yule_walker_aic(x, max_order)
+            expected = _yule_walker_by_toeplitz(x, max_order)
+            assert fast.size == expected.size
+            assert np.allclose(fast, expected, rtol=0, atol=1e-10)
+    assert np.array_equal(_yule_walker_aic(np.zeros(100), 6), [1.0])
