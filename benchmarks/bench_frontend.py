@@ -21,11 +21,13 @@ rests: the noise reference uses the spectrum); ``session`` — Table I with rest
 push, brake and rest around it (rests found, the floor from them).
 
 Run:  python benchmarks/bench_frontend.py --ref main [--repeats 30] [--recording spin]
+      [--rate-hz 2000]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import statistics
 import sys
@@ -66,8 +68,8 @@ def _tree(package: str) -> SimpleNamespace:
     return SimpleNamespace(simulate=importlib.import_module(f"{package}.simulate"), **tree)
 
 
-def _recording(tree: SimpleNamespace, kind: str):
-    table1 = tree.simulate.table1()
+def _recording(tree: SimpleNamespace, kind: str, rate_hz: float):
+    table1 = dataclasses.replace(tree.simulate.table1(), rate_hz=rate_hz)
     if kind == "spin":
         return tree.simulate.simulate(table1, np.random.default_rng(0)).recording
     return tree.simulate.simulate_session(table1, np.random.default_rng(0)).recording
@@ -78,6 +80,7 @@ def main() -> None:
     ap.add_argument("--ref", required=True, help="git revision to compare with, e.g. main")
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--recording", choices=("spin", "session", "both"), default="both")
+    ap.add_argument("--rate-hz", type=float, default=200.0, help="sample rate (Table I: 200)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         extract(args.ref, Path(tmp))
@@ -94,7 +97,7 @@ def main() -> None:
 
 def _compare(kind: str, ref: SimpleNamespace, now: SimpleNamespace, args) -> None:
     """Time and compare the stages on one recording."""
-    rec, ref_rec = _recording(now, kind), _recording(ref, kind)
+    rec, ref_rec = _recording(now, kind, args.rate_hz), _recording(ref, kind, args.rate_hz)
     outcome = now.session_fit.SessionFit().run(rec)
     ref_outcome = ref.session_fit.SessionFit().run(ref_rec)
     found = now.window.find_free_spin(rec)
