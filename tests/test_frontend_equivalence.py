@@ -249,3 +249,28 @@ def test_levinson_recursion_gives_the_yule_walker_solution_of_the_aic_order():
             assert fast.size == expected.size
             assert np.allclose(fast, expected, rtol=0, atol=1e-10)
     assert np.array_equal(_yule_walker_aic(np.zeros(100), 6), [1.0])
+
+
+def test_start_of_a_short_window_skips_the_full_rate_spectrum(monkeypatch):
+    """Below 2 × 4000 samples nothing is thinned, whatever the turn rate: no spectrum needed."""
+    from wheelcal.estimate import initial
+    from wheelcal.estimate.decimation import thinning_stride
+    from wheelcal.estimate.joint import JointFit
+    from wheelcal.simulate import simulate, table1
+
+    # The stride the spectrum would have chosen: 1 at any turn rate.
+    for omega_radps in (0.0, 1.0, 10.0, 1e3, 1e6):
+        assert thinning_stride(7999, 4000, 200.0, omega_radps) == 1
+    recording = simulate(table1(), np.random.default_rng(15)).recording
+    short = recording.window(10.0, 10.0 + 7999 / 200.0)  # 8000 samples
+    shorter = recording.window(10.0, 10.0 + 7998 / 200.0)  # 7999 samples
+    assert short.samples == 8000 and shorter.samples == 7999
+
+    def no_spectrum(*args):
+        raise AssertionError("the full-rate spectrum was computed")
+
+    monkeypatch.setattr(initial, "_plane_signal", no_spectrum)
+    with pytest.raises(AssertionError, match="full-rate spectrum"):
+        JointFit().start(short)  # 8000 samples could be thinned 2×: the rate decides
+    guess = JointFit().start(shorter).params
+    assert abs(guess.bench.tilt_rad - np.deg2rad(45.0)) < 0.05  # a usable start

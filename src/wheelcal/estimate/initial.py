@@ -81,9 +81,13 @@ def initial_guess(
     # recording is never aliased (estimate/decimation.py).
     t_all = np.asarray(t_s, dtype=float)
     v_all = np.asarray(accel_mps2, dtype=float)
-    rate_all = 1.0 / np.median(np.diff(t_all))
-    turn_hz_all = _dominant_frequency(_plane_signal(v_all), rate_all)
-    stride = thinning_stride(t_all.size, _MAX_SAMPLES, rate_all, 2 * 2 * np.pi * turn_hz_all)
+    if spline is None and t_all.size < 2 * _MAX_SAMPLES:
+        stride = 1  # too few samples to thin: the turn rate would not change that
+    else:
+        rate_all = 1.0 / np.median(np.diff(t_all))
+        turn_hz_all = _dominant_frequency(_plane_signal(v_all), rate_all)
+        omega_max = 2 * 2 * np.pi * turn_hz_all
+        stride = thinning_stride(t_all.size, _MAX_SAMPLES, rate_all, omega_max)
     t = t_all[::stride]
     v = v_all[::stride]
     half = max(np.abs(t).max(), 1e-9)
