@@ -23,6 +23,7 @@ Optional channels on the accelerometer's clock (additive, issue 13):
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -232,9 +233,13 @@ class Recording:
         """Time from first to last sample."""
         return float(self.time_s[-1] - self.time_s[0])
 
-    @property
+    @cached_property
     def rate_hz(self) -> float:
-        """Median sampling rate."""
+        """Median sampling rate (computed once: the times never change after construction).
+
+        ``window``, ``select`` and ``dataclasses.replace`` build a new recording,
+        which computes its own.
+        """
         return float(1.0 / np.median(np.diff(self.time_s)))
 
     def select(self, keep: np.ndarray) -> Recording:

@@ -27,7 +27,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.fft import fft
 
+from wheelcal.estimate.columns import centred_rows, column_means, row_gram
 from wheelcal.estimate.decimation import thinning_stride
 from wheelcal.estimate.rotating import revolution_mean, rotating_phase
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
@@ -36,6 +38,8 @@ from wheelcal.model.effects import cubic_bspline_basis
 _TREND_DEGREE = 6
 _MAX_SAMPLES = 4000
 _RELIABLE_T_STAT = 10.0
+#: Above this condition number of DᵀD the regression of step 3 uses an SVD (error ≲ cond · ε).
+_NORMAL_EQUATIONS_MAX_COND = 1e8
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,29 +81,37 @@ def initial_guess(
     # recording is never aliased (estimate/decimation.py).
     t_all = np.asarray(t_s, dtype=float)
     v_all = np.asarray(accel_mps2, dtype=float)
-    rate_all = 1.0 / np.median(np.diff(t_all))
-    turn_hz_all = _dominant_frequency(_plane_signal(v_all), rate_all)
-    stride = thinning_stride(t_all.size, _MAX_SAMPLES, rate_all, 2 * 2 * np.pi * turn_hz_all)
+    if spline is None and t_all.size < 2 * _MAX_SAMPLES:
+        stride = 1  # too few samples to thin: the turn rate would not change that
+    else:
+        rate_all = 1.0 / np.median(np.diff(t_all))
+        turn_hz_all = _dominant_frequency(_plane_signal(v_all), rate_all)
+        omega_max = 2 * 2 * np.pi * turn_hz_all
+        stride = thinning_stride(t_all.size, _MAX_SAMPLES, rate_all, omega_max)
     t = t_all[::stride]
     v = v_all[::stride]
     half = max(np.abs(t).max(), 1e-9)
     tau = t / half
+    # One Legendre basis on τ ∈ [−1, 1] for the trend of step 1 and the phase of step 2.
+    legendre = np.polynomial.legendre.legvander(tau, max(_TREND_DEGREE, spin_degree + 1))
+    legendre_gram = legendre.T @ legendre
     notes: list[str] = []
 
     # 1. Wheel plane: principal directions of the centred signal.  For a free spin
     #    the slow part (r ω², offsets) is a smooth trend; for any other motion (the
     #    spline case: pushes, a motor's steps) it jumps, and only the mean over one
     #    revolution removes it whatever ω(t) does.
+    #    The signal is kept as rows (axis, sample): numpy is slow on (N, 3) columns.
     if spline is None:
-        vc = v - v.mean(axis=0)
+        vc = centred_rows(v, column_means(v))
     else:
         measured = None if omega_radps is None else np.asarray(omega_radps, float)[::stride]
         vc = _rotating_part(v, t, 2 * np.pi * turn_hz_all, measured)
-    _, vecs = np.linalg.eigh(vc.T @ vc)
-    plane = vecs[:, 1:]
-    u = vc @ plane
+    _, vecs = np.linalg.eigh(row_gram(vc))
+    u = vecs[:, 1:].T @ vc  # (2, n): the plane's coordinates
     if spline is None:
-        u = u - _poly_trend(tau, u, _TREND_DEGREE)
+        trend = _legendre_fit(legendre, legendre_gram, _TREND_DEGREE, u.T)
+        u = u - trend.T @ legendre[:, : _TREND_DEGREE + 1].T
 
     # 2. Phase: smooth over ~1/8 turn, make the ellipse a circle, unwrap.
     rate_hz = 1.0 / np.median(np.diff(t))
@@ -107,16 +119,18 @@ def initial_guess(
     width = max(1, int(rate_hz / max(turn_hz, 1e-3) / 8))
     if width > 1:
         kernel = np.ones(width) / width
-        u = np.column_stack([np.convolve(u[:, k], kernel, mode="same") for k in range(2)])
-    cov2 = u.T @ u / len(u)
-    evals, evecs = np.linalg.eigh(cov2)
-    circle = u @ evecs / np.sqrt(np.maximum(evals, 1e-30))
+        u = np.vstack([np.convolve(u[k], kernel, mode="same") for k in range(2)])
+    evals, evecs = np.linalg.eigh(row_gram(u) / u.shape[1])
+    circle = (evecs.T @ u) / np.sqrt(np.maximum(evals, 1e-30))[:, None]  # (2, n)
     if omega_radps is None:
-        phase = np.unwrap(np.arctan2(circle[:, 1], circle[:, 0]))
+        phase = np.unwrap(np.arctan2(circle[1], circle[0]))
     else:
         measured = np.asarray(omega_radps, dtype=float)[::stride]
-        phase, omega_measured = _phase_from_rate(t, circle, measured)
-    phase_coef_tau = np.polynomial.polynomial.polyfit(tau, phase, spin_degree + 1)
+        phase, omega_measured = _phase_from_rate(t, circle.T, measured)
+    # The polynomial in τ through Legendre coefficients: the same least-squares
+    # polynomial as polyfit's, from a well-conditioned basis (normal equations suffice).
+    phase_legendre = _legendre_fit(legendre, legendre_gram, spin_degree + 1, phase)
+    phase_coef_tau = np.polynomial.legendre.leg2poly(phase_legendre)
     phase_coef = phase_coef_tau / half ** np.arange(spin_degree + 2)
     omega = np.arange(1, spin_degree + 2) * phase_coef[1:]  # ω_k = (k+1)·c_{k+1}
     spin = SpinParams(theta0_rad=phase_coef[0], omega_radps=omega)
@@ -133,15 +147,11 @@ def initial_guess(
         omega_t = omega_measured
     # 3. Linear regression on [1, ω², cosϑ', sinϑ'] (r ω̇ is left to the fit).
     design = np.column_stack([np.ones_like(t), omega_t**2, np.cos(theta), np.sin(theta)])
-    coef, *_ = np.linalg.lstsq(design, v, rcond=None)
+    coef, xtx_inv = _regression(design, v)
     resid = v - design @ coef
     dof = max(len(t) - design.shape[1], 1)
-    s2 = np.sum(resid**2, axis=0) / dof
-    try:
-        xtx_inv = np.linalg.inv(design.T @ design)
-        se_c1 = np.sqrt(xtx_inv[1, 1] * s2.mean())
-    except np.linalg.LinAlgError:
-        se_c1 = np.inf
+    s2 = np.array([resid[:, k] @ resid[:, k] for k in range(3)]) / dof
+    se_c1 = np.inf if xtx_inv is None else np.sqrt(xtx_inv[1, 1] * s2.mean())
     c0, c1, c_cos, c_sin = coef
     resolved = bool(np.linalg.norm(c1) > _RELIABLE_T_STAT * se_c1 * np.sqrt(3))
 
@@ -202,6 +212,23 @@ def initial_guess(
     )
 
 
+def _regression(design: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Least-squares coefficients of v on the columns of ``design``, and (DᵀD)⁻¹ (None: singular).
+
+    The normal equations (their matrix serves the t-test anyway) unless the columns
+    are nearly dependent (ω² almost constant): then the SVD's least squares.
+    """
+    gram = design.T @ design
+    if np.linalg.cond(gram) < _NORMAL_EQUATIONS_MAX_COND:
+        coef = np.linalg.solve(gram, design.T @ v)
+    else:
+        coef, *_ = np.linalg.lstsq(design, v, rcond=None)
+    try:
+        return coef, np.linalg.inv(gram)
+    except np.linalg.LinAlgError:
+        return coef, None
+
+
 def _phase_from_rate(
     t: np.ndarray, circle: np.ndarray, rate: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -232,47 +259,56 @@ def _phase_from_rate(
 def _rotating_part(
     v: np.ndarray, t: np.ndarray, omega_radps: float, rate: np.ndarray | None
 ) -> np.ndarray:
-    """The samples minus their mean over one revolution.
+    """The samples (n, 3) minus their mean over one revolution, as rows (3, n).
 
     The revolutions are counted by the measured rate's integral when there is
     one (a gyro), else by a rough phase of the smoothed derivative.
     """
     rate_hz = 1.0 / np.median(np.diff(t))
+    rows = np.ascontiguousarray(v.T)
     if rate is not None:
         ramp = np.concatenate([[0.0], np.cumsum(np.abs(0.5 * (rate[1:] + rate[:-1])) * np.diff(t))])
     else:
         width = max(1, int(rate_hz * 2 * np.pi / max(omega_radps, 1e-3) / 8))
-        smooth = v
+        smooth = rows
         if width > 1:
             kernel = np.ones(width) / width
-            smooth = np.column_stack([np.convolve(v[:, k], kernel, mode="same") for k in range(3)])
-        rough, _ = rotating_phase(np.gradient(smooth, axis=0))
+            smooth = np.vstack([np.convolve(rows[k], kernel, mode="same") for k in range(3)])
+        rough, _ = rotating_phase(np.gradient(smooth, axis=1))
         ramp = np.maximum.accumulate(rough)
     max_half = int(np.pi / max(omega_radps / 8, 1e-3) * rate_hz)
-    return v - revolution_mean(v, ramp, max_half)
+    return rows - revolution_mean(rows, ramp, max_half)
 
 
 def _plane_signal(v: np.ndarray) -> np.ndarray:
-    """V projected on its two principal directions of largest variance (the wheel plane)."""
-    sub = v[:: max(1, v.shape[0] // 20000)]  # second moments need no anti-aliasing
-    mean = sub.mean(axis=0)
-    _, vecs = np.linalg.eigh((sub - mean).T @ (sub - mean))
-    return (v - mean) @ vecs[:, 1:]
+    """V projected on its two principal directions of largest variance (the wheel plane), (2, N)."""
+    step = max(1, v.shape[0] // 20000)  # second moments need no anti-aliasing
+    mean = column_means(v[::step])
+    centred = centred_rows(v, mean)
+    _, vecs = np.linalg.eigh(row_gram(centred[:, ::step]))
+    return vecs[:, 1:].T @ centred
 
 
-def _poly_trend(tau: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
-    basis = np.polynomial.legendre.legvander(tau, degree)
-    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-    return basis @ coef
+def _legendre_fit(legendre: np.ndarray, gram: np.ndarray, degree: int, y: np.ndarray) -> np.ndarray:
+    """Least-squares coefficients of y (n,) or (n, k) on the Legendre columns 0…degree.
+
+    ``legendre`` holds P₀…P_D at τ (n, D + 1) and ``gram`` its LᵀL.  On τ spread
+    over [−1, 1] the columns are near-orthogonal (LᵀL ≈ n·diag(1/(2j+1)), condition
+    ≈ 2D + 1), so the normal equations lose nothing and take a tenth of an SVD.
+    """
+    size = degree + 1
+    return np.linalg.solve(gram[:size, :size], legendre[:, :size].T @ y)
 
 
 def _dominant_frequency(u: np.ndarray, rate_hz: float) -> float:
-    z = u[:, 0] + 1j * u[:, 1]
+    """|f| of the strongest line of u[0] + i u[1] (u: (2, n)), DC left out."""
+    z = u[0] + 1j * u[1]
     nfft = 1 << int(np.ceil(np.log2(z.size)))  # power of two: fast and fine enough
-    spec = np.abs(np.fft.fft(z - z.mean(), nfft))
-    freqs = np.fft.fftfreq(nfft, d=1.0 / rate_hz)
+    spec = np.abs(fft(z - z.mean(), nfft))
     spec[0] = 0.0
-    return float(abs(freqs[int(np.argmax(spec))]))
+    k = int(np.argmax(spec))
+    # np.fft.fftfreq's value at bin k, without building the whole axis.
+    return float(abs((k if k < (nfft + 1) // 2 else k - nfft) * (1.0 / (nfft * (1.0 / rate_hz)))))
 
 
 def _scaled_gains(gw_x: np.ndarray, gw_y: np.ndarray) -> np.ndarray | None:

@@ -16,10 +16,12 @@ The first p samples of each filtered series are dropped (conditional likelihood)
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.columns import column_means, row_gram
 from wheelcal.model.ar_process import ar_variance_gain, fir_filter
 
 
@@ -58,14 +60,14 @@ class NoiseModel:
     def estimate(cls, residual_mps2: np.ndarray, max_order: int = 10) -> NoiseModel:
         """Fit AR(p) per axis (Yule–Walker, p by AIC) and the innovation covariance."""
         r = np.asarray(residual_mps2, dtype=float)
-        mean = r.mean(axis=0)
+        mean = column_means(r)
         # One axis at a time: a few copies of one column, never of the whole (N, 3).
         polys = tuple(_yule_walker_aic(r[:, i] - mean[i], max_order) for i in range(3))
         p = max(a.size - 1 for a in polys)
-        innov = np.empty((max(r.shape[0] - p, 0), 3))
+        innov = np.empty((3, max(r.shape[0] - p, 0)))  # rows: contiguous per axis
         for i in range(3):
-            innov[:, i] = fir_filter(polys[i], r[:, i] - mean[i])[p:]
-        cov = innov.T @ innov / max(innov.shape[0], 1)
+            innov[i] = fir_filter(polys[i], r[:, i] - mean[i])[p:]
+        cov = row_gram(innov) / max(innov.shape[1], 1)
         # Guard against a degenerate axis (e.g. a constant channel).
         cov += np.eye(3) * 1e-18 * max(np.trace(cov), 1e-30)
         return cls(polys, cov)
@@ -158,20 +160,23 @@ def _yule_walker_aic(x: np.ndarray, max_order: int) -> np.ndarray:
     """AR polynomial [1, a₁…a_p] with p ≤ max_order minimising AIC (Levinson–Durbin)."""
     n = x.size
     # Biased autocovariance for the few lags needed (direct sums beat an FFT here).
-    acov = np.array([x[: n - k] @ x[k:] for k in range(max_order + 1)]) / n
+    acov = (np.array([x[: n - k] @ x[k:] for k in range(max_order + 1)]) / n).tolist()
     if acov[0] <= 0:
         return np.ones(1)
-    best_a, best_aic = np.ones(1), n * np.log(acov[0])
-    a = np.ones(1)
+    # The recursion on Python floats: a dozen coefficients, where numpy's per-call
+    # overhead would cost more than the arithmetic.
+    best_a, best_aic = [1.0], n * math.log(acov[0])
+    a = [1.0]
     err = acov[0]
     for k in range(1, max_order + 1):
         # Levinson–Durbin recursion for the order-k predictor.
-        refl = -(acov[k] + a[1:] @ acov[k - 1 : 0 : -1]) / err
-        a = np.concatenate([a, [0.0]]) + refl * np.concatenate([a, [0.0]])[::-1]
+        refl = -(acov[k] + sum(a[j] * acov[k - j] for j in range(1, k))) / err
+        extended = [*a, 0.0]
+        a = [extended[j] + refl * extended[k - j] for j in range(k + 1)]
         err *= 1.0 - refl**2
         if err <= 0:
             break
-        aic = n * np.log(err) + 2 * k
+        aic = n * math.log(err) + 2 * k
         if aic < best_aic:
-            best_a, best_aic = a.copy(), aic
-    return best_a
+            best_a, best_aic = a, aic
+    return np.array(best_a)

@@ -11,19 +11,24 @@ closed-form start, for any motion:
   sample: subtracted, it cancels the rotation's slow companions exactly
   (r ω², offsets, g cos α) whatever ω(t) does, where a polynomial trend would
   ring at a push.
+
+Both take the signal as rows (3, n), one contiguous row per axis: numpy is
+slow on (n, 3) columns (:mod:`wheelcal.estimate.columns`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from wheelcal.estimate.columns import row_gram
+
 
 def rotating_phase(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unwrapped angle (sign chosen so it mostly increases) and radius of h in its main plane."""
-    radius = np.linalg.norm(h, axis=1)
+    """Unwrapped angle (sign chosen so it mostly increases) and radius of h (3, n) in its plane."""
+    radius = np.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
     strong = radius > np.median(radius)
-    _, vectors = np.linalg.eigh(h[strong].T @ h[strong])
-    z = h @ vectors[:, 2] + 1j * (h @ vectors[:, 1])
+    _, vectors = np.linalg.eigh(row_gram(np.compress(strong, h, axis=1)))  # = h[:, strong]
+    z = vectors[:, 2] @ h + 1j * (vectors[:, 1] @ h)
     phase = np.unwrap(np.angle(z))
     if phase[-1] < phase[0]:
         phase = -phase
@@ -31,7 +36,7 @@ def rotating_phase(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def revolution_mean(v: np.ndarray, ramp: np.ndarray, max_half: int) -> np.ndarray:
-    """Mean of v over one revolution centred on each sample (phase within ±π).
+    """Mean of v (3, n) over one revolution centred on each sample (phase within ±π).
 
     ``ramp`` is a monotone phase, so each window is one index range; windows
     are capped at ``max_half`` samples each side (at rest the phase does not
@@ -40,5 +45,7 @@ def revolution_mean(v: np.ndarray, ramp: np.ndarray, max_half: int) -> np.ndarra
     index = np.arange(ramp.size)
     lo = np.maximum(np.searchsorted(ramp, ramp - np.pi, side="left"), index - max_half)
     hi = np.minimum(np.searchsorted(ramp, ramp + np.pi, side="right"), index + max_half + 1)
-    total = np.vstack([np.zeros((1, 3)), np.cumsum(v, axis=0)])
-    return (total[hi] - total[lo]) / (hi - lo)[:, None]
+    total = np.zeros((v.shape[0], v.shape[1] + 1))
+    np.cumsum(v, axis=1, out=total[:, 1:])
+    # np.take: the same as total[:, hi], several times faster along axis 1.
+    return (np.take(total, hi, axis=1) - np.take(total, lo, axis=1)) / (hi - lo)

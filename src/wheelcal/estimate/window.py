@@ -166,12 +166,50 @@ def find_free_spin(recording: Recording, search: WindowSearch | None = None) -> 
     )
 
 
+@dataclass(frozen=True, eq=False)
+class _LowPass:
+    """A zero-phase low-pass: its sections, their steady-state start and the padding."""
+
+    sos: np.ndarray
+    zi: np.ndarray  # sosfilt_zi(sos): the state of a unit step
+    edge: int  # samples of odd extension at each end (sosfiltfilt's default)
+
+    def filtfilt(self, rows: np.ndarray) -> np.ndarray:
+        """``scipy.signal.sosfiltfilt(sos, rows, axis=-1)``, the same numbers.
+
+        Done here so the filter's start state is solved once per design, not per call.
+        """
+        from scipy import signal
+
+        edge = self.edge
+        if rows.shape[1] <= edge:  # too short to pad: scipy's own message
+            return signal.sosfiltfilt(self.sos, rows, axis=-1)
+        ext = np.concatenate(
+            [
+                2 * rows[:, :1] - rows[:, edge:0:-1],
+                rows,
+                2 * rows[:, -1:] - rows[:, -2 : -(edge + 2) : -1],
+            ],
+            axis=1,
+        )
+        zi = self.zi[:, None, :]  # (sections, 1, 2): one state per row
+        y, _ = signal.sosfilt(self.sos, ext, axis=-1, zi=zi * ext[:, :1])
+        y = y[:, ::-1]
+        y, _ = signal.sosfilt(self.sos, y, axis=-1, zi=zi * y[:, :1])
+        return y[:, ::-1][:, edge:-edge]
+
+
 @functools.lru_cache(maxsize=16)
-def _lowpass(cutoff_hz: float, rate_hz: float) -> np.ndarray:
+def _lowpass(cutoff_hz: float, rate_hz: float) -> _LowPass:
     """2nd-order Butterworth low-pass as second-order sections (designed once per rate)."""
     from scipy import signal
 
-    return signal.butter(2, cutoff_hz, fs=rate_hz, output="sos")
+    sos = signal.butter(2, cutoff_hz, fs=rate_hz, output="sos")
+    zi = signal.sosfilt_zi(sos)
+    # sosfiltfilt's default padding: 3 × taps, less the sections' zeros at the origin.
+    taps = 2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    zi.setflags(write=False)
+    return _LowPass(sos, zi, 3 * taps)
 
 
 #: The search runs on block means at about this rate (it only looks below ``lowpass_hz``).
@@ -179,7 +217,7 @@ SEARCH_RATE_HZ = 50.0
 
 
 def _search_grid(recording: Recording, rate: float, n: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """Regular times, samples (n, 3) on them, and their rate, for the window search.
+    """Regular times, samples on them as rows (3, n), and their rate, for the window search.
 
     Faster than 2 × ``SEARCH_RATE_HZ``, the samples are averaged in blocks of
     m = ⌊rate / SEARCH_RATE_HZ⌋ sample periods: a boxcar whose response at
@@ -193,16 +231,16 @@ def _search_grid(recording: Recording, rate: float, n: int) -> tuple[np.ndarray,
     m = int(rate // SEARCH_RATE_HZ)
     if m < 2:
         grid = t0 + np.arange(n) / rate
-        return grid, np.column_stack([np.interp(grid, t, accel[:, k]) for k in range(3)]), rate
+        return grid, np.vstack([np.interp(grid, t, accel[:, k]) for k in range(3)]), rate
     block_rate = rate / m
     bins = ((t - t0) * block_rate).astype(np.int64)
     count = np.bincount(bins)
     centre = t0 + (np.arange(count.size) + 0.5) / block_rate
     filled = count > 0
-    v = np.empty((count.size, 3))
+    v = np.empty((3, count.size))
     for k in range(3):
         mean = np.bincount(bins, weights=accel[:, k], minlength=count.size)[filled] / count[filled]
-        v[:, k] = mean if filled.all() else np.interp(centre, centre[filled], mean)
+        v[k] = mean if filled.all() else np.interp(centre, centre[filled], mean)
     return centre, v, block_rate
 
 
@@ -217,7 +255,7 @@ def _find_in_stretch(recording: Recording, search: WindowSearch) -> FreeSpinWind
             f"({recording.samples} samples over {recording.duration_s:.1f} s at "
             f"{rate:.4g} Hz): too many gaps to search for a free spin"
         )
-    grid, v, rate = _search_grid(recording, rate, n)
+    grid, v, rate = _search_grid(recording, rate, n)  # v: rows (3, n)
     n = grid.size
     lag = max(round(search.lag_s * rate / 2), 1)  # half the baseline, in samples
     if n < 8 * lag:
@@ -226,14 +264,11 @@ def _find_in_stretch(recording: Recording, search: WindowSearch) -> FreeSpinWind
         )
 
     # Noise: zero-phase low-pass (SOS: stable at any rate).
-    from scipy import signal  # heavy import, deferred until a window is searched
-
-    sos = _lowpass(min(search.lowpass_hz, 0.4 * rate), rate)
-    v = signal.sosfiltfilt(sos, v, axis=0)
+    v = _lowpass(min(search.lowpass_hz, 0.4 * rate), rate).filtfilt(v)
     # A rough phase from dv/dt: differentiation suppresses the slow part
     # (o, r ω², g cos α …) without the seconds-long ringing a high-pass filter
     # shows after the push's step in r ω².  It only sets the revolution windows.
-    rough, _ = rotating_phase(np.gradient(v, axis=0) * rate)
+    rough, _ = rotating_phase(np.gradient(v, axis=1) * rate)
     ramp = np.maximum.accumulate(rough)
     max_half = int(np.pi / search.min_rate_radps * rate)
     # The rotating part: v minus its mean over one revolution (cancels the
