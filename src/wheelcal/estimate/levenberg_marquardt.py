@@ -158,14 +158,21 @@ def _final_step(
     cost: float,
 ) -> CalibrationParams | None:
     """The Gauss–Newton step's end when the cost confirms it (one cost-only pass), else None."""
-    w, v = np.linalg.eigh(a_s)
+    # A parameter no sample depends on (a spline's basis function inside a stretch
+    # left out) takes no step: its scale is ~0, and rounding would blow up there.
+    seen = np.flatnonzero(np.diag(a_s) > 0)
+    w, v = np.linalg.eigh(a_s[np.ix_(seen, seen)])
+    # Along a direction the data do not determine (an exact null space, e.g. a
+    # wheel-angle spline that reproduces the cubic) the cost is flat: no step there,
+    # as in the decrease the stopping rule measures.
     keep = w > w.max() * UNDETERMINED_EIGEN_FRACTION
-    if not np.all(keep):  # a direction the data do not determine: iterate as usual
-        return None
-    proj = v.T @ g_s
+    w, v = w[keep], v[:, keep]
+    proj = v.T @ g_s[seen]
     predicted = float(np.sum(proj**2 / w))
+    step_s = np.zeros_like(g_s)
+    step_s[seen] = -(v @ (proj / w))
     try:
-        trial = layout.unpack(layout.pack(params) - (v @ (proj / w)) / scale, params)
+        trial = layout.unpack(layout.pack(params) + step_s / scale, params)
         actual = cost - normal_fn(trial, False).cost
     except (ValueError, FloatingPointError):
         return None
