@@ -273,10 +273,11 @@ class JointFit:
         # The accumulations carry the sensitivities to the fixed quantities as
         # extra columns, so the last one also gives the systematic budget.
         start = out.params
-        if gyro is None and not self.effects:
+        if not self.effects:
             # The canonical twin: the twins' offsets differ by far more than σ, so the
             # decimated fit already tells them apart, and the end point is then
             # canonical too (no second Jacobian pass for the other twin in stage 3).
+            # The gyro's reading and the spline mirror with the twin (twins.py).
             start = choose_twin(start).chosen
         noise = self._noise_model(residual_of(start, tc, v, layout))
         gyro2 = gyro_noise = None
@@ -294,7 +295,7 @@ class JointFit:
             initial_damping=1e-9,  # warm start: Gauss–Newton steps
             jacobian_on_trial=True,  # ... which are accepted: one pass per step
             # The last step (< 0.3 σ) needs no Jacobian: the cost confirms it.
-            final_step_tol=None if gyro is not None else _FINAL_STEP_TOL,
+            final_step_tol=_FINAL_STEP_TOL,
         )
         iterations = out.iterations
         converged = out.converged
