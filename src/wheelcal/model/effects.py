@@ -317,7 +317,43 @@ def cubic_bspline_basis(
     return b, d1 / spacing_s, d2 / spacing_s**2
 
 
+def cubic_bspline_sum(
+    coef: np.ndarray, t_s: np.ndarray, start_s: float, spacing_s: float, first: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Σ c_k B_k(t) and its first two derivatives, each (N,), without the (count, N) bases.
+
+    The same sums as ``coef @`` :func:`cubic_bspline_basis` (``count`` = ``coef.size``),
+    from the four functions alive at each sample: no basis matrix, whatever the count.
+    """
+    t = np.asarray(t_s, dtype=float)
+    coef = np.asarray(coef, dtype=float)
+    position = (t - start_s) / spacing_s
+    interval = np.floor(position)
+    x = position - interval
+    x2, x3 = x * x, x * x * x
+    values = (
+        (1 - x) ** 3 / 6,
+        (3 * x3 - 6 * x2 + 4) / 6,
+        (-3 * x3 + 3 * x2 + 3 * x + 1) / 6,
+        x3 / 6,
+    )
+    slopes = (-((1 - x) ** 2) / 2, 1.5 * x2 - 2 * x, -1.5 * x2 + x + 0.5, x2 / 2)
+    curves = (1 - x, 3 * x - 2, -3 * x + 1, x)
+    # Coefficients padded with zeros: rows outside 0 … count − 1 contribute nothing.
+    padded = np.concatenate([np.zeros(4), coef, np.zeros(4)])
+    base = np.clip(interval - first, -4, coef.size).astype(np.int64) + 4
+    total = [np.zeros(t.size), np.zeros(t.size), np.zeros(t.size)]
+    for m in range(4):
+        c = padded[base + m]
+        total[0] += c * values[m]
+        total[1] += c * slopes[m]
+        total[2] += c * curves[m]
+    return total[0], total[1] / spacing_s, total[2] / spacing_s**2
+
+
 _BASIS_CACHE: dict = {}
+#: Bytes held by the cache's arrays (kept up to date as entries come and go).
+_BASIS_CACHE_BYTES = [0]
 _BASIS_CACHE_SIZE = 256
 #: At most this many bytes of bases are remembered (oldest dropped first): the cache
 #: must not grow with the recording (a 2.9 M-sample motion check left ~116 B per sample).
@@ -366,15 +402,14 @@ def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, f
         if size > _BASIS_CACHE_MAX_BYTES or not _BASIS_CACHE_ON.get():
             return hit
         while _BASIS_CACHE and (
-            len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE or _cache_bytes() + size > _BASIS_CACHE_MAX_BYTES
+            len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE
+            or _BASIS_CACHE_BYTES[0] + size > _BASIS_CACHE_MAX_BYTES
         ):
-            _BASIS_CACHE.pop(next(iter(_BASIS_CACHE)))
+            dropped = _BASIS_CACHE.pop(next(iter(_BASIS_CACHE)))
+            _BASIS_CACHE_BYTES[0] -= sum(array.nbytes for array in dropped)
         _BASIS_CACHE[key] = hit
+        _BASIS_CACHE_BYTES[0] += size
     return hit
-
-
-def _cache_bytes() -> int:
-    return sum(array.nbytes for hit in _BASIS_CACHE.values() for array in hit)
 
 
 class SpinSpline(_SpinEffect):
@@ -430,6 +465,11 @@ class SpinSpline(_SpinEffect):
         )
 
     def spin_delta(self, values, t_s, kin, jacobian):
+        if not jacobian:  # the sums only: four basis functions per sample, no matrix
+            theta, omega, omega_dot = cubic_bspline_sum(
+                values, t_s, self.start_s, self.spacing_s, self.first
+            )
+            return SpinDelta(theta=theta, omega=omega, omega_dot=omega_dot)
         b, d1, d2 = _cached_basis(
             np.asarray(t_s, dtype=float), self.start_s, self.spacing_s, self.size, self.first
         )
