@@ -13,12 +13,15 @@ import numpy as np
 import pytest
 
 from wheelcal.estimate import joint as joint_module
+from wheelcal.estimate.gyro_equations import accumulate_gyro, combined
 from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.joint import JointFit, _residual_fn, gyro_samples
 from wheelcal.estimate.knots import choose_knot_spacing
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
+from wheelcal.estimate.normal_equations import accumulate
 from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.estimate.session_fit import SessionFit
+from wheelcal.estimate.systematic import nuisance_columns, nuisance_extra
 from wheelcal.estimate.window import find_motion_window
 from wheelcal.simulate import hostile
 from wheelcal.simulate.gyro import GyroSpec
@@ -106,3 +109,27 @@ def test_a_final_step_leaves_the_parameters_no_sample_sees_alone():
     assert "left out" in out.window.reason
     assert np.all(np.isfinite(out.result.values))
     assert np.all(out.result.assessment.gyro.residual_rms_radps < 0.1)
+
+
+def test_the_accelerometer_stream_without_the_gyro_rows_adds_up_the_same(fitted):
+    window, _, result = fitted
+    tc, layout = result.centred_time_s, result.layout
+    gyro_t, gyro = gyro_samples(window, tc)
+    nuisances = nuisance_columns(layout)
+    assert nuisances  # extra columns after the free ones: they must stay last
+    streams = (gyro_t, gyro, result.gyro_noise)
+    got = _residual_fn(tc, window.accel_mps2, layout, result.noise, nuisances, gyro=streams)(
+        result.params, True
+    )
+    # The accelerometer's stream over every row (the gyro's are zero there), plus the gyro's.
+    acc = accumulate(
+        result.params, tc, window.accel_mps2, layout, result.noise, extra=nuisance_extra(nuisances)
+    )
+    rate = accumulate_gyro(result.params, gyro_t, gyro, layout, result.gyro_noise)
+    want = combined(acc, rate)
+    scale = np.max(np.abs(want.hessian))
+    assert np.max(np.abs(got.hessian - want.hessian)) <= 1e-12 * scale
+    assert np.allclose(
+        got.gradient, want.gradient, rtol=0, atol=1e-12 * np.max(np.abs(want.gradient))
+    )
+    assert got.cost == pytest.approx(want.cost, rel=1e-14) and got.entries == want.entries

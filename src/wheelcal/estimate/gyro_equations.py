@@ -155,17 +155,24 @@ def accumulate_gyro(
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
 
 
-def combined(a: NormalEquations, b: NormalEquations) -> NormalEquations:
+def combined(a: NormalEquations, b: NormalEquations, a_free: int | None = None) -> NormalEquations:
     """The normal equations of two independent streams over the same parameters.
 
-    ``a`` may carry extra columns after the free parameters (the systematic
-    budget's); ``b`` covers the free parameters only, and adds to that block.
+    ``b`` covers the free parameters only.  ``a`` covers the first ``a_free``
+    of them (default: all; the rest — the gyro's reading, last in the layout —
+    do not act on its stream) and may carry extra columns after them (the
+    systematic budget's), which stay last.
     """
     if a.hessian is None or b.hessian is None:
         return NormalEquations(a.cost + b.cost, None, None, a.entries + b.entries)
     size = b.hessian.shape[0]
-    hess = a.hessian.copy()
-    grad = a.gradient.copy()
+    a_free = size if a_free is None else a_free
+    extra = a.hessian.shape[0] - a_free
+    order = np.r_[0:a_free, size : size + extra]  # a's rows in the combined matrix
+    hess = np.zeros((size + extra, size + extra))
+    grad = np.zeros(size + extra)
+    hess[np.ix_(order, order)] = a.hessian
+    grad[order] = a.gradient
     hess[:size, :size] += b.hessian
     grad[:size] += b.gradient
     return NormalEquations(a.cost + b.cost, hess, grad, a.entries + b.entries)

@@ -451,14 +451,19 @@ def _residual_fn(
     ``gyro`` = (times, samples, noise model) adds the gyroscope's stream.
     """
     extra = nuisance_extra(nuisances) if nuisances else None
+    # The accelerometer does not see the gyro's reading: its stream is accumulated
+    # without those (zero) rows, which come last in the layout.
+    accel_layout = layout
+    if gyro is not None and layout.effects[-1].stage == "gyro":
+        accel_layout = dataclasses.replace(layout, effects=layout.effects[:-1])
 
     def normal(params: CalibrationParams, want_jacobian: bool):
-        acc = accumulate(params, tc, v, layout, noise, jacobian=want_jacobian, extra=extra)
+        acc = accumulate(params, tc, v, accel_layout, noise, jacobian=want_jacobian, extra=extra)
         if gyro is None:
             return acc
         gyro_t, gyro_v, gyro_noise = gyro
         rate = accumulate_gyro(params, gyro_t, gyro_v, layout, gyro_noise, want_jacobian)
-        return combined(acc, rate)
+        return combined(acc, rate, accel_layout.size)
 
     return normal
 
