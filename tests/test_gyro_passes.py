@@ -133,3 +133,21 @@ def test_the_accelerometer_stream_without_the_gyro_rows_adds_up_the_same(fitted)
         got.gradient, want.gradient, rtol=0, atol=1e-12 * np.max(np.abs(want.gradient))
     )
     assert got.cost == pytest.approx(want.cost, rel=1e-14) and got.entries == want.entries
+
+
+def test_gyro_aided_stage1_takes_its_last_step_confirmed_by_the_cost(monkeypatch):
+    session = hostile.clean(np.random.default_rng(1), gyro=GyroSpec())
+    window, fitter = _window_and_fitter(session)
+    full = gyro_samples(window, window.time_s)[0].size
+    decimated: list[bool] = []
+    original = joint_module.accumulate_gyro
+
+    def counting(params, t_s, *args, **kwargs):
+        if t_s.size < full:
+            decimated.append(args[3] if len(args) > 3 else kwargs.get("jacobian", True))
+        return original(params, t_s, *args, **kwargs)
+
+    monkeypatch.setattr(joint_module, "accumulate_gyro", counting)
+    assert fitter.fit(window).converged
+    # Two Jacobian passes on the decimated copy (before: three), the last step's cost.
+    assert decimated.count(True) == 2 and decimated[-1] is False

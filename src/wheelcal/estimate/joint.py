@@ -267,7 +267,7 @@ class JointFit:
             # spline enters linearly: Gauss–Newton steps (2 instead of 7 on a clean spin).
             initial_damping=1e-7 if gyro is not None else 1e-3,
             # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
-            final_step_tol=None if gyro is not None else _STAGE1_FINAL_STEP_TOL,
+            final_step_tol=_STAGE1_FINAL_STEP_TOL,
         )
         # Stage 2: noise model from the full residual, whitened refit on all samples.
         # The accumulations carry the sensitivities to the fixed quantities as
