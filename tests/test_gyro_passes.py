@@ -151,3 +151,16 @@ def test_gyro_aided_stage1_takes_its_last_step_confirmed_by_the_cost(monkeypatch
     assert fitter.fit(window).converged
     # Two Jacobian passes on the decimated copy (before: three), the last step's cost.
     assert decimated.count(True) == 2 and decimated[-1] is False
+
+
+def test_the_gyro_stream_sums_do_not_depend_on_the_chunks(fitted):
+    window, _, result = fitted
+    gyro_t, gyro = gyro_samples(window, result.centred_time_s)
+    args = (result.params, gyro_t, gyro, result.layout, result.gyro_noise)
+    whole = accumulate_gyro(*args, chunk=gyro_t.size)  # one chunk, the dense layout
+    chunked = accumulate_gyro(*args)
+    assert chunked.entries == whole.entries
+    assert chunked.cost == pytest.approx(whole.cost, rel=1e-12)
+    scale = np.max(np.abs(whole.hessian))
+    assert np.max(np.abs(chunked.hessian - whole.hessian)) <= 1e-12 * scale
+    assert np.max(np.abs(chunked.gradient - whole.gradient)) <= 1e-9 * np.sqrt(scale)
