@@ -28,11 +28,6 @@ from wheelcal.model import CalibrationParams, ParameterLayout
 from wheelcal.model.bench import BenchForce, bench_force
 from wheelcal.model.forward import wheel_kinematics
 
-#: Samples per chunk of the gyro stream (unless given): two knot intervals of the
-#: spline within these bounds.  ~30 rows × 3 axes × 2048 samples is 1.5 MB: measured
-#: 1.2x faster than 6400 (16 s knots at 200 Hz) and 1.25x than 256 (0.5 s knots).
-CHUNK_SAMPLES_RANGE = (512, 2048)
-
 
 def gyro_effect(layout: ParameterLayout):
     """The layout's gyro reading effect, or None."""
@@ -92,10 +87,7 @@ def accumulate_gyro(
     """
     effect = gyro_effect(layout)
     n = t_s.size
-    given = chunk
     chunk, sparse = chunking(layout, t_s, chunk)
-    if given is None:  # a few hundred kB of Jacobian per chunk: it stays in cache
-        chunk = min(max(chunk, CHUNK_SAMPLES_RANGE[0]), CHUNK_SAMPLES_RANGE[1])
     p = noise.order
     cost, entries = 0.0, 0
     hess = np.zeros((layout.size, layout.size)) if jacobian else None
