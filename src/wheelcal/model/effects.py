@@ -322,33 +322,36 @@ def cubic_bspline_sum(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Σ c_k B_k(t) and its first two derivatives, each (N,), without the (count, N) bases.
 
-    The same sums as ``coef @`` :func:`cubic_bspline_basis` (``count`` = ``coef.size``),
-    from the four functions alive at each sample: no basis matrix, whatever the count.
+    The same sums as ``coef @`` :func:`cubic_bspline_basis` (``count`` = ``coef.size``).
+    On knot interval j the sum is one cubic in x (its coefficients from c_j … c_{j+3}
+    and the four pieces of B): computed once per interval, evaluated per sample by
+    Horner's rule — no basis matrix, whatever the count.
     """
     t = np.asarray(t_s, dtype=float)
     coef = np.asarray(coef, dtype=float)
+    if t.size == 0:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
     position = (t - start_s) / spacing_s
     interval = np.floor(position)
     x = position - interval
-    x2, x3 = x * x, x * x * x
-    values = (
-        (1 - x) ** 3 / 6,
-        (3 * x3 - 6 * x2 + 4) / 6,
-        (-3 * x3 + 3 * x2 + 3 * x + 1) / 6,
-        x3 / 6,
-    )
-    slopes = (-((1 - x) ** 2) / 2, 1.5 * x2 - 2 * x, -1.5 * x2 + x + 0.5, x2 / 2)
-    curves = (1 - x, 3 * x - 2, -3 * x + 1, x)
-    # Coefficients padded with zeros: rows outside 0 … count − 1 contribute nothing.
+    index = interval.astype(np.int64)
+    k0 = int(index.min())
+    # c_j … c_{j+3} of each interval present, zero outside 0 … count − 1.
     padded = np.concatenate([np.zeros(4), coef, np.zeros(4)])
-    base = np.clip(interval - first, -4, coef.size).astype(np.int64) + 4
-    total = [np.zeros(t.size), np.zeros(t.size), np.zeros(t.size)]
-    for m in range(4):
-        c = padded[base + m]
-        total[0] += c * values[m]
-        total[1] += c * slopes[m]
-        total[2] += c * curves[m]
-    return total[0], total[1] / spacing_s, total[2] / spacing_s**2
+    rows = np.clip(np.arange(k0, int(index.max()) + 1) - first, -4, coef.size) + 4
+    c0, c1, c2, c3 = (padded[rows + m] for m in range(4))
+    # c_j (1 − x)³/6 + c_{j+1} (3x³ − 6x² + 4)/6 + c_{j+2} (−3x³ + 3x² + 3x + 1)/6
+    # + c_{j+3} x³/6 = a0 + a1 x + a2 x² + a3 x³:
+    a0 = (c0 + 4 * c1 + c2) / 6
+    a1 = (c2 - c0) / 2
+    a2 = (c0 - 2 * c1 + c2) / 2
+    a3 = (-c0 + 3 * c1 - 3 * c2 + c3) / 6
+    local = index - k0
+    a0, a1, a2, a3 = a0[local], a1[local], a2[local], a3[local]
+    theta = ((a3 * x + a2) * x + a1) * x + a0
+    omega = ((3 * a3) * x + 2 * a2) * x + a1
+    omega_dot = (6 * a3) * x + 2 * a2
+    return theta, omega / spacing_s, omega_dot / spacing_s**2
 
 
 _BASIS_CACHE: dict = {}
