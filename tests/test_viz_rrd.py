@@ -22,11 +22,13 @@ from wheelcal.io.calibration_json import calibration_dict
 from wheelcal.simulate import table2
 from wheelcal.simulate.session import simulate_session
 from wheelcal.viz.batch_rrd import write_batch_rrd
+from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import RrdWriteError
 from wheelcal.viz.session_rrd import (
     ANGLE_BINS,
     angle_mdeg,
     binned_mean_by_angle,
+    session_blueprint,
     session_rrd,
     wheel_angle_rad,
     write_session_rrd,
@@ -253,6 +255,54 @@ def test_session_blueprint(session, session_file):
     assert [True, False, False] in [m for m in masks]
     reader = RrdReader(path)
     assert reader.recordings()[0].application_id == "wheelcal"
+
+
+def blueprint_contents(path):
+    """{(entity, component, static): values} of the file's blueprint store."""
+    out = {}
+    for entity, chunks in read_store(path, blueprint=True).items():
+        for chunk in chunks:
+            batch = chunk.to_record_batch()
+            for name in batch.schema.names:
+                if ":" in name:  # components, not row ids or timelines
+                    out[(entity, name, chunk.is_static)] = batch.column(name).to_pylist()
+    return out
+
+
+def test_blueprint_chunks_send_what_send_blueprint_sends(tmp_path):
+    """The cached-chunk path gives the blueprint store Rerun's own send_blueprint gives."""
+    blueprint = session_blueprint(1.5, 80.25, ("fit", "after"))
+    paths = []
+    for name, send in (
+        ("rerun", lambda s: s.send_blueprint(blueprint)),
+        ("chunks", lambda s: send_blueprint_chunks(s, blueprint_chunks(blueprint))),
+    ):
+        stream = rr.RecordingStream("wheelcal", recording_id=f"bp-{name}")
+        sink = stream.binary_stream()
+        send(stream)
+        paths.append(tmp_path / f"{name}.rrd")
+        paths[-1].write_bytes(sink.read(flush=True))
+        stream.disconnect()
+    expected, got = (blueprint_contents(p) for p in paths)
+    assert len(expected) > 100  # views, contents, overrides, containers, panels
+    assert got == expected
+    assert RrdReader(paths[1]).blueprints()[0].application_id == "wheelcal"
+
+
+def test_each_file_gets_its_own_time_selection(session, tmp_path):
+    """The layout is cached per process; the window pre-selection is not."""
+    recording, window, result = session
+    write_session_rrd(tmp_path / "a.rrd", result, recording, window)
+    write_session_rrd(tmp_path / "b.rrd", result, recording, None)
+    for name, (start, end) in (
+        ("a", (window.start_s, window.end_s)),
+        ("b", (result.time_s[0], result.time_s[-1])),
+    ):
+        (selection,) = blueprint_component(
+            tmp_path / f"{name}.rrd", "TimePanelBlueprint:time_selection"
+        )
+        assert selection[0] == {"min": round(start * 1e9), "max": round(end * 1e9)}
+    assert blueprint_views(tmp_path / "a.rrd") == blueprint_views(tmp_path / "b.rrd")
 
 
 def test_window_none_marks_the_fitted_span(session, tmp_path):

@@ -72,6 +72,7 @@ so decimating would not buy much (``benchmarks/bench_rrd.py``).
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import os
 import zlib
@@ -90,6 +91,7 @@ from wheelcal.model import predict
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
+from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import rrd_file
 
 APPLICATION_ID = "wheelcal"
@@ -322,15 +324,11 @@ def _only_axis(k: int) -> list[bool]:
     return [j == k for j in range(3)]
 
 
-def session_blueprint(
-    start_s: float, end_s: float, residual_sets: tuple[str, ...] = (FIT_SET,)
-) -> rrb.Blueprint:
-    """The session layout (module docstring); the free-spin window is pre-selected.
+def _session_root(residual_sets: tuple[str, ...]) -> rrb.Horizontal:
+    """The views of the session layout (module docstring), in their containers.
 
     Parameters
     ----------
-    start_s, end_s:
-        The window on the ``time`` timeline, s.
     residual_sets:
         Names of the logged residual sets; each gets its per-axis overrides.
     """
@@ -393,11 +391,45 @@ def session_blueprint(
         scatter,
         row_shares=[3, 1, 2],
     )
+    return rrb.Horizontal(left, right, column_shares=[3, 1])
+
+
+def session_time_panel(start_s: float, end_s: float) -> rrb.TimePanel:
+    """The time panel on ``time`` with the free-spin window [start_s, end_s] pre-selected."""
     selection = rrb.components.AbsoluteTimeRange(min=round(start_s * 1e9), max=round(end_s * 1e9))
-    return rrb.Blueprint(
-        rrb.Horizontal(left, right, column_shares=[3, 1]),
-        rrb.TimePanel(timeline=TIME_TIMELINE, time_selection=selection),
-    )
+    return rrb.TimePanel(timeline=TIME_TIMELINE, time_selection=selection)
+
+
+def session_blueprint(
+    start_s: float, end_s: float, residual_sets: tuple[str, ...] = (FIT_SET,)
+) -> rrb.Blueprint:
+    """The session layout (module docstring); the free-spin window is pre-selected.
+
+    The files get the same blueprint through :func:`_layout_chunks` (built once
+    per process) and :func:`session_time_panel`.
+
+    Parameters
+    ----------
+    start_s, end_s:
+        The window on the ``time`` timeline, s.
+    residual_sets:
+        Names of the logged residual sets; each gets its per-axis overrides.
+    """
+    return rrb.Blueprint(_session_root(residual_sets), session_time_panel(start_s, end_s))
+
+
+@functools.lru_cache(maxsize=16)
+def _layout_chunks(residual_sets: tuple[str, ...]) -> tuple:
+    """The blueprint without its time panel as chunks, built once per process and set list."""
+    return blueprint_chunks(rrb.Blueprint(_session_root(residual_sets)))
+
+
+def send_session_blueprint(
+    stream: rr.RecordingStream, start_s: float, end_s: float, residual_sets: tuple[str, ...]
+) -> None:
+    """Send :func:`session_blueprint` into ``stream``, the layout from the per-process cache."""
+    panel = blueprint_chunks(session_time_panel(start_s, end_s))
+    send_blueprint_chunks(stream, _layout_chunks(tuple(residual_sets)) + panel)
 
 
 @dataclass
@@ -487,7 +519,7 @@ def session_rrd(
         rrd = SessionRrd(stream)
         rrd.log_residuals(FIT_SET, fit_time_s, result.residual_mps2, wheel_angle_rad(result))
         yield rrd
-        stream.send_blueprint(session_blueprint(start_s, end_s, tuple(rrd.residual_sets)))
+        send_session_blueprint(stream, start_s, end_s, tuple(rrd.residual_sets))
 
 
 def _log_gyro_rate(stream, result, recording, shift_s: float, every: int) -> None:
