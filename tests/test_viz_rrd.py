@@ -206,6 +206,10 @@ def test_mean_residual_per_angle_bin(session, session_file):
         values = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:values")[0]
         abscissa = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:abscissa")[0]
         assert len(abscissa["buffer"]) == ANGLE_BINS  # every 5° bin holds samples
+        widths = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:widths")
+        assert widths == [5.0] * ANGLE_BINS
+        color = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:color")
+        assert color == [(38 << 24) | (110 << 16) | (210 << 8) | 170]  # the fit set's, translucent
         # Independent check of one bin: 90°–95°.
         j = 18
         assert abscissa["buffer"][j] == pytest.approx(92.5)

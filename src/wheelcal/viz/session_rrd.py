@@ -126,6 +126,16 @@ def _time_column(time_s: np.ndarray) -> rr.TimeColumn:
     return rr.TimeColumn(TIME_TIMELINE, duration=ns.astype("timedelta64[ns]"))
 
 
+@functools.lru_cache(maxsize=64)
+def _series_style(names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None):
+    """Static ``rr.SeriesLines`` styling, built once per process (archetypes build slowly)."""
+    return rr.SeriesLines(
+        names=list(names),
+        colors=None if colors is None else list(colors),
+        widths=None if width is None else [width] * len(names),
+    )
+
+
 def angle_mdeg(theta_rad: np.ndarray) -> np.ndarray:
     """ϑ mod 360° in whole millidegrees (0 … 359 999), the ``wheel_angle_mdeg`` values."""
     mdeg = np.rint(np.rad2deg(np.mod(np.asarray(theta_rad, dtype=float), 2 * np.pi)) * 1e3)
@@ -165,9 +175,7 @@ def log_signal(
     """Log (N, 3) samples in m/s² as ``/signal/<name>``: three line series on ``time``."""
     t, v = _check_series(time_s, accel_mps2, f"signal {name!r}")
     path = f"signal/{name}"
-    style = rr.SeriesLines(
-        colors=list(colors), names=[f"{name} {a}" for a in AXES], widths=[width] * 3
-    )
+    style = _series_style(tuple(f"{name} {a}" for a in AXES), tuple(colors), width)
     stream.log(path, style, static=True)
     stream.send_columns(path, indexes=[_time_column(t)], columns=rr.Scalars.columns(scalars=v))
 
@@ -211,29 +219,32 @@ def log_residuals(
         raise ValueError(f"residual set {name!r}: need {t.size} finite angles, got {theta.size}")
     rgb = set_color(name) if color is None else tuple(color)
     path = f"residual/{name}"
-    style = rr.SeriesLines(colors=[rgb] * 3, names=[f"{name} {a}" for a in AXES], widths=[1.0] * 3)
+    style = _series_style(tuple(f"{name} {a}" for a in AXES), (rgb,) * 3, 1.0)
     stream.log(path, style, static=True)
     angles = rr.TimeColumn(ANGLE_TIMELINE, sequence=angle_mdeg(theta))
     stream.send_columns(
         path, indexes=[_time_column(t), angles], columns=rr.Scalars.columns(scalars=r)
     )
     centres_deg, mean, _ = binned_mean_by_angle(theta, r, ANGLE_BINS)
-    widths = np.full(centres_deg.size, 360.0 / ANGLE_BINS)
-    for k, axis in enumerate(AXES):
-        chart = rr.BarChart(
-            mean[:, k],
-            abscissa=centres_deg,
-            widths=widths,
-            color=(*rgb, 170),  # translucent: several sets overlap in one view
-        )
-        stream.log(f"residual_angle_mean/{axis}/{name}", chart, static=True)
+    # The axes share abscissa, widths and colour: converted to Arrow once, not per axis.
+    first = rr.BarChart(
+        mean[:, 0],
+        abscissa=centres_deg,
+        widths=np.full(centres_deg.size, 360.0 / ANGLE_BINS),
+        color=(*rgb, 170),  # translucent: several sets overlap in one view
+    )
+    values = rr.BarChart.descriptor_values()
+    shared = [b for b in first.as_component_batches() if b.component_descriptor() != values]
+    stream.log(f"residual_angle_mean/{AXES[0]}/{name}", first, static=True)
+    for k, axis in enumerate(AXES[1:], start=1):
+        chart = rr.BarChart.from_fields(values=mean[:, k])
+        stream.log(f"residual_angle_mean/{axis}/{name}", chart, shared, static=True)
 
 
-def log_window(
-    stream: rr.RecordingStream, start_s: float, end_s: float, first_s: float, last_s: float
-) -> None:
-    """The free-spin window as a state lane ``/window`` on ``time``."""
-    config = rr.StateConfiguration(
+@functools.lru_cache(maxsize=1)
+def _window_configuration() -> rr.StateConfiguration:
+    """Labels and colours of the window lane's states (built once per process)."""
+    return rr.StateConfiguration(
         values=list(_WINDOW_STATES),
         labels=[
             "before (rest, push; not fitted)",
@@ -242,6 +253,13 @@ def log_window(
         ],
         colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
     )
+
+
+def log_window(
+    stream: rr.RecordingStream, start_s: float, end_s: float, first_s: float, last_s: float
+) -> None:
+    """The free-spin window as a state lane ``/window`` on ``time``."""
+    config = _window_configuration()
     stream.log("window", config, static=True)
     times, states = [start_s], [_WINDOW_STATES[1]]
     if first_s < start_s:
@@ -505,7 +523,7 @@ def session_rrd(
         every = max(1, math.ceil(fit_time_s.size / OMEGA_POINTS))
         omega_t = result.centred_time_s[::every]
         kin = wheel_kinematics(result.params, omega_t, result.layout.effects)  # Eq. (2) (+ spline)
-        stream.log("spin/omega_radps", rr.SeriesLines(names=["ω (model)"]), static=True)
+        stream.log("spin/omega_radps", _series_style(("ω (model)",), None, None), static=True)
         stream.send_columns(
             "spin/omega_radps",
             indexes=[_time_column(fit_time_s[::every])],
@@ -534,7 +552,7 @@ def _log_gyro_rate(stream, result, recording, shift_s: float, every: int) -> Non
     rows = gyro[fitted]
     ok = np.all(np.isfinite(rows), axis=1)
     omega = (rows[ok] - block.bias_radps) @ w / (w @ w)
-    stream.log("spin/omega_gyro_radps", rr.SeriesLines(names=["ω (gyro)"]), static=True)
+    stream.log("spin/omega_gyro_radps", _series_style(("ω (gyro)",), None, None), static=True)
     stream.send_columns(
         "spin/omega_gyro_radps",
         indexes=[_time_column(recording.time_s[fitted][ok])],
