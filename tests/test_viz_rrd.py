@@ -372,6 +372,25 @@ def test_rerun_misuse_raises_instead_of_warning(session, tmp_path):
     assert not rr.strict_mode()  # only inside the writer
 
 
+def test_an_exception_after_a_rerun_warning_still_leaves_no_file(session, tmp_path):
+    """A Rerun warning inside ``stream.log`` must not switch the writer's strict mode off.
+
+    rerun-sdk 0.41's ``RecordingStream.log`` passes ``strict=None`` down, and the
+    warning it then logs re-enters the same decorator, which restores the wrong
+    strict setting: afterwards the writer's guard swallowed any exception of the
+    block (a warning instead) and wrote the file.
+    """
+    recording, window, result = session
+    path = tmp_path / "warned.rrd"
+    style = rr.SeriesLines(names=["a"])
+    with pytest.raises(RuntimeError, match="boom"):
+        with session_rrd(path, result, recording, window) as rrd:
+            with pytest.warns(rr.error_utils.RerunWarning, match="multiple times"):
+                rrd.stream.log("dup", style, style, static=True)  # a component twice
+            raise RuntimeError("boom")
+    assert not path.exists() and no_leftovers(tmp_path)
+
+
 def test_rerun_disabled_is_an_error(session, tmp_path, monkeypatch):
     recording, window, result = session
     monkeypatch.setenv("RERUN", "off")

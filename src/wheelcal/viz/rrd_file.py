@@ -9,10 +9,15 @@ global or thread-default recording, so sessions can be written concurrently.
 While the block runs, Rerun's *strict mode* is switched on for this thread
 only: by default Rerun turns a bad call (wrong shape, wrong type) into a
 warning and carries on, which would leave a silently incomplete file.  In
-strict mode it raises instead.  When the block ends without an exception the
-encoded bytes (RRD with footer, plus the blueprint store) are written with
-:func:`wheelcal.io.atomic.atomic_write_bytes` — temporary file, fsync,
-rename — so an error at any point leaves no file, or the previous file intact.
+strict mode it raises instead.  (Only partly: rerun-sdk 0.41's
+``RecordingStream.log`` and ``send_columns`` pass ``strict=None`` down, so a
+problem found inside them is still a warning, and that warning can leave the
+thread's strict mode off for the rest of the block.  Whatever happens to
+strict mode, an exception raised in the block aborts the file.)  When the
+block ends without an exception the encoded bytes (RRD with footer, plus the
+blueprint store) are written with :func:`wheelcal.io.atomic.atomic_write_bytes`
+— temporary file, fsync, rename — so an error at any point leaves no file, or
+the previous file intact.
 """
 
 from __future__ import annotations
@@ -72,10 +77,19 @@ def rrd_file(
             "unset it to write .rrd files"
         )
     sink = stream.binary_stream()
+    failure: BaseException | None = None
     try:
         with catch_and_log_exceptions(context="wheelcal .rrd writer", strict=True):
-            stream.send_recording_name(recording_name)
-            yield stream
+            try:
+                stream.send_recording_name(recording_name)
+                yield stream
+            except BaseException as exc:
+                failure = exc
+                raise
+        if failure is not None:
+            # Swallowed as a warning: a Rerun warning inside the block can leave
+            # strict mode off (see the module docstring).  It still aborts the file.
+            raise failure
         data = sink.read(flush=True)
     finally:
         stream.disconnect()
