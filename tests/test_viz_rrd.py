@@ -254,9 +254,14 @@ def test_session_blueprint(session, session_file):
     assert blueprint_component(path, "TimePanelBlueprint:timeline") == [["time"]]
     (selection,) = blueprint_component(path, "TimePanelBlueprint:time_selection")
     assert selection[0] == {"min": round(window.start_s * 1e9), "max": round(window.end_s * 1e9)}
-    # Per-axis views show one of the three series of an entity.
-    masks = blueprint_component(path, "SeriesLines:visible_series")
-    assert [True, False, False] in [m for m in masks]
+    # Per-axis views show one of the three series of their entities (a view default).
+    contents = blueprint_contents(path)
+    names = {e: v[0][0] for (e, c, _), v in contents.items() if c == "ViewBlueprint:display_name"}
+    for k, axis in enumerate("xyz"):
+        for title in (f"{axis}: raw and model (m/s²)", f"{axis}: residual, data − model (m/s²)"):
+            (view,) = [e for e, name in names.items() if name == title]
+            mask = contents[(f"{view}/defaults", "SeriesLines:visible_series", False)]
+            assert mask == [[j == k for j in range(3)]]
     reader = RrdReader(path)
     assert reader.recordings()[0].application_id == "wheelcal"
 
@@ -288,7 +293,16 @@ def test_blueprint_chunks_send_what_send_blueprint_sends(tmp_path):
         paths[-1].write_bytes(sink.read(flush=True))
         stream.disconnect()
     expected, got = (blueprint_contents(p) for p in paths)
-    assert len(expected) > 100  # views, contents, overrides, containers, panels
+    kinds = {component for _, component, _ in expected}
+    assert {
+        "ViewBlueprint:display_name",
+        "ViewContents:query",
+        "SeriesLines:visible_series",
+        "SeriesPoints:markers",
+        "ContainerBlueprint:contents",
+        "TimeAxis:link",
+        "TimePanelBlueprint:time_selection",
+    } <= kinds
     assert got == expected
     assert RrdReader(paths[1]).blueprints()[0].application_id == "wheelcal"
 

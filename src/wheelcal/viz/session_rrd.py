@@ -352,28 +352,22 @@ def _session_root(residual_sets: tuple[str, ...]) -> rrb.Horizontal:
     """
     linked = rrb.TimeAxis(link=rrb.components.LinkAxis.LinkToGlobal)
 
+    # A per-axis view shows one of the three series of every entity in it: a view
+    # default (one blueprint entity) rather than a per-entity override (two each).
     def signal_view(k: int) -> rrb.TimeSeriesView:
-        only = _only_axis(k)
         return rrb.TimeSeriesView(
             origin="/signal",
             name=f"{AXES[k]}: raw and model (m/s²)",
             axis_x=linked,
-            overrides={
-                "/signal/raw": rr.SeriesLines(visible_series=only).visualizer(),
-                "/signal/model": rr.SeriesLines(visible_series=only).visualizer(),
-            },
+            defaults=[rr.SeriesLines.from_fields(visible_series=_only_axis(k))],
         )
 
     def residual_view(k: int) -> rrb.TimeSeriesView:
-        only = _only_axis(k)
         return rrb.TimeSeriesView(
             origin="/residual",
             name=f"{AXES[k]}: residual, data − model (m/s²)",
             axis_x=linked,
-            overrides={
-                f"/residual/{s}": rr.SeriesLines(visible_series=only).visualizer()
-                for s in residual_sets
-            },
+            defaults=[rr.SeriesLines.from_fields(visible_series=_only_axis(k))],
         )
 
     def mean_view(k: int) -> rrb.BarChartView:
