@@ -14,6 +14,7 @@ import sys
 import numpy as np
 import pytest
 import rerun as rr
+from rerun import FileSink as rr_file_sink
 from rerun.chunk import RrdReader
 
 from wheelcal.estimate.joint import JointFit
@@ -403,6 +404,24 @@ def test_an_exception_after_a_rerun_warning_still_leaves_no_file(session, tmp_pa
                 rrd.stream.log("dup", style, style, static=True)  # a component twice
             raise RuntimeError("boom")
     assert not path.exists() and no_leftovers(tmp_path)
+
+
+def test_an_unfinished_file_is_an_error(session, tmp_path, monkeypatch):
+    """The file sink writes on Rerun's thread; a file without the stream footer is refused."""
+    recording, window, result = session
+    path = tmp_path / "cut.rrd"
+    path.write_bytes(b"previous")
+    # A sink that stops short of the footer, as a failed write on Rerun's thread would.
+    monkeypatch.setattr(rr, "FileSink", lambda p: rr_file_sink(p, write_footer=False))
+    with pytest.raises(RrdWriteError, match="no stream footer"):
+        write_session_rrd(path, result, recording, window)
+    assert path.read_bytes() == b"previous" and no_leftovers(tmp_path)
+
+
+def test_a_written_file_ends_with_the_stream_footer(session_file):
+    path, _ = session_file
+    assert path.read_bytes()[-12:-4] == b"RRF2FOOT"
+    assert no_leftovers(path.parent)
 
 
 def test_rerun_disabled_is_an_error(session, tmp_path, monkeypatch):
