@@ -50,7 +50,11 @@ Blueprint (:func:`session_blueprint`): left, three columns x / y / z — raw and
 model; the window lane across them; residual against time; mean residual per
 5° of ϑ (bar chart); right — the report, ω(t), the residual scatter against ϑ.
 The per-axis views show one series of the three-column entities through a
-per-view ``visible_series`` override.  Time plots share their x-axis zoom.
+view default (``SeriesLines.visible_series``; one blueprint entity per view,
+where a per-entity override took two).  Time plots share their x-axis zoom.
+The layout is converted to blueprint chunks once per process and residual-set
+list (:mod:`wheelcal.viz.blueprint_chunks`); each file adds only its time
+panel, with the free-spin window pre-selected.
 
 More residual sets (the closed loop's "before/after"): inside
 :func:`session_rrd`, call :meth:`SessionRrd.log_residuals`; the set lands in
@@ -63,10 +67,14 @@ the same per-axis views (the blueprint is written last and knows every set)::
 Speed: no data are decimated (except ω, which is a polynomial).  Rerun's
 cost grows with the number of *rows* (each carries a 16-byte row id and its
 time), so the three axes share a row (≈ 4× faster than one entity per axis):
-≈ 56 000 rows for a 90 s / 200 Hz session.  What remains is mostly fixed per
-file — the blueprint (≈ 85 small blueprint messages), the fsync of the atomic
-write, the encoding — ≈ 30 ms of CPU for 1 800 samples, ≈ 35 ms for 18 000,
-so decimating would not buy much (``benchmarks/bench_rrd.py``).
+≈ 56 000 rows for a 90 s / 200 Hz session, ≈ 2.4 MB.  The rest is per
+message: each chunk (one per entity and kind, static or temporal) costs
+≈ 40–100 µs in Rerun (Arrow IPC schema, compression, hand-over between its
+threads), and the blueprint is ≈ 50 of them.  So the layout is built once per
+process (see above), styles are built once, the bar charts of a set share
+their abscissa, and the file is written by Rerun's file sink on its own
+thread.  ``benchmarks/bench_rrd.py --ref <rev>`` measures a file against an
+earlier revision in the same process.
 """
 
 from __future__ import annotations
