@@ -387,6 +387,7 @@ def test_rerun_misuse_raises_instead_of_warning(session, tmp_path):
     assert not rr.strict_mode()  # only inside the writer
 
 
+@pytest.mark.filterwarnings("ignore:wheelcal .rrd writer:rerun.error_utils.RerunWarning")
 def test_an_exception_after_a_rerun_warning_still_leaves_no_file(session, tmp_path):
     """A Rerun warning inside ``stream.log`` must not switch the writer's strict mode off.
 
