@@ -10,6 +10,7 @@ import copy
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -417,6 +418,17 @@ def test_an_unfinished_file_is_an_error(session, tmp_path, monkeypatch):
     with pytest.raises(RrdWriteError, match="no stream footer"):
         write_session_rrd(path, result, recording, window)
     assert path.read_bytes() == b"previous" and no_leftovers(tmp_path)
+
+
+def test_rerun_verifies_the_session_file(session_file):
+    """Rerun's own loader (``rerun rrd verify``, as the viewer loads a file) accepts it."""
+    path, _ = session_file
+    cli = Path(sys.executable).parent / "rerun"
+    if not cli.exists():
+        pytest.skip("the rerun command of rerun-sdk is not installed next to this Python")
+    out = subprocess.run([cli, "rrd", "verify", path], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "1 file verified without error" in out.stdout + out.stderr  # "0 files" for junk
 
 
 def test_a_written_file_ends_with_the_stream_footer(session_file):
