@@ -276,6 +276,33 @@ class GyroReading(Effect):
         return out
 
 
+def cubic_bspline_slots(
+    t_s: np.ndarray, start_s: float, spacing_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each sample's knot interval j and its four live basis functions B_j … B_{j+3}.
+
+    Returns ``(interval, values, slopes, curves)``: the interval index (int, N) and
+    (4, N) arrays whose row m is B_{j+m}(t), B′_{j+m}(t), B″_{j+m}(t) (see
+    :func:`cubic_bspline_basis`, which scatters these rows into one row per function).
+    """
+    t = np.asarray(t_s, dtype=float)
+    position = (t - start_s) / spacing_s
+    interval = np.floor(position)
+    x = position - interval
+    x2, x3 = x * x, x * x * x
+    values = np.stack(
+        [
+            (1 - x) ** 3 / 6,
+            (3 * x3 - 6 * x2 + 4) / 6,
+            (-3 * x3 + 3 * x2 + 3 * x + 1) / 6,
+            x3 / 6,
+        ]
+    )
+    slopes = np.stack([-((1 - x) ** 2) / 2, 1.5 * x2 - 2 * x, -1.5 * x2 + x + 0.5, x2 / 2])
+    curves = np.stack([1 - x, 3 * x - 2, -3 * x + 1, x])
+    return interval.astype(np.int64), values, slopes / spacing_s, curves / spacing_s**2
+
+
 def cubic_bspline_basis(
     t_s: np.ndarray, start_s: float, spacing_s: float, count: int, first: int = 0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -291,30 +318,19 @@ def cubic_bspline_basis(
     functions of a window sum to 1 on it.
     """
     t = np.asarray(t_s, dtype=float)
-    position = (t - start_s) / spacing_s
-    interval = np.floor(position)
-    x = position - interval
-    x2, x3 = x * x, x * x * x
-    values = (
-        (1 - x) ** 3 / 6,
-        (3 * x3 - 6 * x2 + 4) / 6,
-        (-3 * x3 + 3 * x2 + 3 * x + 1) / 6,
-        x3 / 6,
-    )
-    slopes = (-((1 - x) ** 2) / 2, 1.5 * x2 - 2 * x, -1.5 * x2 + x + 0.5, x2 / 2)
-    curves = (1 - x, 3 * x - 2, -3 * x + 1, x)
+    interval, values, slopes, curves = cubic_bspline_slots(t, start_s, spacing_s)
     b = np.zeros((count, t.size))
     d1 = np.zeros((count, t.size))
     d2 = np.zeros((count, t.size))
     columns = np.arange(t.size)
     for m in range(4):
-        row = interval.astype(np.int64) + m - first
+        row = interval + m - first
         ok = (row >= 0) & (row < count)
         r, c = row[ok], columns[ok]
         b[r, c] = values[m][ok]
         d1[r, c] = slopes[m][ok]
         d2[r, c] = curves[m][ok]
-    return b, d1 / spacing_s, d2 / spacing_s**2
+    return b, d1, d2
 
 
 _BASIS_CACHE: dict = {}

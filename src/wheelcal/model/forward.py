@@ -120,19 +120,47 @@ def candidate_columns(
     if candidate.stage == "sensor":
         term = candidate.sensor_delta(np.zeros(candidate.size), t, out.sensed_mps2, gain, True)
         return term.d_own
-    terms = [
-        e.sensor_delta(params.effect(e.name, e.size), t, out.sensed_mps2, gain, True)
-        for e in layout.effects
-        if e.stage == "sensor"
-    ]
-    w3 = _sensor_w(gain, params.bench.misalignment.matrix, terms)
     if candidate.stage == "force":
+        w3 = _layout_w(params, t, layout, out)
         r = params.bench.radius_m
         d = candidate.force_delta(np.zeros(candidate.size), t, out.kinematics, r, True)
         return np.stack([_through_w(w3, column) for column in d.d_own])
     d = candidate.spin_delta(np.zeros(candidate.size), t, out.kinematics, True)
     rows = (d.d_own_theta, d.d_own_omega, d.d_own_omega_dot)
-    return _spin_rows_to_v(w3, out.force, rows, out.kinematics.omega_radps, params.bench.radius_m)
+    return spin_columns(params, t, layout, rows, out)
+
+
+def spin_columns(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    layout: ParameterLayout,
+    rows: tuple[np.ndarray, np.ndarray, np.ndarray],
+    output: ModelOutput,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """∂v/∂q (k, 3, N) of quantities q not in ``layout`` that act on the wheel angle alone.
+
+    ``rows`` = (∂ϑ/∂q, ∂ω/∂q, ∂ω̇/∂q), each (k, N), at the samples of ``output``
+    (an :func:`evaluate` result of ``layout`` at ``params`` and ``t_s``), as a
+    spin candidate at zero contributes them (see :func:`candidate_columns`);
+    written into ``out`` (k, 3, N) when given.
+    """
+    w3 = _layout_w(params, np.asarray(t_s, dtype=float), layout, output)
+    omega = output.kinematics.omega_radps
+    return _spin_rows_to_v(w3, output.force, rows, omega, params.bench.radius_m, out=out)
+
+
+def _layout_w(
+    params: CalibrationParams, t: np.ndarray, layout: ParameterLayout, out: ModelOutput
+) -> np.ndarray:
+    """W = ∂v/∂s · R of ``layout``'s sensor (its sensor effects at their values)."""
+    gain = params.sensor.gain
+    terms = [
+        e.sensor_delta(params.effect(e.name, e.size), t, out.sensed_mps2, gain, True)
+        for e in layout.effects
+        if e.stage == "sensor"
+    ]
+    return _sensor_w(gain, params.bench.misalignment.matrix, terms)
 
 
 def blocks_needing_zeros(layout: ParameterLayout) -> np.ndarray:
