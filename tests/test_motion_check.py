@@ -129,9 +129,10 @@ def test_check_motion_equals_the_dense_computation(monkeypatch, name, recording)
     dense, _ = sf._motion(result, choice.recording, rests)
     assert fast.dof == dense.dof, name
     assert fast.statistic == pytest.approx(dense.statistic, rel=2e-5, abs=1e-4), name
-    for field in ("shift_sigma", "shift_z"):
+    # shift_z divides by √(σ²_flexible − σ²_cubic), a difference of near-equal numbers.
+    for field, rel in (("shift_sigma", 1e-4), ("shift_z", 1e-3)):
         a, b = getattr(fast, field), getattr(dense, field)
         for key in b:
-            assert a[key] == pytest.approx(b[key], rel=1e-4, abs=1e-5), (name, field, key)
+            assert a[key] == pytest.approx(b[key], rel=rel, abs=1e-5), (name, field, key)
     if name == "wandering":  # the check has something to find here
         assert dense.inadequate(sf.Gates().motion_z, sf.Gates().motion_shift_sigma)
