@@ -1,8 +1,9 @@
-"""Stage 2 of the joint fit: two passes with the Jacobian over all samples, not four.
+"""Stage 2 of the joint fit: one pass with J̃ᵀJ̃ over all samples, not four.
 
 The decimated stage 1 already tells the discrete twins apart, so stage 2 starts
-from the canonical one (no extra Jacobian pass for the other twin), and its
-last Gauss–Newton step, when below 0.3 σ, is confirmed by the cost alone.
+from the canonical one (no extra Jacobian pass for the other twin); the step
+from the start is judged by the gradient alone (the start's Hessian serves),
+and the last Gauss–Newton step, when below 0.3 σ, is confirmed by the cost alone.
 Judged against the fully iterated fit (LM from the result, same noise model,
 to 1e-12 in σ² units): values within 0.05 σ and reported σ within 1 %, on the
 paper's presets and on random setups.
@@ -15,6 +16,7 @@ from wheelcal.estimate import joint as joint_module
 from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.joint import JointFit, _residual_fn, residual_of
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
+from wheelcal.estimate.normal_equations import accumulate, gradient_pass
 from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.simulate import NoiseSpec, simulate, table1, table2
 from wheelcal.simulate.presets import random_setup
@@ -56,28 +58,36 @@ def test_stage2_matches_the_fully_iterated_fit(name, recording):
     assert np.allclose(result.std / std, 1.0, rtol=0.01), (name, result.std / std)
 
 
-def _counting_full_passes(monkeypatch, samples: int) -> list[bool]:
-    """Record each pass over all ``samples`` of the joint fit (True: with the Jacobian)."""
-    passes: list[bool] = []
-    original = joint_module.accumulate
+def _counting_full_passes(monkeypatch, samples: int) -> list[str]:
+    """Record each pass over all ``samples`` of the joint fit: "jacobian" (H and g),
+    "gradient" (g without H) or "cost"."""
+    passes: list[str] = []
+    original, original_gradient = joint_module.accumulate, joint_module.gradient_pass
 
     def counting(params, t_s, *args, jacobian=True, **kwargs):
         if t_s.size == samples:
-            passes.append(jacobian)
+            passes.append("jacobian" if jacobian else "cost")
         return original(params, t_s, *args, jacobian=jacobian, **kwargs)
 
+    def counting_gradient(params, t_s, *args, **kwargs):
+        if t_s.size == samples:
+            passes.append("gradient")
+        return original_gradient(params, t_s, *args, **kwargs)
+
     monkeypatch.setattr(joint_module, "accumulate", counting)
+    monkeypatch.setattr(joint_module, "gradient_pass", counting_gradient)
     return passes
 
 
-def test_table1_needs_two_jacobian_passes_over_all_samples(monkeypatch):
+def test_table1_needs_one_jacobian_pass_over_all_samples(monkeypatch):
     recording = simulate(table1(), np.random.default_rng(0)).recording
     passes = _counting_full_passes(monkeypatch, recording.samples)
     result = JointFit().fit(recording)
     assert result.converged
-    # Start and one Gauss–Newton step; its successor is confirmed by the cost alone
-    # (before: four — a third step and the other twin's normal equations).
-    assert passes == [True, True]
+    # The start's H and g, one Gauss–Newton step judged by the gradient there (J̃ᵀr̃
+    # without J̃ᵀJ̃), its successor confirmed by the cost alone (before: two Jacobian
+    # passes; before that four — a third step and the other twin's normal equations).
+    assert passes == ["jacobian", "gradient"]
 
 
 def test_a_final_step_the_cost_does_not_confirm_is_iterated(monkeypatch):
@@ -92,8 +102,8 @@ def test_a_final_step_the_cost_does_not_confirm_is_iterated(monkeypatch):
     monkeypatch.setattr(joint_module, "whitened_cost", lying)
     result = JointFit().fit(recording)
     assert result.converged
-    # The unconfirmed step is not taken: the usual LM step (with its Jacobian) instead.
-    assert passes == [True, True, True]
+    # The unconfirmed step is not taken: a Hessian of its own, then the usual LM step.
+    assert passes == ["jacobian", "gradient", "jacobian", "gradient"]
     diff = (result.values - reference.values) / reference.std
     assert np.max(np.abs(diff)) < 0.05
 
@@ -119,3 +129,23 @@ def test_stage1_takes_its_last_step_confirmed_by_the_cost(monkeypatch):
     JointFit().fit(recording)
     # Two Jacobian passes on the decimated copy (before: three), the last step's cost.
     assert decimated.count(True) == 2 and decimated[-1] is False
+
+
+@pytest.mark.parametrize("coloured", [False, True])
+def test_the_gradient_pass_equals_the_accumulated_gradient(coloured):
+    # The whitening applied to the residual (Wᵀ W r) instead of to J: the same g.
+    scenario = table1(NoiseSpec(0.08, bandwidth_hz=20.0)) if coloured else table1()
+    recording = simulate(scenario, np.random.default_rng(5 if coloured else 0)).recording
+    result = JointFit().fit(recording)
+    assert result.noise.order >= 2 if coloured else result.noise.order == 0
+    layout, tc = result.layout, result.centred_time_s
+    away = layout.pack(result.params) + 1e-3  # many σ away in every parameter
+    params = layout.unpack(away, result.params)
+    for chunk in (None, 4000):  # one chunk, and chunks carrying FIR history
+        full = accumulate(params, tc, recording.accel_mps2, layout, result.noise, chunk=chunk)
+        fast = gradient_pass(params, tc, recording.accel_mps2, layout, result.noise, chunk=chunk)
+        scale = np.sqrt(np.diag(full.hessian))
+        assert np.max(np.abs(full.gradient / scale)) > 1.0  # a point away from the optimum
+        np.testing.assert_allclose(fast.gradient / scale, full.gradient / scale, atol=1e-9)
+        assert fast.cost == pytest.approx(full.cost, rel=1e-12)
+        assert fast.entries == full.entries

@@ -46,6 +46,7 @@ from wheelcal.estimate.normal_equations import (
     CHUNK_SAMPLES,
     NormalEquations,
     accumulate,
+    gradient_pass,
     whitened_cost,
 )
 from wheelcal.estimate.reporting import report_transform, transform_covariance
@@ -295,6 +296,10 @@ class JointFit:
             jacobian_on_trial=True,  # ... which are accepted: one pass per step
             # The last step (< 0.3 σ) needs no Jacobian: the cost confirms it.
             final_step_tol=None if gyro is not None else _FINAL_STEP_TOL,
+            # The step from the start lands within a small fraction of σ: there the
+            # gradient (the whitening applied to the residual, not to J) and the
+            # start's Hessian decide the last step, and serve as the Fisher information.
+            gradient_fn=_gradient_fn(tc, v, layout, noise) if gyro is None else None,
         )
         iterations = out.iterations
         converged = out.converged
@@ -460,6 +465,15 @@ def _residual_fn(
         return combined(acc, rate)
 
     return normal
+
+
+def _gradient_fn(tc: np.ndarray, v: np.ndarray, layout: ParameterLayout, noise: NoiseModel):
+    """Cost and gradient of (model − data), no Hessian (see ``levenberg_marquardt``)."""
+
+    def gradient(params: CalibrationParams) -> NormalEquations:
+        return gradient_pass(params, tc, v, layout, noise)
+
+    return gradient
 
 
 def _rolling_of(effects: tuple):

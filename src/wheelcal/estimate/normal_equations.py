@@ -159,6 +159,53 @@ def accumulate(
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
 
 
+def gradient_pass(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    layout: ParameterLayout,
+    noise: NoiseModel,
+    chunk: int | None = None,
+) -> NormalEquations:
+    """Cost and g = J̃ᵀr̃ without H: the whitening applied to the residual, not to J.
+
+    With r̃ = W r and J̃ = W J (W = L⁻¹ F: the per-axis FIR F, then L⁻¹),
+    g = Jᵀ u with u = Wᵀ r̃ = Fᵀ L⁻ᵀ r̃: three rows are filtered (forwards, then
+    backwards) instead of every column of J, and one matrix–vector product
+    replaces the Gram product.  Exact: the same sums as :func:`accumulate`, to
+    round-off.  Each chunk's outputs reach back over its p samples of history,
+    whose J is evaluated with the chunk; so the chunks' sums add up to the whole.
+    """
+    n = t_s.size
+    chunk, sparse = chunking(layout, t_s, chunk)
+    if sparse:
+        raise ValueError("gradient_pass does not take a layout with a local basis")
+    p = noise.order
+    chol_t = np.linalg.cholesky(noise.innovation_cov).T  # the noise model's L, transposed
+    cost = 0.0
+    entries = 0
+    grad = np.zeros(layout.size)
+    for start in range(0, n, chunk):
+        stop = min(n, start + chunk)
+        lo = max(0, start - p)
+        out = evaluate(params, t_s[lo:stop], layout, jacobian=True)
+        rw, _ = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop])
+        cost += float(np.sum(rw * rw))
+        entries += rw.size
+        # Fᵀ L⁻ᵀ r̃: output m of the FIR sums input m + p − k with weight a_k (zero history),
+        # so input j receives Σ_k a_k y[j − p + k]; y is padded with p zeros each side.
+        m = stop - lo
+        padded = np.zeros((3, m + p))
+        padded[:, p:m] = np.linalg.solve(chol_t, rw)
+        u = np.empty((3, m))
+        for i, a in enumerate(noise.ar_polynomials):
+            np.multiply(padded[i, :m], a[0], out=u[i])
+            for k in range(1, a.size):
+                u[i] += a[k] * padded[i, k : k + m]
+        grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
+    return NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
+
+
 def whitened_cost(residual: np.ndarray, noise: NoiseModel, chunk: int = CHUNK_SAMPLES) -> float:
     """‖r̃‖² of a residual (N, 3) already evaluated, whitened in chunks as :func:`accumulate`.
 
