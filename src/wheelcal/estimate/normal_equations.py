@@ -25,6 +25,7 @@ import numpy as np
 
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
+from wheelcal.model.forward import jacobian_transpose_times
 
 #: Samples per chunk: ~12 MB of Jacobian for 18 columns; one chunk for a typical
 #: 90 s / 200 Hz recording, bounded memory for long or fast ones.
@@ -171,24 +172,28 @@ def gradient_pass(
 
     With r̃ = W r and J̃ = W J (W = L⁻¹ F: the per-axis FIR F, then L⁻¹),
     g = Jᵀ u with u = Wᵀ r̃ = Fᵀ L⁻ᵀ r̃: three rows are filtered (forwards, then
-    backwards) instead of every column of J, and one matrix–vector product
-    replaces the Gram product.  Exact: the same sums as :func:`accumulate`, to
-    round-off.  Each chunk's outputs reach back over its p samples of history,
-    whose J is evaluated with the chunk; so the chunks' sums add up to the whole.
+    backwards) instead of every column of J, and Jᵀ u is taken in reverse mode
+    through the model (:func:`~wheelcal.model.forward.jacobian_transpose_times`,
+    no J at all; a layout with effects forms J and one matrix–vector product).
+    Exact: the sums of :func:`accumulate`, to round-off.  Each chunk's outputs
+    reach back over its p samples of history, whose model is evaluated with the
+    chunk; so the chunks' sums add up to the whole.
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
     if sparse:
         raise ValueError("gradient_pass does not take a layout with a local basis")
     p = noise.order
-    chol_t = np.linalg.cholesky(noise.innovation_cov).T  # the noise model's L, transposed
+    # L⁻ᵀ of the noise model's Σ_e = L Lᵀ (3 × 3: its inverse once, then products).
+    inv_chol_t = np.linalg.inv(np.linalg.cholesky(noise.innovation_cov)).T
+    reverse = not layout.effects
     cost = 0.0
     entries = 0
     grad = np.zeros(layout.size)
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         lo = max(0, start - p)
-        out = evaluate(params, t_s[lo:stop], layout, jacobian=True)
+        out = evaluate(params, t_s[lo:stop], layout, jacobian=not reverse)
         rw, _ = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop])
         cost += float(np.sum(rw * rw))
         entries += rw.size
@@ -196,13 +201,16 @@ def gradient_pass(
         # so input j receives Σ_k a_k y[j − p + k]; y is padded with p zeros each side.
         m = stop - lo
         padded = np.zeros((3, m + p))
-        padded[:, p:m] = np.linalg.solve(chol_t, rw)
+        np.matmul(inv_chol_t, rw, out=padded[:, p:m])
         u = np.empty((3, m))
         for i, a in enumerate(noise.ar_polynomials):
             np.multiply(padded[i, :m], a[0], out=u[i])
             for k in range(1, a.size):
                 u[i] += a[k] * padded[i, k : k + m]
-        grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
+        if reverse:
+            grad += jacobian_transpose_times(params, t_s[lo:stop], layout, u, out)
+        else:
+            grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
     return NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
 
 

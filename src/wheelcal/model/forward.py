@@ -336,6 +336,56 @@ def evaluate(
     return ModelOutput(predicted, jac, kin, force, sensed, by_radius)
 
 
+def jacobian_transpose_times(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    layout: ParameterLayout,
+    weights: np.ndarray,
+    output: ModelOutput,
+) -> np.ndarray:
+    """Σ_n ∂v(t_n)/∂x · w_n, shape (P,), for weights w (3, N) — without forming ∂v/∂x.
+
+    Reverse mode through eq. (6) for a layout without effects: with W = Γ R and
+    u_n = Wᵀ w_n (the weights seen in the bench frame), every parameter acting
+    through a(t) contributes Σ_n ∂a_n/∂x · u_n; the spin coefficients through
+    ϑ, ω, ω̇ (see the module doc), the rotation Σ_n a_n × u_n, gain i
+    Σ_n s_{n,i} w_{n,i} and offset i Σ_n w_{n,i}.  ``output`` is an
+    :func:`evaluate` result at ``params`` and ``t_s`` (no Jacobian needed).
+    """
+    if layout.effects:
+        raise ValueError("jacobian_transpose_times covers the paper's model (no effects)")
+    t = np.asarray(t_s, dtype=float)
+    kin = spin_kinematics(params.spin, t, derivatives=True)
+    force = output.force
+    w_mat = params.sensor.gain[:, None] * params.bench.misalignment.matrix
+    u = w_mat.T @ weights  # (3, N)
+    r = params.bench.radius_m
+    blocks = layout.blocks
+    out = np.empty(layout.size)
+    by_theta = force.g_sin_tilt * (force.cos_theta * u[1] - force.sin_theta * u[0])
+    out[blocks["spin"]] = (
+        kin.d_theta @ by_theta
+        + kin.d_omega @ ((2 * r) * kin.omega_radps * u[0])
+        + kin.d_omega_dot @ (r * u[1])
+    )
+    if layout.fit_tilt:
+        out[blocks["tilt"].start] = force.g_cos_tilt * (
+            force.cos_theta @ u[0] + force.sin_theta @ u[1]
+        ) - force.g_sin_tilt * np.sum(u[2])
+    if layout.fit_radius:
+        out[blocks["radius"].start] = kin.omega_radps**2 @ u[0] + kin.omega_dot_radps2 @ u[1]
+    a = force.accel_mps2
+    rot0 = blocks["rotation"].start
+    out[rot0] = a[:, 1] @ u[2] - a[:, 2] @ u[1]
+    out[rot0 + 1] = a[:, 2] @ u[0] - a[:, 0] @ u[2]
+    out[rot0 + 2] = a[:, 0] @ u[1] - a[:, 1] @ u[0]
+    sensed = output.sensed_mps2
+    for i in range(3):
+        out[blocks["gain"].start + i] = sensed[:, i] @ weights[i]
+        out[blocks["offset"].start + i] = np.sum(weights[i])
+    return out
+
+
 def predict(
     params: CalibrationParams,
     t_s: np.ndarray,
