@@ -8,14 +8,18 @@ Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound
 1. start from the closed-form guess of :mod:`wheelcal.estimate.initial` (the
    data and the radius only — never the truth);
 2. least squares with per-axis weights from a first-difference noise estimate
-   (on a decimated copy: it only needs to get within a few σ);
+   (on a decimated copy of ~3 000 samples: it only needs to get within a few σ;
+   on a long, fast recording a ladder of decimations, ×30 each, follows while
+   all samples are > 100 × the last stage's, so that stage 2 starts ≲ 10 σ away
+   and its noise model is not fitted to a start's misfit);
 3. estimate the noise model (AR colour per axis, cross-axis correlation) from
    full residual and refit the whitened (generalised least squares) problem on
    every sample, from the canonical twin (the smaller offset: the decimated fit
-   already tells the twins apart).  From 5–10 σ away this takes two passes with
-   the Jacobian; the last Gauss–Newton step (< 0.3 σ) is confirmed by the cost
-   alone (:mod:`wheelcal.estimate.levenberg_marquardt`), whose residual is the
-   result's;
+   already tells the twins apart).  From 5–10 σ away this takes one pass with
+   the Jacobian (H and g at the start), a Gauss–Newton step judged by the
+   gradient alone (the start's H serving), and a last step (< 0.3 σ) confirmed
+   by the cost alone (:mod:`wheelcal.estimate.levenberg_marquardt`), whose
+   residual is the result's;
 4. choose the discrete twin with the smaller offset, and compute the covariance
    from the Fisher information, the systematic budget and the identifiability
    verdict there.  (Stage 2 moves the estimate by a small fraction of σ, so the
@@ -73,6 +77,11 @@ _STAGE1_SAMPLES = 3000
 _FINAL_STEP_TOL = 0.1
 #: The same for stage 1 (it only needs to get close: stage 2 iterates from there).
 _STAGE1_FINAL_STEP_TOL = 10.0
+#: A stage on ``_LADDER_FACTOR`` × more samples is put in between while the next has more
+#: than ``_LADDER_TRIGGER`` × the samples: a decimated stage ends ~√(N/M) σ of the whole
+#: from its optimum, and stage 2's first step lands within 0.3 σ from ~10 σ, not from 25.
+_LADDER_FACTOR = 30
+_LADDER_TRIGGER = 100
 
 
 @dataclass(frozen=True)
@@ -270,6 +279,27 @@ class JointFit:
             # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
             final_step_tol=None if gyro is not None else _STAGE1_FINAL_STEP_TOL,
         )
+        if gyro is None:  # a ladder of decimations toward all samples (a long, fast recording)
+            target = _STAGE1_SAMPLES
+            while t.size > _LADDER_TRIGGER * target:
+                target *= _LADDER_FACTOR
+                finer = thinning_stride(t.size, target, recording.rate_hz, omega_max)
+                if finer >= stride:
+                    continue
+                stride = finer
+                out = levenberg_marquardt(
+                    _residual_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
+                    out.params,
+                    layout,
+                    self.max_iterations,
+                    tol=1e-2,
+                    initial_damping=1e-9,  # warm start: Gauss–Newton steps
+                    jacobian_on_trial=True,
+                    final_step_tol=_STAGE1_FINAL_STEP_TOL,
+                    gradient_fn=_gradient_fn(
+                        tc[::stride], v[::stride], layout, NoiseModel.white(std0)
+                    ),
+                )
         # Stage 2: noise model from the full residual, whitened refit on all samples.
         # The accumulations carry the sensitivities to the fixed quantities as
         # extra columns, so the last one also gives the systematic budget.
