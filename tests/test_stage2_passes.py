@@ -119,18 +119,25 @@ def test_the_result_residual_is_the_confirming_pass_residual():
 
 def test_stage1_takes_its_last_step_confirmed_by_the_cost(monkeypatch):
     recording = simulate(table1(), np.random.default_rng(0)).recording
-    decimated: list[bool] = []
-    original = joint_module.accumulate
+    decimated: list[str] = []
+    original, original_gradient = joint_module.accumulate, joint_module.gradient_pass
 
     def counting(params, t_s, *args, jacobian=True, **kwargs):
         if t_s.size < recording.samples:
-            decimated.append(jacobian)
+            decimated.append("jacobian" if jacobian else "cost")
         return original(params, t_s, *args, jacobian=jacobian, **kwargs)
 
+    def counting_gradient(params, t_s, *args, **kwargs):
+        if t_s.size < recording.samples:
+            decimated.append("gradient")
+        return original_gradient(params, t_s, *args, **kwargs)
+
     monkeypatch.setattr(joint_module, "accumulate", counting)
+    monkeypatch.setattr(joint_module, "gradient_pass", counting_gradient)
     JointFit().fit(recording)
-    # Two Jacobian passes on the decimated copy (before: three), the last step's cost.
-    assert decimated.count(True) == 2 and decimated[-1] is False
+    # One Jacobian pass on the decimated copy (before: two, and three before that), the
+    # step's end judged by its gradient, the last step's by the cost.
+    assert decimated == ["jacobian", "gradient", "cost"]
 
 
 @pytest.mark.parametrize("coloured", [False, True])

@@ -278,6 +278,9 @@ class JointFit:
             initial_damping=1e-7 if gyro is not None else 1e-3,
             # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
             final_step_tol=None if gyro is not None else _STAGE1_FINAL_STEP_TOL,
+            gradient_fn=None
+            if gyro is not None
+            else _gradient_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
         )
         if gyro is None:  # a ladder of decimations toward all samples (a long, fast recording)
             target = _STAGE1_SAMPLES
