@@ -271,7 +271,12 @@ def evaluate(
     rot = params.bench.misalignment.matrix
     gain = params.sensor.gain
     sensed = force.accel_mps2 @ rot.T  # Eq. (4): s = R a
-    predicted = params.sensor.offset_mps2 + gain * sensed  # Eq. (5)
+    # Eq. (5): v = o + Γ s, a column at a time (broadcasting (3,) over (N, 3) rows of
+    # three is ~3× slower; the same products and sums).
+    predicted = np.empty_like(sensed)
+    for i in range(3):
+        np.multiply(sensed[:, i], gain[i], out=predicted[:, i])
+        predicted[:, i] += params.sensor.offset_mps2[i]
     sensor_terms = []
     for effect in effects:
         if effect.stage == "sensor":
