@@ -18,8 +18,13 @@ from wheelcal.estimate import joint as joint_module
 from wheelcal.estimate.information import covariance_from_fisher
 from wheelcal.estimate.joint import JointFit, _residual_fn, residual_of
 from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
-from wheelcal.estimate.normal_equations import accumulate, gradient_pass
+from wheelcal.estimate.normal_equations import (
+    accumulate,
+    accumulate_fitting_noise,
+    gradient_pass,
+)
 from wheelcal.estimate.reporting import report_transform, transform_covariance
+from wheelcal.estimate.systematic import nuisance_columns, nuisance_extra
 from wheelcal.simulate import NoiseSpec, simulate, table1, table2
 from wheelcal.simulate.presets import random_setup
 
@@ -65,6 +70,7 @@ def _counting_full_passes(monkeypatch, samples: int) -> list[str]:
     "gradient" (g without H) or "cost"."""
     passes: list[str] = []
     original, original_gradient = joint_module.accumulate, joint_module.gradient_pass
+    original_fitting_noise = joint_module.accumulate_fitting_noise
 
     def counting(params, t_s, *args, jacobian=True, **kwargs):
         if t_s.size == samples:
@@ -76,8 +82,14 @@ def _counting_full_passes(monkeypatch, samples: int) -> list[str]:
             passes.append("gradient")
         return original_gradient(params, t_s, *args, **kwargs)
 
+    def counting_fitting_noise(params, t_s, *args, **kwargs):
+        if t_s.size == samples:
+            passes.append("jacobian")  # with the noise model fitted to its residual
+        return original_fitting_noise(params, t_s, *args, **kwargs)
+
     monkeypatch.setattr(joint_module, "accumulate", counting)
     monkeypatch.setattr(joint_module, "gradient_pass", counting_gradient)
+    monkeypatch.setattr(joint_module, "accumulate_fitting_noise", counting_fitting_noise)
     return passes
 
 
@@ -178,3 +190,23 @@ def test_a_ladder_of_decimations_keeps_stage2_at_one_jacobian_pass(monkeypatch):
     monkeypatch.setattr(joint_module, "_LADDER_TRIGGER", 10**9)  # no ladder
     JointFit().fit(recording)
     assert passes.count("jacobian") == 2
+
+
+def test_the_start_pass_fitting_the_noise_equals_two_passes():
+    # One evaluation for the noise model of the start's residual and the normal
+    # equations whitened by it: the same as the residual, then accumulate.
+    recording = simulate(table1(NoiseSpec(0.08, bandwidth_hz=20.0)), np.random.default_rng(8))
+    recording = recording.recording
+    result = JointFit().fit(recording)
+    layout, tc, v = result.layout, result.centred_time_s, recording.accel_mps2
+    params = layout.unpack(layout.pack(result.params) + 1e-3, result.params)
+    extra = nuisance_extra(nuisance_columns(layout))
+    fitter = JointFit()
+    normal, noise = accumulate_fitting_noise(params, tc, v, layout, fitter._noise_model, extra)
+    expected_noise = fitter._noise_model(residual_of(params, tc, v, layout))
+    assert noise.order == expected_noise.order > 0
+    np.testing.assert_array_equal(noise.innovation_cov, expected_noise.innovation_cov)
+    expected = accumulate(params, tc, v, layout, expected_noise, extra=extra)
+    np.testing.assert_array_equal(normal.hessian, expected.hessian)
+    np.testing.assert_array_equal(normal.gradient, expected.gradient)
+    assert normal.cost == expected.cost and normal.entries == expected.entries

@@ -50,6 +50,7 @@ from wheelcal.estimate.normal_equations import (
     CHUNK_SAMPLES,
     NormalEquations,
     accumulate,
+    accumulate_fitting_noise,
     gradient_pass,
     whitened_cost,
 )
@@ -312,7 +313,13 @@ class JointFit:
             # decimated fit already tells them apart, and the end point is then
             # canonical too (no second Jacobian pass for the other twin in stage 3).
             start = choose_twin(start).chosen
-        noise = self._noise_model(residual_of(start, tc, v, layout))
+        normal0 = None
+        if gyro is None and tc.size <= CHUNK_SAMPLES:  # one evaluation for both
+            normal0, noise = accumulate_fitting_noise(
+                start, tc, v, layout, self._noise_model, nuisance_extra(nuisance_columns(layout))
+            )
+        else:
+            noise = self._noise_model(residual_of(start, tc, v, layout))
         gyro2 = gyro_noise = None
         if gyro is not None:
             gyro_noise = self._noise_model(gyro - gyro_prediction(start, gyro_t, layout))
@@ -333,6 +340,7 @@ class JointFit:
             # gradient (the whitening applied to the residual, not to J) and the
             # start's Hessian decide the last step, and serve as the Fisher information.
             gradient_fn=_gradient_fn(tc, v, layout, noise) if gyro is None else None,
+            normal0=normal0,
         )
         iterations = out.iterations
         converged = out.converged

@@ -125,26 +125,12 @@ def accumulate(
             cost += float(np.sum(rw * rw))
             entries += rw.size
             continue
-        # One buffer for the free parameters' columns, the extra ones and the residual:
-        # one whitening, and one Gram product gives H, g and the cost together (a
-        # second pass over J̃ for g costs more than the Gram's extra row).
         view = local_view(params, layout, t_s[lo], t_s[stop - 1]) if sparse else None
         here, at = (view.layout, view.params) if view else (layout, params)
-        buf = np.empty((here.size + (extra_size or 0) + 1, 3, stop - lo))
-        out = evaluate(at, t_s[lo:stop], here, jacobian=True, out=buf[: here.size])
-        residual = out.predicted_mps2 - accel_mps2[lo:stop]
-        if extra is not None:
-            cols = extra(at, out, t_s[lo:stop])
-            if extra_size is None:  # first chunk: now we know how many
-                extra_size = cols.shape[0]
-                buf = np.concatenate([buf[: here.size], cols, buf[-1:]])
-            else:
-                buf[here.size : -1] = cols
-        buf[-1] = residual.T
-        # Not in place: for white noise one batched 3×3 product beats six scaled adds.
-        _, jw = noise.whiten(residual, buf)
-        jt = jw.reshape(jw.shape[0], -1)
-        gram = jt @ jt.T
+        buf, residual, extra_size = _filled_buffer(
+            at, t_s[lo:stop], accel_mps2[lo:stop], here, extra, extra_size
+        )
+        gram, rows = _whitened_gram(buf, residual, noise)
         if hess is None:
             total = layout.size + (extra_size or 0)
             hess, grad = np.zeros((total, total)), np.zeros(total)
@@ -156,8 +142,76 @@ def accumulate(
             hess[np.ix_(index, index)] += gram[:-1, :-1]
             grad[index] += gram[:-1, -1]
         cost += float(gram[-1, -1])
-        entries += jw.shape[1] * jw.shape[2]
+        entries += rows
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
+
+
+def _filled_buffer(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    layout: ParameterLayout,
+    extra: ExtraColumns | None,
+    extra_size: int | None,
+) -> tuple[np.ndarray, np.ndarray, int | None]:
+    """[J | extra columns | residual] (P + k + 1, 3, n), the residual (model − data), k.
+
+    One buffer for the free parameters' columns, the extra ones and the residual:
+    one whitening, and one Gram product gives H, g and the cost together (a second
+    pass over J̃ for g costs more than the Gram's extra row).  ``extra_size`` None:
+    learnt from the callback's first columns (then one copy).
+    """
+    buf = np.empty((layout.size + (extra_size or 0) + 1, 3, t_s.size))
+    out = evaluate(params, t_s, layout, jacobian=True, out=buf[: layout.size])
+    residual = out.predicted_mps2 - accel_mps2
+    if extra is not None:
+        cols = extra(params, out, t_s)
+        if extra_size is None:
+            extra_size = cols.shape[0]
+            buf = np.concatenate([buf[: layout.size], cols, buf[-1:]])
+        else:
+            buf[layout.size : -1] = cols
+    buf[-1] = residual.T
+    return buf, residual, extra_size
+
+
+def _whitened_gram(
+    buf: np.ndarray, residual: np.ndarray, noise: NoiseModel
+) -> tuple[np.ndarray, int]:
+    """The Gram matrix of the whitened buffer, and the whitened residual entries."""
+    # Not in place: for white noise one batched 3×3 product beats six scaled adds.
+    _, jw = noise.whiten(residual, buf)
+    jt = jw.reshape(jw.shape[0], -1)
+    return jt @ jt.T, jw.shape[1] * jw.shape[2]
+
+
+def accumulate_fitting_noise(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    layout: ParameterLayout,
+    noise_of: Callable[[np.ndarray], NoiseModel],
+    extra: ExtraColumns | None = None,
+) -> tuple[NormalEquations, NoiseModel]:
+    """The noise model of the residual at ``params``, and :func:`accumulate` whitened by it.
+
+    ``noise_of`` takes the residual (data − model, (N, 3)).  The joint fit's
+    stage 2 needs both at its start: for a window of one chunk they come from
+    one evaluation of the model (its Jacobian kept until the noise is known).
+    """
+    if t_s.size > CHUNK_SAMPLES or chunking(layout, t_s, None)[1]:
+        raise ValueError("accumulate_fitting_noise takes one chunk of a dense layout")
+    extra_size = getattr(extra, "size", None) if extra is not None else None
+    buf, residual, extra_size = _filled_buffer(params, t_s, accel_mps2, layout, extra, extra_size)
+    noise = noise_of(np.negative(residual))
+    gram, rows = _whitened_gram(buf, residual, noise)
+    normal = NormalEquations(
+        cost=float(gram[-1, -1]),
+        hessian=gram[:-1, :-1].copy(),
+        gradient=gram[:-1, -1].copy(),
+        entries=rows,
+    )
+    return normal, noise
 
 
 def gradient_pass(
