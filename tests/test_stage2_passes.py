@@ -25,6 +25,7 @@ from wheelcal.estimate.normal_equations import (
 )
 from wheelcal.estimate.reporting import report_transform, transform_covariance
 from wheelcal.estimate.systematic import nuisance_columns, nuisance_extra
+from wheelcal.model.effects import QuadraticNonlinearity
 from wheelcal.simulate import NoiseSpec, simulate, table1, table2
 from wheelcal.simulate.presets import random_setup
 
@@ -152,14 +153,17 @@ def test_stage1_takes_its_last_step_confirmed_by_the_cost(monkeypatch):
     assert decimated == ["jacobian", "gradient", "cost"]
 
 
-@pytest.mark.parametrize("coloured", [False, True])
-def test_the_gradient_pass_equals_the_accumulated_gradient(coloured):
-    # The whitening applied to the residual (Wᵀ W r) instead of to J: the same g.
+@pytest.mark.parametrize(("coloured", "effect"), [(False, False), (True, False), (True, True)])
+def test_the_gradient_pass_equals_the_accumulated_gradient(coloured, effect):
+    # The whitening applied to the residual (Wᵀ W r) instead of to J, and Jᵀu in reverse
+    # mode (the paper's model) or from J (a layout with an effect): the same g.
     scenario = table1(NoiseSpec(0.08, bandwidth_hz=20.0)) if coloured else table1()
     recording = simulate(scenario, np.random.default_rng(5 if coloured else 0)).recording
-    result = JointFit().fit(recording)
+    fitter = JointFit(effects=(QuadraticNonlinearity(0),) if effect else ())
+    result = fitter.fit(recording)
     assert result.noise.order >= 2 if coloured else result.noise.order == 0
     layout, tc = result.layout, result.centred_time_s
+    assert bool(layout.effects) == effect
     away = layout.pack(result.params) + 1e-3  # many σ away in every parameter
     params = layout.unpack(away, result.params)
     for chunk in (None, 4000):  # one chunk, and chunks carrying FIR history
