@@ -339,7 +339,7 @@ class JointFit:
             # The step from the start lands within a small fraction of σ: there the
             # gradient (the whitening applied to the residual, not to J) and the
             # start's Hessian decide the last step, and serve as the Fisher information.
-            gradient_fn=_gradient_fn(tc, v, layout, noise) if gyro is None else None,
+            gradient_fn=last_residual.gradient if last_residual is not None else None,
             normal0=normal0,
         )
         iterations = out.iterations
@@ -429,10 +429,11 @@ class JointFit:
 
 
 class _LastResidual:
-    """``normal_fn`` whose cost-only evaluations keep their residual (data − model).
+    """``normal_fn`` whose cost-only and gradient evaluations keep their residual.
 
-    The LM's last step is confirmed by a cost-only pass at the final parameters;
-    keeping that pass's residual saves the result a model evaluation.
+    The LM's last point is reached by a gradient pass (a step below the
+    tolerance) or confirmed by a cost-only pass; keeping that pass's residual
+    (data − model) saves the result a model evaluation.
     """
 
     def __init__(self, normal_fn, tc, v, layout: ParameterLayout, noise: NoiseModel) -> None:
@@ -449,6 +450,14 @@ class _LastResidual:
         self._params, self._residual = params, residual
         rows = max(residual.shape[0] - self._noise.order, 0)
         return NormalEquations(whitened_cost(residual, self._noise), None, None, 3 * rows)
+
+    def gradient(self, params: CalibrationParams) -> NormalEquations:
+        """Cost and gradient (:func:`gradient_pass`), the residual kept."""
+        tc, v, layout = self._args
+        residual = np.empty_like(v, dtype=float)
+        out = gradient_pass(params, tc, v, layout, self._noise, residual_out=residual)
+        self._params, self._residual = params, residual
+        return out
 
     def at(self, params: CalibrationParams) -> np.ndarray | None:
         """The kept residual if it was evaluated at ``params`` itself, else None."""

@@ -221,6 +221,7 @@ def gradient_pass(
     layout: ParameterLayout,
     noise: NoiseModel,
     chunk: int | None = None,
+    residual_out: np.ndarray | None = None,
 ) -> NormalEquations:
     """Cost and g = J̃ᵀr̃ without H: the whitening applied to the residual, not to J.
 
@@ -231,7 +232,8 @@ def gradient_pass(
     no J at all; a layout with effects forms J and one matrix–vector product).
     Exact: the sums of :func:`accumulate`, to round-off.  Each chunk's outputs
     reach back over its p samples of history, whose model is evaluated with the
-    chunk; so the chunks' sums add up to the whole.
+    chunk; so the chunks' sums add up to the whole.  ``residual_out`` (N, 3), when
+    given, receives the residual data − model.
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
@@ -248,7 +250,10 @@ def gradient_pass(
         stop = min(n, start + chunk)
         lo = max(0, start - p)
         out = evaluate(params, t_s[lo:stop], layout, jacobian=not reverse)
-        rw, _ = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop])
+        residual = out.predicted_mps2 - accel_mps2[lo:stop]
+        if residual_out is not None:
+            np.negative(residual[start - lo :], out=residual_out[start:stop])
+        rw, _ = noise.whiten(residual)
         cost += float(np.sum(rw * rw))
         entries += rw.size
         # Fᵀ L⁻ᵀ r̃: output m of the FIR sums input m + p − k with weight a_k (zero history),
