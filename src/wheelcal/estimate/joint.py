@@ -279,8 +279,11 @@ class JointFit:
             initial_damping=1e-7 if gyro is not None else 1e-3,
             # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
             final_step_tol=None if gyro is not None else _STAGE1_FINAL_STEP_TOL,
+            # The step's end judged by its gradient, the start's Hessian serving: the
+            # paper's model only.  Effects are freed here from zero, where the Hessian
+            # is not the end's (a warm-up's τ has no column while its amplitude is 0).
             gradient_fn=None
-            if gyro is not None
+            if gyro is not None or self.effects
             else _gradient_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
         )
         if gyro is None:  # a ladder of decimations toward all samples (a long, fast recording)
