@@ -18,10 +18,7 @@ model's centred time, so drifting quantities are reported at the window centre.
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -336,24 +333,9 @@ def cubic_bspline_basis(
 _BASIS_CACHE: dict = {}
 _BASIS_CACHE_SIZE = 256
 #: At most this many bytes of bases are remembered (oldest dropped first): the cache
-#: must not grow with the recording (a 2.9 M-sample motion check left ~116 B per sample).
+#: must not grow with the recording (a 2.9 M-sample motion check once left ~116 B per sample).
 #: A gyro-aided fit with 0.5 s knots over 90 s at 200 Hz needs ~80 MB of bases.
 _BASIS_CACHE_MAX_BYTES = 128 * 2**20
-_BASIS_CACHE_ON = contextvars.ContextVar("wheelcal_basis_cache", default=True)
-
-
-@contextlib.contextmanager
-def basis_cache_off() -> Iterator[None]:
-    """Within the block (this thread / context), bases are computed and not remembered.
-
-    For passes that visit each time only once (the motion check's parts): caching
-    them would only push out what an iterating fit will ask for again.
-    """
-    token = _BASIS_CACHE_ON.set(False)
-    try:
-        yield
-    finally:
-        _BASIS_CACHE_ON.reset(token)
 
 
 def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, first: int):
@@ -379,7 +361,7 @@ def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, f
         for array in hit:
             array.setflags(write=False)
         size = sum(array.nbytes for array in hit)
-        if size > _BASIS_CACHE_MAX_BYTES or not _BASIS_CACHE_ON.get():
+        if size > _BASIS_CACHE_MAX_BYTES:
             return hit
         while _BASIS_CACHE and (
             len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE or _cache_bytes() + size > _BASIS_CACHE_MAX_BYTES
