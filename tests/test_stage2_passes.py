@@ -192,8 +192,8 @@ def test_the_gradient_pass_equals_the_accumulated_gradient(coloured, effect):
 
 def test_a_ladder_of_decimations_keeps_stage2_at_one_jacobian_pass(monkeypatch):
     # 360 000 samples (90 s at 4 kHz): stage 1's 3 000 end ~11 σ of the whole away, and
-    # stage 2 needed a second Jacobian pass from there; a stage on 90 000 in between
-    # ends ~2 σ away.  The result is the fully iterated fit's.
+    # stage 2 needed a second Jacobian pass from there; a stage on 36 000 in between
+    # ends a few σ away.  The result is the fully iterated fit's.
     scenario = dataclasses.replace(table1(), rate_hz=4000.0)
     recording = simulate(scenario, np.random.default_rng(2)).recording
     passes = _counting_full_passes(monkeypatch, recording.samples)
@@ -205,9 +205,15 @@ def test_a_ladder_of_decimations_keeps_stage2_at_one_jacobian_pass(monkeypatch):
     assert np.max(np.abs(diff / std)) < 0.05
     assert np.allclose(result.std / std, 1.0, rtol=0.01)
     passes.clear()
-    monkeypatch.setattr(joint_module, "_LADDER_TRIGGER", 10**9)  # no ladder
+    monkeypatch.setattr(joint_module, "_ladder", lambda samples: [])  # no ladder
     JointFit().fit(recording)
     assert passes.count("jacobian") == 2
+
+
+def test_the_ladder_takes_a_tenth_then_a_hundredth():
+    assert joint_module._ladder(18_001) == []  # 90 s at 200 Hz: stage 1, then all
+    assert joint_module._ladder(180_001) == [18_000]
+    assert joint_module._ladder(1_800_001) == [18_000, 180_000]
 
 
 def test_the_start_pass_fitting_the_noise_equals_two_passes():

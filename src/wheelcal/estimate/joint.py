@@ -9,9 +9,9 @@ Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound
    data and the radius only — never the truth);
 2. least squares with per-axis weights from a first-difference noise estimate
    (on a decimated copy of ~3 000 samples: it only needs to get within a few σ;
-   on a long, fast recording a ladder of decimations, ×30 each, follows while
-   all samples are > 100 × the last stage's, so that stage 2 starts ≲ 10 σ away
-   and its noise model is not fitted to a start's misfit);
+   then, on a long or fast recording, stages on N/100 and N/10 of the N samples
+   (those above 6 000), so that stage 2 starts ≲ 10 σ away and its noise model
+   is not fitted to a start's misfit);
 3. estimate the noise model (AR colour per axis, cross-axis correlation) from
    full residual and refit the whitened (generalised least squares) problem on
    every sample, from the canonical twin (the smaller offset: the decimated fit
@@ -78,11 +78,12 @@ _STAGE1_SAMPLES = 3000
 _FINAL_STEP_TOL = 0.1
 #: The same for stage 1 (it only needs to get close: stage 2 iterates from there).
 _STAGE1_FINAL_STEP_TOL = 10.0
-#: A stage on ``_LADDER_FACTOR`` × more samples is put in between while the next has more
-#: than ``_LADDER_TRIGGER`` × the samples: a decimated stage ends ~√(N/M) σ of the whole
-#: from its optimum, and stage 2's first step lands within 0.3 σ from ~10 σ, not from 25.
-_LADDER_FACTOR = 30
-_LADDER_TRIGGER = 100
+#: Between stage 1 and all N samples, stages on N/10, N/100, … samples (those above
+#: ``_LADDER_MIN_SAMPLES``): a decimated stage on M samples with white weights ends
+#: ~k·√(N/M) σ of the whole from its optimum (k ≈ 1–3, more for coloured noise), and
+#: stage 2's one Gauss–Newton step lands within 0.3 σ from ~10 σ, not from 20.
+_LADDER_STEP = 10
+_LADDER_MIN_SAMPLES = 2 * _STAGE1_SAMPLES
 
 
 @dataclass(frozen=True)
@@ -287,9 +288,7 @@ class JointFit:
             else _gradient_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
         )
         if gyro is None:  # a ladder of decimations toward all samples (a long, fast recording)
-            target = _STAGE1_SAMPLES
-            while t.size > _LADDER_TRIGGER * target:
-                target *= _LADDER_FACTOR
+            for target in _ladder(t.size):
                 finer = thinning_stride(t.size, target, recording.rate_hz, omega_max)
                 if finer >= stride:
                     continue
@@ -518,6 +517,16 @@ def _residual_fn(
         return combined(acc, rate)
 
     return normal
+
+
+def _ladder(samples: int) -> list[int]:
+    """Sample counts of the stages between stage 1 and all ``samples``, smallest first."""
+    targets = []
+    target = samples // _LADDER_STEP
+    while target >= _LADDER_MIN_SAMPLES:
+        targets.append(target)
+        target //= _LADDER_STEP
+    return targets[::-1]
 
 
 def _gradient_fn(tc: np.ndarray, v: np.ndarray, layout: ParameterLayout, noise: NoiseModel):
