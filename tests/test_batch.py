@@ -122,6 +122,35 @@ def test_batch_cli_exit_status_and_progress_lines(tmp_path, recordings, capsys):
     assert "6 sessions: 5 calibrated, 1 failed." in (tmp_path / "out" / "report.md").read_text()
 
 
+def test_sessions_run_on_one_blas_thread_and_an_in_process_batch_gives_them_back(
+    tmp_path, recordings, monkeypatch
+):
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from wheelcal.batch import runner
+
+    def blas_threads():
+        return {
+            i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"
+        }
+
+    seen = []
+    calibrate = runner.calibrate_session
+
+    def spy(*args, **kwargs):
+        seen.append(blas_threads())
+        return calibrate(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "calibrate_session", spy)
+    with threadpool_limits(2):
+        before = blas_threads()
+        outcome = run_batch(_pipeline(tmp_path, recordings, "workers = 1"))
+        after = blas_threads()
+    assert len(outcome.records) == 6 and len(seen) == 6
+    assert set(before.values()) == {2} and after == before
+    assert all(set(threads.values()) == {1} for threads in seen)
+
+
 def test_dask_executor_on_a_local_cluster(tmp_path, recordings):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(
