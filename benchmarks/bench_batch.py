@@ -12,17 +12,27 @@ folders and prints, measured in this process:
   the local process pool (``--rounds`` times each), and the ratio of their
   throughputs (target ≥ 0.9).
 
+With ``--ref REV`` (a git revision, e.g. ``main``): instead, this tree's
+batch against that revision's (extracted as ``wheelcal_ref``, see
+``bench_versus.py``) in this process, alternating round by round, on the local
+pool (2 workers, no Rerun) and, with ``--dask``, on one Dask ``LocalCluster``
+(its workers warmed with both packages first); prints each one's sessions/s
+and the median of the per-round ratios.
+
 Targets (issue 15): 1,000 recordings on 2 workers ≥ 40 sessions/s without
 Rerun, ≥ 25 with it; Dask ≥ 90 % of the local processes.
 
 Run:  python benchmarks/bench_batch.py [--sessions 1000] [--keep DIR] [--dask] [--rounds 3]
+      python benchmarks/bench_batch.py --sessions 200 --ref main [--dask] [--rounds 5]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -50,8 +60,16 @@ def _make_recordings(folder: Path, count: int) -> float:
     return time.perf_counter() - t0
 
 
-def _run(root: Path, inputs: Path, workers: int, rerun: bool, dask_address: str | None = None):
-    tag = "dask" if dask_address else f"w{workers}"
+def _run(
+    root: Path,
+    inputs: Path,
+    workers: int,
+    rerun: bool,
+    dask_address: str | None = None,
+    api=(run_batch, load_pipeline),
+    suffix: str = "",
+):
+    tag = ("dask" if dask_address else f"w{workers}") + suffix
     out = root / f"out_{tag}_{'rrd' if rerun else 'norrd'}"
     shutil.rmtree(out, ignore_errors=True)
     toml = root / f"p_{tag}_{rerun}.toml"
@@ -62,8 +80,9 @@ def _run(root: Path, inputs: Path, workers: int, rerun: bool, dask_address: str 
         f"[pipeline]\nname='bench'\noutput='{out}'\n[inputs]\nglobs=['{inputs}/*.mcap']\n"
         f"[run]\nrerun={'true' if rerun else 'false'}\n[executor]\n{executor}"
     )
+    run, load = api
     t0 = time.perf_counter()
-    outcome = run_batch(load_pipeline(toml))
+    outcome = run(load(toml))
     wall = time.perf_counter() - t0
     assert not outcome.failed, outcome.failed[:3]
     return wall, outcome
@@ -76,6 +95,7 @@ def main() -> None:
     ap.add_argument("--dask", action="store_true", help="also compare a Dask LocalCluster")
     ap.add_argument("--rounds", type=int, default=3, help="alternating dask/local runs")
     ap.add_argument("--skip-local", action="store_true", help="only the Dask comparison")
+    ap.add_argument("--ref", help="compare with this git revision's batch instead, e.g. main")
     args = ap.parse_args()
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="wheelcal-bench-"))
     inputs = root / "recordings"
@@ -83,6 +103,9 @@ def main() -> None:
     print(
         f"{args.sessions} recordings (90 s, 200 Hz, ROS 2 MCAP) in {inputs} (generated in {gen:.0f} s)"
     )
+    if args.ref:
+        _versus_ref(args.ref, root, inputs, args.sessions, args.rounds, args.dask)
+        return
     if args.dask:
         _compare_dask(root, inputs, args.sessions, args.rounds)
     if args.skip_local:
@@ -130,6 +153,69 @@ def _compare_dask(root: Path, inputs: Path, sessions: int, rounds: int) -> None:
         print(f"{name:9s} (2 workers, no Rerun): sessions/s per round {rates}")
     ratio = statistics.median(walls["processes"]) / statistics.median(walls["dask"])
     print(f"Dask / local processes throughput: {ratio:.2f}   (target >= 0.90)")
+
+
+def _warm(package: str) -> None:
+    """Import a package's batch stack in a Dask worker (both contenders start warm)."""
+    import importlib
+
+    importlib.import_module(f"{package}.batch.runner")
+
+
+def _versus_ref(ref: str, root: Path, inputs: Path, sessions: int, rounds: int, dask: bool):
+    from bench_versus import extract
+
+    where = Path(tempfile.mkdtemp(prefix="wheelcal-ref-"))
+    extract(ref, where)
+    sys.path.insert(0, str(where))
+    # Dask's worker processes are started afresh: they find wheelcal_ref on PYTHONPATH.
+    os.environ["PYTHONPATH"] = os.pathsep.join(
+        p for p in (str(where), os.environ.get("PYTHONPATH")) if p
+    )
+    from wheelcal_ref.batch.pipeline import load_pipeline as ref_load
+    from wheelcal_ref.batch.runner import run_batch as ref_run
+
+    apis = {"now": (run_batch, load_pipeline), "ref": (ref_run, ref_load)}
+    walls: dict[str, list[float]] = {}
+
+    def rounds_on(cluster_address: str | None) -> None:
+        for i in range(rounds):  # alternate, and swap who goes first: the load drifts
+            for name in ["now", "ref"] if i % 2 else ["ref", "now"]:
+                for mode, address in (("local", None), ("dask", cluster_address)):
+                    if mode == "dask" and address is None:
+                        continue
+                    wall = _run(root, inputs, 2, False, address, apis[name], f"_{name}")[0]
+                    walls.setdefault(f"{mode}, {name}", []).append(wall)
+
+    if dask:
+        from dask.distributed import Client, LocalCluster
+
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as cluster:
+            with Client(cluster.scheduler_address) as client:
+                client.run(_warm, "wheelcal")
+                client.run(_warm, "wheelcal_ref")
+            rounds_on(cluster.scheduler_address)
+    else:
+        rounds_on(None)
+    print(f"versus {ref}: {sessions} sessions, 2 workers, no Rerun, {rounds} alternating rounds")
+    for name, ts in walls.items():
+        rates = ", ".join(f"{sessions / t:.1f}" for t in ts)
+        print(f"{name:11s}: median {sessions / statistics.median(ts):5.1f} sessions/s ({rates})")
+    for mode in ("local", "dask") if dask else ("local",):
+        ratio = statistics.median(
+            r / n for r, n in zip(walls[f"{mode}, ref"], walls[f"{mode}, now"], strict=True)
+        )
+        print(f"{mode}: throughput now / {ref}, median of per-round ratios: {ratio:.3f}")
+    if dask:
+        for name in ("ref", "now"):
+            ratio = statistics.median(
+                local / on_dask
+                for local, on_dask in zip(
+                    walls[f"local, {name}"], walls[f"dask, {name}"], strict=True
+                )
+            )
+            print(f"{name}: Dask / local throughput, median of per-round ratios: {ratio:.3f}")
+    shutil.rmtree(where, ignore_errors=True)
 
 
 if __name__ == "__main__":
