@@ -26,7 +26,7 @@ import json
 import os
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -194,6 +194,19 @@ def _up_to_date_record(source: str, out: Path, stem: str, rrd: bool) -> SessionR
     )
 
 
+#: Threads that hash the inputs while planning.
+_HASH_THREADS = 4
+
+
+def _fingerprint(path: Path) -> str | OSError | RecordingError:
+    """The SHA-256 of an input file, or the error that stopped it."""
+    try:
+        check_regular_file(path)  # before hashing: a FIFO would block, /dev/zero never end
+        return file_sha256(path)
+    except (OSError, RecordingError) as exc:
+        return exc
+
+
 def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
     try:
         stems = unique_stems(files)
@@ -202,17 +215,17 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
     out = pipeline.output
     produces = {"rrd": pipeline.rerun}
     tasks, up_to_date = [], []
-    for f in files:
+    # hashlib and file reads release the GIL: a few threads hash several inputs at once
+    with ThreadPoolExecutor(min(_HASH_THREADS, len(files) or 1)) as pool:
+        fingerprints = list(pool.map(_fingerprint, files))
+    for f, sha in zip(files, fingerprints, strict=True):
         stem = stems[str(f)]
-        try:
-            check_regular_file(f)  # before hashing: a FIFO would block, /dev/zero never end
-            sha = file_sha256(f)
-        except (OSError, RecordingError) as exc:
+        if not isinstance(sha, str):
             # An input that became unreadable: its earlier outputs must not pass for this run's.
             error = (
-                str(exc)
-                if isinstance(exc, RecordingError)
-                else f"cannot read ({exc.strerror or exc})"
+                str(sha)
+                if isinstance(sha, RecordingError)
+                else f"cannot read ({sha.strerror or sha})"
             )
             up_to_date.append(
                 SessionRecord(
