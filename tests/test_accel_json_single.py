@@ -181,6 +181,8 @@ def test_a_stamp_spelling_is_taken_only_if_a_plain_json_integer(stamp, monkeypat
         b'{"timestamps_ns":[5],"accel":[[1.0,2.0,3.0]]]',
         b'{"timestamps_ns":[5],"accel":[[1.0,2\xff,3.0]]}',
         b'{"timestamps_ns":[5]],"accel":[[1.0,2.0,3.0]]}',
+        # a "]" where a 19-digit stamp's would be, after a short stamp and two numbers
+        b'{"timestamps_ns":[5],"accel":[[1.0,2]]}',
     ],
 )
 def test_any_other_message_layout_goes_to_the_general_path(payload, monkeypatch):

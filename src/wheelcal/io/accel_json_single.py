@@ -100,7 +100,18 @@ def decode_single_samples(block: MessageBlock) -> tuple[np.ndarray, np.ndarray] 
 
 
 def _stamp_ends(stretch: np.ndarray, begin: np.ndarray, end: np.ndarray) -> np.ndarray | None:
-    """Where each message's ``]`` after its stamp is: the first of exactly three ``]``, or None."""
+    """Where each message's ``]`` after its stamp is, or None if not found.
+
+    Stamps mostly have the same number of digits: if the first message's
+    width puts a ``]`` at the same place in every message, that is taken (the
+    checks that follow refuse a stamp that is not all digits, so it is then
+    the first ``]``).  Otherwise: the first of exactly three ``]`` per message.
+    """
+    width = stretch[begin[0] + len(_PREFIX) : end[0]].tobytes().find(b"]")
+    if width > 0:
+        guess = begin + len(_PREFIX) + width
+        if np.all(stretch[guess] == _CLOSE):
+            return guess
     closes = np.flatnonzero(stretch == _CLOSE)
     owner = np.searchsorted(begin, closes, side="right") - 1
     closes = closes[closes < end[owner]]  # not in the record headers between the payloads
