@@ -207,3 +207,15 @@ def test_messages_not_back_to_back_go_to_the_general_path():
     )
     assert decode_single_samples(shifted) is None
     assert decode_accel_batch((shifted,)).time_ns.size == offsets[::2].size
+
+
+def test_a_long_first_stamp_and_a_short_last_message_are_no_trouble(monkeypatch):
+    rng = np.random.default_rng(9)
+    payloads = _payloads(rng)
+    payloads[0] = b'{"timestamps_ns":[' + b"1" * 100 + b'],"accel":[[1.0,2.0,3.0]]}'
+    payloads[-1] = b'{"timestamps_ns":[5],"accel":[[1,2,3]]}'
+    block = _block(payloads, rng)
+    assert decode_single_samples(block) is None
+    with pytest.raises(AccelBatchError) as caught:
+        decode_accel_batch((block,))
+    assert str(caught.value) == _general(block, monkeypatch)

@@ -110,7 +110,7 @@ def _stamp_ends(stretch: np.ndarray, begin: np.ndarray, end: np.ndarray) -> np.n
     width = stretch[begin[0] + len(_PREFIX) : end[0]].tobytes().find(b"]")
     if width > 0:
         guess = begin + len(_PREFIX) + width
-        if np.all(stretch[guess] == _CLOSE):
+        if np.all(guess < end) and np.all(stretch[guess] == _CLOSE):
             return guess
     closes = np.flatnonzero(stretch == _CLOSE)
     owner = np.searchsorted(begin, closes, side="right") - 1
