@@ -179,6 +179,8 @@ def test_a_stamp_spelling_is_taken_only_if_a_plain_json_integer(stamp, monkeypat
         b'{"timestamps_ns":[5],"accel":[[1.0,2.0,3.0]]}\n',
         b'{"timestamps_ns":[5],"acce1":[[1.0,2.0,3.0]]}',
         b'{"timestamps_ns":[5],"accel":[[1.0,2.0,3.0]]]',
+        b'{"timestamps_ns":[5],"accel":[[1.0,2.0,3.0]}',  # one "]" short
+        b'{"timestamps_ns":[5],"accel":[[1.0,2.0,3.0}}',
         b'{"timestamps_ns":[5],"accel":[[1.0,2\xff,3.0]]}',
         b'{"timestamps_ns":[5]],"accel":[[1.0,2.0,3.0]]}',
         # a "]" where a 19-digit stamp's would be, after a short stamp and two numbers
@@ -219,3 +221,33 @@ def test_a_long_first_stamp_and_a_short_last_message_are_no_trouble(monkeypatch)
     with pytest.raises(AccelBatchError) as caught:
         decode_accel_batch((block,))
     assert str(caught.value) == _general(block, monkeypatch)
+
+
+def test_random_damage_never_escapes_as_another_error_and_never_changes_a_value(monkeypatch):
+    """Flipped, dropped and inserted bytes: the fast path answers the general path's values or
+    None, and never raises."""
+    rng = np.random.default_rng(10)
+    alphabet = np.frombuffer(b'0123456789.,-+eE[]{}":x \n\xff', np.uint8)
+    taken = 0
+    for _ in range(300):
+        payloads = _payloads(rng, 12)
+        for _ in range(rng.integers(1, 4)):
+            i = int(rng.integers(len(payloads)))
+            data = bytearray(payloads[i])
+            at = int(rng.integers(len(data)))
+            kind = rng.integers(3)
+            if kind == 0:
+                data[at] = int(rng.choice(alphabet))
+            elif kind == 1:
+                del data[at]
+            else:
+                data.insert(at, int(rng.choice(alphabet)))
+            payloads[i] = bytes(data)
+        block = _block(payloads, rng)
+        fast = decode_single_samples(block)
+        if fast is not None:
+            taken += 1
+            general = _general(block, monkeypatch)
+            np.testing.assert_array_equal(fast[0], general.time_ns)
+            np.testing.assert_array_equal(fast[1], general.accel)
+    assert 0 < taken < 300  # some damage leaves plain JSON (a digit for a digit), most does not

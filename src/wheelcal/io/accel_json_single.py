@@ -92,6 +92,8 @@ def decode_single_samples(block: MessageBlock) -> tuple[np.ndarray, np.ndarray] 
         return None
     numbers = stretch[labels == _NUMBER]
     ours = np.cumsum(number_bytes + 1)[:-1] - 1  # where each message's "]" landed
+    if not np.all(numbers[ours] == _CLOSE):  # the suffix's first byte, not checked as fixed
+        return None
     numbers[ours] = _COMMA
     accel = _samples(numbers, ours, n)
     if accel is None:
