@@ -17,7 +17,9 @@ batch against that revision's (extracted as ``wheelcal_ref``, see
 ``bench_versus.py``) in this process, alternating round by round, on the local
 pool (2 workers, no Rerun) and, with ``--dask``, on one Dask ``LocalCluster``
 (its workers warmed with both packages first); prints each one's sessions/s
-and the median of the per-round ratios.
+and CPU seconds per session (all processes: on a saturated machine throughput
+is bounded by CPU per session, and CPU time hardly depends on the machine's
+other load), and the medians of the per-round ratios of both.
 
 Targets (issue 15): 1,000 recordings on 2 workers ≥ 40 sessions/s without
 Rerun, ≥ 25 with it; Dask ≥ 90 % of the local processes.
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import statistics
 import sys
@@ -81,11 +84,34 @@ def _run(
         f"[run]\nrerun={'true' if rerun else 'false'}\n[executor]\n{executor}"
     )
     run, load = api
+    cpu0 = _cpu_s(dask_address is not None)
     t0 = time.perf_counter()
     outcome = run(load(toml))
     wall = time.perf_counter() - t0
+    _run.last_cpu_s = _cpu_s(dask_address is not None) - cpu0
     assert not outcome.failed, outcome.failed[:3]
     return wall, outcome
+
+
+def _cpu_s(live_descendants: bool) -> float:
+    """CPU seconds of this process (with the Dask scheduler and client threads), of its ended
+    children (the local pool's workers) and, if asked, of its live descendants (Dask's nannies
+    and workers; not for a local run, which they only watch idling).
+
+    On a saturated machine a batch's throughput is bounded by its CPU per session, and CPU
+    time, unlike the wall clock, hardly depends on what else the machine runs.
+    """
+    import psutil  # with distributed; without it the live descendants are not counted
+
+    ended = resource.getrusage(resource.RUSAGE_CHILDREN)
+    live = 0.0
+    for child in psutil.Process().children(recursive=True) if live_descendants else ():
+        try:
+            times = child.cpu_times()
+        except psutil.NoSuchProcess:
+            continue
+        live += times.user + times.system
+    return time.process_time() + ended.ru_utime + ended.ru_stime + live
 
 
 def main() -> None:
@@ -177,6 +203,7 @@ def _versus_ref(ref: str, root: Path, inputs: Path, sessions: int, rounds: int, 
 
     apis = {"now": (run_batch, load_pipeline), "ref": (ref_run, ref_load)}
     walls: dict[str, list[float]] = {}
+    cpus: dict[str, list[float]] = {}
 
     def rounds_on(cluster_address: str | None) -> None:
         for i in range(rounds):  # alternate, and swap who goes first: the load drifts
@@ -186,6 +213,7 @@ def _versus_ref(ref: str, root: Path, inputs: Path, sessions: int, rounds: int, 
                         continue
                     wall = _run(root, inputs, 2, False, address, apis[name], f"_{name}")[0]
                     walls.setdefault(f"{mode}, {name}", []).append(wall)
+                    cpus.setdefault(f"{mode}, {name}", []).append(_run.last_cpu_s)
 
     if dask:
         from dask.distributed import Client, LocalCluster
@@ -200,21 +228,26 @@ def _versus_ref(ref: str, root: Path, inputs: Path, sessions: int, rounds: int, 
     print(f"versus {ref}: {sessions} sessions, 2 workers, no Rerun, {rounds} alternating rounds")
     for name, ts in walls.items():
         rates = ", ".join(f"{sessions / t:.1f}" for t in ts)
-        print(f"{name:11s}: median {sessions / statistics.median(ts):5.1f} sessions/s ({rates})")
-    for mode in ("local", "dask") if dask else ("local",):
-        ratio = statistics.median(
-            r / n for r, n in zip(walls[f"{mode}, ref"], walls[f"{mode}, now"], strict=True)
+        cpu_ms = 1e3 * statistics.median(cpus[name]) / sessions
+        print(
+            f"{name:11s}: median {sessions / statistics.median(ts):5.1f} sessions/s ({rates}); "
+            f"CPU {cpu_ms:.1f} ms per session (all processes)"
         )
-        print(f"{mode}: throughput now / {ref}, median of per-round ratios: {ratio:.3f}")
-    if dask:
-        for name in ("ref", "now"):
+    for what, table in (("throughput", walls), ("CPU-bound throughput", cpus)):
+        for mode in ("local", "dask") if dask else ("local",):
             ratio = statistics.median(
-                local / on_dask
-                for local, on_dask in zip(
-                    walls[f"local, {name}"], walls[f"dask, {name}"], strict=True
-                )
+                r / n for r, n in zip(table[f"{mode}, ref"], table[f"{mode}, now"], strict=True)
             )
-            print(f"{name}: Dask / local throughput, median of per-round ratios: {ratio:.3f}")
+            print(f"{mode}: {what} now / {ref}, median of per-round ratios: {ratio:.3f}")
+        if dask:
+            for name in ("ref", "now"):
+                ratio = statistics.median(
+                    local / on_dask
+                    for local, on_dask in zip(
+                        table[f"local, {name}"], table[f"dask, {name}"], strict=True
+                    )
+                )
+                print(f"{name}: Dask / local {what}, median of per-round ratios: {ratio:.3f}")
     shutil.rmtree(where, ignore_errors=True)
 
 
