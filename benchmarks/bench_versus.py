@@ -11,7 +11,8 @@ recording:
 
 and prints both medians and the median of the per-round ratios (robust to the
 load of a shared machine drifting within seconds).  It also prints the largest
-difference of the sensor parameters between the two, in the new fit's σ.
+difference of the sensor parameters between the two, in the new fit's σ, and
+that of every reported value and of every σ.
 
 Run:  python benchmarks/bench_versus.py --ref 7870c1d [--repeats 30]
 """
@@ -105,6 +106,13 @@ def main() -> None:
             if n.startswith(("gain_", "offset_"))
         )
         print(f"largest change of a gain or offset between the two: {worst:.3f} σ")
+        sigma = np.sqrt(np.diag(new.covariance))
+        sigma_old = np.sqrt(np.diag(old.covariance))
+        moved = np.max(np.abs(new.values - old.values) / sigma)
+        print(
+            f"largest change of any reported value: {moved:.2e} σ; of any σ: "
+            f"{np.max(np.abs(sigma / sigma_old - 1)):.2e} (relative)"
+        )
 
 
 if __name__ == "__main__":
