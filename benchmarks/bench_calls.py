@@ -7,7 +7,9 @@ Each of these runs a few to a dozen times per calibration, so its per-call cost
 * ``Rotation.euler_jacobian_deg`` (the reported angles' covariance);
 * the χ² survival function of the motion check and the normal quantile of the
   rest check;
-* the first-difference noise per axis of the joint fit's stage 1 (18 000 × 3).
+* the first-difference noise per axis of the joint fit's stage 1 (18 000 × 3);
+* ``jacobian_transpose_times`` (the gradient passes' Jᵀu through the model) on
+  17 364 samples, the free spin of the 90 s / 200 Hz Table I recording.
 
 Prints the median µs per call of both and the median of the per-round ratios.
 The reference is extracted as ``wheelcal_ref`` (see ``bench_versus.py``).
@@ -44,11 +46,21 @@ def per_call(fn):
     return run
 
 
-def contenders(rotation, ref_rotation, samples):
+def contenders(rotation, ref_rotation, samples, ref_transpose_times):
     """{name: (now, ref)} of the calls to time; the same inputs for both."""
     from scipy import special, stats
 
     from wheelcal.estimate.columns import difference_stds
+    from wheelcal.model import ParameterLayout, evaluate
+    from wheelcal.model.forward import jacobian_transpose_times
+    from wheelcal.simulate import table1
+
+    truth = table1().truth
+    t = np.linspace(-43.4, 43.4, 17364)
+    layout = ParameterLayout()
+    output = evaluate(truth, t, layout)
+    weights = np.random.default_rng(1).normal(size=(3, t.size))
+    jtu = (truth, t, layout, weights, output)
 
     delta = np.array([1e-3, -2e-3, 5e-4])
     now_rot = rotation.from_euler_deg(-40.0, 10.0, 70.0)
@@ -62,6 +74,10 @@ def contenders(rotation, ref_rotation, samples):
             lambda: difference_stds(samples),
             lambda: np.std(np.diff(samples, axis=0), axis=0),
         ),
+        "Jᵀu (17 364 samples)": (
+            lambda: jacobian_transpose_times(*jtu),
+            lambda: ref_transpose_times(*jtu),
+        ),
     }
 
 
@@ -73,6 +89,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         extract(args.ref, Path(tmp))
         sys.path.insert(0, tmp)
+        from wheelcal_ref.model.forward import jacobian_transpose_times as ref_transpose_times
         from wheelcal_ref.model.rotation import Rotation as RefRotation
 
         from wheelcal.model.rotation import Rotation
@@ -81,7 +98,7 @@ def main() -> None:
         with threadpool_limits(1):
             tune_allocator()
             samples = np.random.default_rng(0).normal(0.0, 3.0, (18000, 3))
-            calls = contenders(Rotation, RefRotation, samples)
+            calls = contenders(Rotation, RefRotation, samples, ref_transpose_times)
             fns = {}
             for name, (now, ref) in calls.items():
                 fns[f"{name}, ref"] = per_call(ref)
