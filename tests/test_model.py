@@ -146,7 +146,8 @@ def test_equal_offset_twins_report_positive_spin():
 
 
 @pytest.mark.parametrize(
-    ("degree", "fit_tilt", "fit_radius"), [(3, True, False), (3, False, True), (2, False, False)]
+    ("degree", "fit_tilt", "fit_radius"),
+    [(3, True, False), (3, False, True), (2, False, False), (1, True, False), (0, True, False)],
 )
 def test_jacobian_transpose_times_equals_the_jacobians_product(degree, fit_tilt, fit_radius):
     from wheelcal.model.forward import jacobian_transpose_times

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.columns import difference_stds
 from wheelcal.estimate.decimation import thinning_stride
 from wheelcal.estimate.gyro_equations import accumulate_gyro, combined, gyro_prediction
 from wheelcal.estimate.identifiability import check_identifiability
@@ -264,7 +265,7 @@ class JointFit:
         # (never below 16 samples per turn at the fastest rate: no aliasing)
         omega_max = float(np.max(np.abs(initial.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
         stride = thinning_stride(t.size, _STAGE1_SAMPLES, recording.rate_hz, omega_max)
-        std0 = np.maximum(np.std(np.diff(v, axis=0), axis=0) / np.sqrt(2), 1e-6)
+        std0 = np.maximum(difference_stds(v) / np.sqrt(2), 1e-6)
         gyro1 = None
         if gyro is not None:
             gyro_std0 = np.maximum(np.std(np.diff(gyro, axis=0), axis=0) / np.sqrt(2), 1e-9)

@@ -360,7 +360,7 @@ def jacobian_transpose_times(
     if layout.effects:
         raise ValueError("jacobian_transpose_times covers the paper's model (no effects)")
     t = np.asarray(t_s, dtype=float)
-    kin = spin_kinematics(params.spin, t, derivatives=True)
+    kin = output.kinematics
     force = output.force
     w_mat = params.sensor.gain[:, None] * params.bench.misalignment.matrix
     u = w_mat.T @ weights  # (3, N)
@@ -368,11 +368,20 @@ def jacobian_transpose_times(
     blocks = layout.blocks
     out = np.empty(layout.size)
     by_theta = force.g_sin_tilt * (force.cos_theta * u[1] - force.sin_theta * u[0])
-    out[blocks["spin"]] = (
-        kin.d_theta @ by_theta
-        + kin.d_omega @ ((2 * r) * kin.omega_radps * u[0])
-        + kin.d_omega_dot @ (r * u[1])
-    )
+    # The spin rows through the powers t^j, without forming ∂ϑ/∂p, ∂ω/∂p, ∂ω̇/∂p
+    # (see kinematics: ∂ϑ/∂ω_k = t^(k+1)/(k+1), ∂ω/∂ω_k = t^k, ∂ω̇/∂ω_k = k t^(k−1)).
+    degree = params.spin.degree
+    powers = np.empty((degree + 2, t.size))
+    powers[0] = 1.0
+    for j in range(1, degree + 2):
+        powers[j] = powers[j - 1] * t
+    k = np.arange(degree + 1)
+    through_theta = powers @ by_theta
+    spin = np.empty(degree + 2)
+    spin[0] = through_theta[0]
+    spin[1:] = through_theta[1:] / (k + 1) + powers[:-1] @ ((2 * r) * kin.omega_radps * u[0])
+    spin[2:] += k[1:] * (powers[:degree] @ (r * u[1]))
+    out[blocks["spin"]] = spin
     if layout.fit_tilt:
         out[blocks["tilt"].start] = force.g_cos_tilt * (
             force.cos_theta @ u[0] + force.sin_theta @ u[1]
