@@ -12,17 +12,30 @@ folders and prints, measured in this process:
   the local process pool (``--rounds`` times each), and the ratio of their
   throughputs (target ≥ 0.9).
 
+With ``--ref REV`` (a git revision, e.g. ``main``): instead, this tree's
+batch against that revision's (extracted as ``wheelcal_ref``, see
+``bench_versus.py``) in this process, alternating round by round, on the local
+pool (2 workers, no Rerun) and, with ``--dask``, on one Dask ``LocalCluster``
+(its workers warmed with both packages first); prints each one's sessions/s
+and CPU seconds per session (all processes: on a saturated machine throughput
+is bounded by CPU per session, and CPU time hardly depends on the machine's
+other load), and the medians of the per-round ratios of both.
+
 Targets (issue 15): 1,000 recordings on 2 workers ≥ 40 sessions/s without
 Rerun, ≥ 25 with it; Dask ≥ 90 % of the local processes.
 
 Run:  python benchmarks/bench_batch.py [--sessions 1000] [--keep DIR] [--dask] [--rounds 3]
+      python benchmarks/bench_batch.py --sessions 200 --ref main [--dask] [--rounds 5]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import shutil
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -50,8 +63,16 @@ def _make_recordings(folder: Path, count: int) -> float:
     return time.perf_counter() - t0
 
 
-def _run(root: Path, inputs: Path, workers: int, rerun: bool, dask_address: str | None = None):
-    tag = "dask" if dask_address else f"w{workers}"
+def _run(
+    root: Path,
+    inputs: Path,
+    workers: int,
+    rerun: bool,
+    dask_address: str | None = None,
+    api=(run_batch, load_pipeline),
+    suffix: str = "",
+):
+    tag = ("dask" if dask_address else f"w{workers}") + suffix
     out = root / f"out_{tag}_{'rrd' if rerun else 'norrd'}"
     shutil.rmtree(out, ignore_errors=True)
     toml = root / f"p_{tag}_{rerun}.toml"
@@ -62,11 +83,35 @@ def _run(root: Path, inputs: Path, workers: int, rerun: bool, dask_address: str 
         f"[pipeline]\nname='bench'\noutput='{out}'\n[inputs]\nglobs=['{inputs}/*.mcap']\n"
         f"[run]\nrerun={'true' if rerun else 'false'}\n[executor]\n{executor}"
     )
+    run, load = api
+    cpu0 = _cpu_s(dask_address is not None)
     t0 = time.perf_counter()
-    outcome = run_batch(load_pipeline(toml))
+    outcome = run(load(toml))
     wall = time.perf_counter() - t0
+    _run.last_cpu_s = _cpu_s(dask_address is not None) - cpu0
     assert not outcome.failed, outcome.failed[:3]
     return wall, outcome
+
+
+def _cpu_s(live_descendants: bool) -> float:
+    """CPU seconds of this process (with the Dask scheduler and client threads), of its ended
+    children (the local pool's workers) and, if asked, of its live descendants (Dask's nannies
+    and workers; not for a local run, which they only watch idling).
+
+    On a saturated machine a batch's throughput is bounded by its CPU per session, and CPU
+    time, unlike the wall clock, hardly depends on what else the machine runs.
+    """
+    import psutil  # with distributed; without it the live descendants are not counted
+
+    ended = resource.getrusage(resource.RUSAGE_CHILDREN)
+    live = 0.0
+    for child in psutil.Process().children(recursive=True) if live_descendants else ():
+        try:
+            times = child.cpu_times()
+        except psutil.NoSuchProcess:
+            continue
+        live += times.user + times.system
+    return time.process_time() + ended.ru_utime + ended.ru_stime + live
 
 
 def main() -> None:
@@ -76,6 +121,7 @@ def main() -> None:
     ap.add_argument("--dask", action="store_true", help="also compare a Dask LocalCluster")
     ap.add_argument("--rounds", type=int, default=3, help="alternating dask/local runs")
     ap.add_argument("--skip-local", action="store_true", help="only the Dask comparison")
+    ap.add_argument("--ref", help="compare with this git revision's batch instead, e.g. main")
     args = ap.parse_args()
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="wheelcal-bench-"))
     inputs = root / "recordings"
@@ -83,6 +129,9 @@ def main() -> None:
     print(
         f"{args.sessions} recordings (90 s, 200 Hz, ROS 2 MCAP) in {inputs} (generated in {gen:.0f} s)"
     )
+    if args.ref:
+        _versus_ref(args.ref, root, inputs, args.sessions, args.rounds, args.dask)
+        return
     if args.dask:
         _compare_dask(root, inputs, args.sessions, args.rounds)
     if args.skip_local:
@@ -130,6 +179,76 @@ def _compare_dask(root: Path, inputs: Path, sessions: int, rounds: int) -> None:
         print(f"{name:9s} (2 workers, no Rerun): sessions/s per round {rates}")
     ratio = statistics.median(walls["processes"]) / statistics.median(walls["dask"])
     print(f"Dask / local processes throughput: {ratio:.2f}   (target >= 0.90)")
+
+
+def _warm(package: str) -> None:
+    """Import a package's batch stack in a Dask worker (both contenders start warm)."""
+    import importlib
+
+    importlib.import_module(f"{package}.batch.runner")
+
+
+def _versus_ref(ref: str, root: Path, inputs: Path, sessions: int, rounds: int, dask: bool):
+    from bench_versus import extract
+
+    where = Path(tempfile.mkdtemp(prefix="wheelcal-ref-"))
+    extract(ref, where)
+    sys.path.insert(0, str(where))
+    # Dask's worker processes are started afresh: they find wheelcal_ref on PYTHONPATH.
+    os.environ["PYTHONPATH"] = os.pathsep.join(
+        p for p in (str(where), os.environ.get("PYTHONPATH")) if p
+    )
+    from wheelcal_ref.batch.pipeline import load_pipeline as ref_load
+    from wheelcal_ref.batch.runner import run_batch as ref_run
+
+    apis = {"now": (run_batch, load_pipeline), "ref": (ref_run, ref_load)}
+    walls: dict[str, list[float]] = {}
+    cpus: dict[str, list[float]] = {}
+
+    def rounds_on(cluster_address: str | None) -> None:
+        for i in range(rounds):  # alternate, and swap who goes first: the load drifts
+            for name in ["now", "ref"] if i % 2 else ["ref", "now"]:
+                for mode, address in (("local", None), ("dask", cluster_address)):
+                    if mode == "dask" and address is None:
+                        continue
+                    wall = _run(root, inputs, 2, False, address, apis[name], f"_{name}")[0]
+                    walls.setdefault(f"{mode}, {name}", []).append(wall)
+                    cpus.setdefault(f"{mode}, {name}", []).append(_run.last_cpu_s)
+
+    if dask:
+        from dask.distributed import Client, LocalCluster
+
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as cluster:
+            with Client(cluster.scheduler_address) as client:
+                client.run(_warm, "wheelcal")
+                client.run(_warm, "wheelcal_ref")
+            rounds_on(cluster.scheduler_address)
+    else:
+        rounds_on(None)
+    print(f"versus {ref}: {sessions} sessions, 2 workers, no Rerun, {rounds} alternating rounds")
+    for name, ts in walls.items():
+        rates = ", ".join(f"{sessions / t:.1f}" for t in ts)
+        cpu_ms = 1e3 * statistics.median(cpus[name]) / sessions
+        print(
+            f"{name:11s}: median {sessions / statistics.median(ts):5.1f} sessions/s ({rates}); "
+            f"CPU {cpu_ms:.1f} ms per session (all processes)"
+        )
+    for what, table in (("throughput", walls), ("CPU-bound throughput", cpus)):
+        for mode in ("local", "dask") if dask else ("local",):
+            ratio = statistics.median(
+                r / n for r, n in zip(table[f"{mode}, ref"], table[f"{mode}, now"], strict=True)
+            )
+            print(f"{mode}: {what} now / {ref}, median of per-round ratios: {ratio:.3f}")
+        if dask:
+            for name in ("ref", "now"):
+                ratio = statistics.median(
+                    local / on_dask
+                    for local, on_dask in zip(
+                        table[f"local, {name}"], table[f"dask, {name}"], strict=True
+                    )
+                )
+                print(f"{name}: Dask / local {what}, median of per-round ratios: {ratio:.3f}")
+    shutil.rmtree(where, ignore_errors=True)
 
 
 if __name__ == "__main__":

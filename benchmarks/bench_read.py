@@ -14,19 +14,27 @@ Best of ``--repeat`` runs of this process's CPU time (``time.process_time``:
 every reader here runs on one thread — Arrow's JSON reader is asked for
 ``use_threads=False`` — so this is the one-core figure, and it is not
 inflated by other load on the machine); ``--wall`` uses the wall clock.
-Run: ``python benchmarks/bench_read.py [--compression zstd|lz4|none]``.
+``--ref REV`` also extracts ``src/wheelcal`` at that git revision (as
+``wheelcal_ref``, see ``bench_versus.py``) and times its ``read_recording``
+against this tree's, interleaved round by round in this process, printing
+both rates and the median of the per-round ratios.
+Run: ``python benchmarks/bench_read.py [--compression zstd|lz4|none] [--ref main]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from _timing import interleaved_times
+from bench_versus import extract
 from wheelcal.io import read_recording, write_recording
 from wheelcal.simulate import Scenario, simulate, table2
 
@@ -80,6 +88,9 @@ def main() -> None:
         action="store_true",
         help="time with the wall clock instead of this process's CPU time",
     )
+    parser.add_argument(
+        "--ref", help="git revision whose reader to time against this tree's, e.g. main"
+    )
     args = parser.parse_args()
     clock = time.perf_counter if args.wall else time.process_time
 
@@ -114,6 +125,32 @@ def main() -> None:
                 f"{label:26s} {SAMPLES / t_ours:10,.0f} /s {SAMPLES / t_plain:10,.0f} /s "
                 f"{t_plain / t_ours:6.1f}x"
             )
+        if args.ref:
+            versus_ref(args.ref, Path(tmp), variants, args.repeat, clock)
+
+
+def versus_ref(ref: str, tmp: Path, variants, repeat: int, clock) -> None:
+    """This tree's reader against ``ref``'s on the same files, interleaved round by round."""
+    (tmp / "ref").mkdir()
+    extract(ref, tmp / "ref")
+    sys.path.insert(0, str(tmp / "ref"))
+    from wheelcal_ref.io import read_recording as read_ref
+
+    print(f"\nversus {ref}, interleaved, median of {repeat} rounds (ratio: per-round median)")
+    print(f"{'file':26s} {'ref':>14s} {'now':>14s} {'ref/now':>8s}")
+    for label, encoding, batch, _ in variants:
+        path = tmp / f"{encoding}_{batch}.mcap"
+        assert np.array_equal(read_ref(path).accel_mps2, read_recording(path).accel_mps2)
+        ts = interleaved_times(
+            {"ref": lambda p=path: read_ref(p), "now": lambda p=path: read_recording(p)},
+            repeat,
+            clock=clock,
+        )
+        ratio = statistics.median(a / b for a, b in zip(ts["ref"], ts["now"], strict=True))
+        print(
+            f"{label:26s} {SAMPLES / statistics.median(ts['ref']):10,.0f} /s "
+            f"{SAMPLES / statistics.median(ts['now']):10,.0f} /s {ratio:7.2f}x"
+        )
 
 
 if __name__ == "__main__":

@@ -6,15 +6,21 @@ The batch should be limited by the fit, not by logging.  Prints, for one
 * the joint fit (raw samples → result);
 * ``write_session_rrd`` (encode + atomic write with fsync), and its ratio to the fit,
   in wall time and in process CPU time;
-* ``write_batch_rrd`` for many sessions' calibration dictionaries.
+* ``write_batch_rrd`` for many sessions' calibration dictionaries;
+* with ``--ref REV``: ``write_session_rrd`` of this tree against the one of an
+  earlier git revision (extracted as ``wheelcal_ref``, as in
+  ``bench_versus.py``), interleaved round by round in this process, each on
+  its own fit of the same recording; medians and the median of the per-round
+  ratios, wall and process CPU time.
 
-Run:  python benchmarks/bench_rrd.py [--repeats 20] [--out DIR]
+Run:  python benchmarks/bench_rrd.py [--repeats 20] [--out DIR] [--ref e410f15]
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -22,7 +28,8 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from _timing import fmt, times
+from _timing import fmt, interleaved_times, times
+from bench_versus import extract
 from wheelcal.estimate.joint import JointFit
 from wheelcal.io.calibration_json import calibration_dict
 from wheelcal.runtime import tune_allocator
@@ -38,6 +45,7 @@ def main() -> None:
     ap.add_argument(
         "--out", type=Path, default=None, help="directory for the files (default: temp)"
     )
+    ap.add_argument("--ref", default=None, help="git revision to compare write_session_rrd with")
     args = ap.parse_args()
     tune_allocator()  # as the CLI and the batch workers do (see wheelcal.runtime)
     with tempfile.TemporaryDirectory() as tmp, threadpool_limits(1):
@@ -75,6 +83,39 @@ def main() -> None:
             f"write_batch_rrd ({args.batch_sessions} sessions, 3 sensors): {fmt(batch)}"
             f"   ({batch_path.stat().st_size / 1e6:.2f} MB)"
         )
+        if args.ref:
+            versus(args.ref, recording, result, out, args.repeats)
+
+
+def versus(ref: str, recording, result, out: Path, repeats: int) -> None:
+    """``write_session_rrd`` of ``ref`` and of this tree, interleaved; wall and CPU."""
+    with tempfile.TemporaryDirectory() as tmp:
+        extract(ref, Path(tmp))
+        sys.path.insert(0, tmp)
+        from wheelcal_ref.estimate.joint import JointFit as RefJoint
+        from wheelcal_ref.simulate import simulate as ref_simulate
+        from wheelcal_ref.simulate import table1 as ref_table1
+        from wheelcal_ref.viz.session_rrd import write_session_rrd as ref_write
+
+        ref_recording = ref_simulate(ref_table1(), np.random.default_rng(0)).recording
+        ref_result = RefJoint().fit(ref_recording)
+        fns = {
+            "ref": lambda: ref_write(out / "ref.rrd", ref_result, ref_recording, None),
+            "now": lambda: write_session_rrd(out / "now.rrd", result, recording, None),
+        }
+        sizes = {}
+        for clock, what in ((time.perf_counter, "wall"), (time.process_time, "CPU")):
+            ts = interleaved_times(fns, repeats, clock)
+            ratios = [a / b for a, b in zip(ts["ref"], ts["now"], strict=True)]
+            for name, values in ts.items():
+                print(
+                    f"write_session_rrd {name} ({ref if name == 'ref' else 'this tree'}), {what}: "
+                    f"{fmt(values)}"
+                )
+            print(f"  ref / now per round ({what}), median {statistics.median(ratios):.2f}x")
+        for name in fns:
+            sizes[name] = (out / f"{name}.rrd").stat().st_size / 1e6
+        print(f"file size: ref {sizes['ref']:.2f} MB, now {sizes['now']:.2f} MB")
 
 
 if __name__ == "__main__":

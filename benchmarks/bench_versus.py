@@ -11,19 +11,25 @@ recording:
 
 and prints both medians and the median of the per-round ratios (robust to the
 load of a shared machine drifting within seconds).  It also prints the largest
-difference of the sensor parameters between the two, in the new fit's σ.
+difference of the sensor parameters between the two, in the new fit's σ, and
+that of every reported value and of every σ.
 
-Run:  python benchmarks/bench_versus.py --ref 7870c1d [--repeats 30]
+``--stages`` also times each stage of the calibration (those of ``bench_fit.py
+--profile``), rounds alternating, with each stage's median ratio per round.
+
+Run:  python benchmarks/bench_versus.py --ref 7870c1d [--repeats 30] [--stages]
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import re
 import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -59,10 +65,73 @@ def extract(ref: str, into: Path) -> None:
         )
 
 
+STAGES = (
+    "window search",
+    "rests",
+    "closed-form start",
+    "joint fit",
+    "noise reference + motion check",
+    "gates + rest check",
+)
+
+
+def stage_times(session_fit_module, recording):
+    """A function that runs the stages of ``SessionFit().run`` once, seconds per stage.
+
+    The same stages as ``bench_fit.py --profile``, for this tree's or the
+    reference's ``wheelcal.estimate.session_fit``.
+    """
+    sf = session_fit_module
+    session = sf.SessionFit()
+    gates = session.gates
+
+    def run() -> list[float]:
+        marks = [time.perf_counter()]
+        choice = sf.choose_window(recording, None, None, gates.max_window_s)
+        marks.append(time.perf_counter())
+        rests = sf.find_rests(recording, (choice.found.start_s, choice.found.end_s))
+        marks.append(time.perf_counter())
+        guess = session.fitter.start(choice.recording)
+        marks.append(time.perf_counter())
+        result = session.fitter.fit(choice.recording, guess=guess)
+        marks.append(time.perf_counter())
+        motion, reference = sf._motion(result, choice.recording, rests)
+        marks.append(time.perf_counter())
+        sf.assess(result, rests, gates, motion, reference=reference)
+        marks.append(time.perf_counter())
+        return [b - a for a, b in itertools.pairwise(marks)]
+
+    return run
+
+
+def print_stages(ref_run, now_run, repeats: int) -> None:
+    """Both stage breakdowns, rounds alternating, and each stage's median ratio per round."""
+    ref_run(), now_run()  # warm-up
+    ref, now = [], []
+    for _ in range(repeats):
+        ref.append(ref_run())
+        now.append(now_run())
+    print("stages of the whole calibration, interleaved (median ms; ref / now per round):")
+    for k, name in enumerate(STAGES):
+        a, b = [r[k] for r in ref], [r[k] for r in now]
+        ratio = statistics.median(x / y for x, y in zip(a, b, strict=True))
+        print(
+            f"  {name:32s} ref {1e3 * statistics.median(a):6.2f}   "
+            f"now {1e3 * statistics.median(b):6.2f}   {ratio:5.2f}x"
+        )
+    sums = [(sum(x), sum(y)) for x, y in zip(ref, now, strict=True)]
+    print(
+        f"  {'sum':32s} ref {1e3 * statistics.median(x for x, _ in sums):6.2f}   "
+        f"now {1e3 * statistics.median(y for _, y in sums):6.2f}   "
+        f"{statistics.median(x / y for x, y in sums):5.2f}x"
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ref", required=True, help="git revision to compare with, e.g. 7870c1d")
     ap.add_argument("--repeats", type=int, default=30)
+    ap.add_argument("--stages", action="store_true", help="also time each stage of the calibration")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         extract(args.ref, Path(tmp))
@@ -105,6 +174,24 @@ def main() -> None:
             if n.startswith(("gain_", "offset_"))
         )
         print(f"largest change of a gain or offset between the two: {worst:.3f} σ")
+        sigma = np.sqrt(np.diag(new.covariance))
+        sigma_old = np.sqrt(np.diag(old.covariance))
+        moved = np.max(np.abs(new.values - old.values) / sigma)
+        print(
+            f"largest change of any reported value: {moved:.2e} σ; of any σ: "
+            f"{np.max(np.abs(sigma / sigma_old - 1)):.2e} (relative)"
+        )
+        if args.stages:
+            from wheelcal_ref.estimate import session_fit as ref_session_fit
+
+            from wheelcal.estimate import session_fit
+
+            with threadpool_limits(1):
+                print_stages(
+                    stage_times(ref_session_fit, ref_rec),
+                    stage_times(session_fit, rec),
+                    args.repeats,
+                )
 
 
 if __name__ == "__main__":

@@ -122,6 +122,35 @@ def test_batch_cli_exit_status_and_progress_lines(tmp_path, recordings, capsys):
     assert "6 sessions: 5 calibrated, 1 failed." in (tmp_path / "out" / "report.md").read_text()
 
 
+def test_sessions_run_on_one_blas_thread_and_an_in_process_batch_gives_them_back(
+    tmp_path, recordings, monkeypatch
+):
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from wheelcal.batch import runner
+
+    def blas_threads():
+        return {
+            i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"
+        }
+
+    seen = []
+    calibrate = runner.calibrate_session
+
+    def spy(*args, **kwargs):
+        seen.append(blas_threads())
+        return calibrate(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "calibrate_session", spy)
+    with threadpool_limits(2):
+        before = blas_threads()
+        outcome = run_batch(_pipeline(tmp_path, recordings, "workers = 1"))
+        after = blas_threads()
+    assert len(outcome.records) == 6 and len(seen) == 6
+    assert set(before.values()) == {2} and after == before
+    assert all(set(threads.values()) == {1} for threads in seen)
+
+
 def test_dask_executor_on_a_local_cluster(tmp_path, recordings):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(
@@ -139,6 +168,47 @@ def test_dask_executor_on_a_local_cluster(tmp_path, recordings):
     a = json.loads((tmp_path / "out" / "r2.calibration.json").read_text())
     b = json.loads((tmp_path / "local" / "out" / "r2.calibration.json").read_text())
     assert a["parameters"]["gain_y"]["value"] == b["parameters"]["gain_y"]["value"]
+
+
+def test_dask_runs_sessions_in_groups_and_a_failed_group_again_one_by_one(
+    tmp_path, recordings, monkeypatch
+):
+    distributed = pytest.importorskip("distributed")
+    from wheelcal.batch import runner
+
+    log = tmp_path / "groups.txt"  # the function is pickled to the workers: a file, not a list
+    run_group = runner._run_group
+
+    def group_dies_with_r1(tasks):  # as a worker killed by session r1 takes its group along
+        stems = sorted(t.stem for t in tasks)
+        with open(log, "a") as stream:
+            stream.write(" ".join(stems) + "\n")
+        if "r1" in stems:
+            raise RuntimeError("worker died")
+        return run_group(tasks)
+
+    monkeypatch.setattr(runner, "_run_group", group_dies_with_r1)
+    monkeypatch.setattr(runner, "_GROUPS_PER_THREAD", 1)  # 6 sessions on 2 threads: 2 groups
+    with distributed.LocalCluster(  # in-process workers: they see the patched function
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cluster:
+        pipeline = _pipeline(
+            tmp_path, recordings, f'kind = "dask"\naddress = "{cluster.scheduler_address}"'
+        )
+        outcome = run_batch(pipeline)
+    groups = sorted(line.split() for line in log.read_text().splitlines())
+    assert groups == [
+        ["r0"],
+        ["r0", "r1", "r2"],
+        ["r1"],
+        ["r2"],
+        ["r3", "r4", "zz_corrupt"],
+    ]
+    assert sorted(r.stem for r in outcome.failed) == ["r1", "zz_corrupt"]
+    (r1,) = [r for r in outcome.records if r.stem == "r1"]
+    assert r1.error.endswith("worker failed: RuntimeError: worker died")
+    assert (tmp_path / "out" / "r0.calibration.json").exists()
+    assert json.loads((tmp_path / "out" / "report.json").read_text())["sessions"] == 6
 
 
 @pytest.mark.parametrize(

@@ -73,6 +73,15 @@ def test_column_statistics_equal_numpys():
     assert np.array_equal(row_gram(rows), row_gram(rows).T)
 
 
+def test_difference_stds_equal_numpys():
+    from wheelcal.estimate.columns import difference_stds
+
+    x = np.cumsum(np.random.default_rng(8).normal([0.1, -2.0, 5.0], [1.0, 0.3, 7.0], (5001, 3)), 0)
+    expected = np.std(np.diff(x, axis=0), axis=0)
+    assert np.allclose(difference_stds(x), expected, rtol=1e-13, atol=0)
+    assert np.allclose(difference_stds(x[:, ::-1]), expected[::-1], rtol=1e-13, atol=0)
+
+
 def test_legendre_normal_equations_give_polyfits_polynomial():
     """The phase polynomial and the trend, as polyfit and lstsq gave them."""
     from wheelcal.estimate.initial import _legendre_fit

@@ -143,3 +143,23 @@ def test_equal_offset_twins_report_positive_spin():
     for start in (p, negative):
         choice = choose_twin(start)
         assert choice.chosen.spin.omega_radps[0] > 0 and choice.ambiguous
+
+
+@pytest.mark.parametrize(
+    ("degree", "fit_tilt", "fit_radius"),
+    [(3, True, False), (3, False, True), (2, False, False), (1, True, False), (0, True, False)],
+)
+def test_jacobian_transpose_times_equals_the_jacobians_product(degree, fit_tilt, fit_radius):
+    from wheelcal.model.forward import jacobian_transpose_times
+
+    spin = SpinParams(0.3, [9.0, -0.05, 4e-4, 1e-6][: degree + 1])
+    params = _params(spin=spin)
+    layout = ParameterLayout(spin_degree=degree, fit_tilt=fit_tilt, fit_radius=fit_radius)
+    t = np.linspace(-20.0, 20.0, 3001)
+    weights = np.random.default_rng(4).normal(size=(3, t.size))
+    full = evaluate(params, t, layout, jacobian=True)
+    expected = full.jacobian.reshape(layout.size, -1) @ weights.reshape(-1)
+    got = jacobian_transpose_times(params, t, layout, weights, evaluate(params, t, layout))
+    scale = np.sqrt(np.sum(full.jacobian.reshape(layout.size, -1) ** 2, axis=1) * t.size)
+    np.testing.assert_allclose(got / scale, expected / scale, rtol=0, atol=1e-12)
+    assert np.all(np.abs(expected / scale) > 1e-6)  # every entry is tested, none is zero

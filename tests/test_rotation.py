@@ -48,6 +48,33 @@ def test_euler_jacobian_matches_finite_difference_of_right_perturbation():
         assert np.allclose(jac[:, k], fd, rtol=1e-5, atol=1e-5)
 
 
+def test_euler_jacobian_closed_form_matches_central_differences_everywhere():
+    # The closed form E⁻¹ against central differences of euler_deg, over the whole
+    # range including e₂ near ±90° (closed form down to |cos e₂| = 1e-3, then the
+    # differences themselves, whose own truncation error grows there).
+    rng = np.random.default_rng(4)
+    angles = [(e, 1e-8) for e in rng.uniform([-180, -89, -180], [180, 89, 180], (50, 3))]
+    for euler, rtol in [*angles, ([10.0, 89.9, -30.0], 1e-6)]:
+        r = Rotation.from_euler_deg(*euler)
+        jac = r.euler_jacobian_deg()
+        fd = r._euler_jacobian_differences()
+        assert np.max(np.abs(jac - fd)) < rtol * np.max(np.abs(jac))
+    locked = Rotation.from_euler_deg(10.0, 90.0, 0.0)
+    assert np.array_equal(locked.euler_jacobian_deg(), locked._euler_jacobian_differences())
+
+
+def test_composed_is_the_constructor_without_validation():
+    r = Rotation.from_euler_deg(-40.0, 10.0, 70.0)
+    product = r.matrix @ exp_so3(np.array([0.01, -0.02, 0.3]))
+    assert np.array_equal(Rotation.composed(product).matrix, Rotation(product).matrix)
+    assert not Rotation.composed(product).matrix.flags.writeable
+    # Re-orthonormalised: round-off never accumulates over many perturbations.
+    walked = r
+    for _ in range(1000):
+        walked = walked.perturbed(np.array([1e-3, 2e-3, -3e-3]))
+    assert np.max(np.abs(walked.matrix.T @ walked.matrix - np.eye(3))) < 1e-14
+
+
 def test_nearest_rotation_of_a_noisy_matrix():
     r = Rotation.from_euler_deg(10.0, -5.0, 3.0)
     noisy = r.matrix + 1e-3 * np.random.default_rng(1).standard_normal((3, 3))

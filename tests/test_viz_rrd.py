@@ -10,10 +10,12 @@ import copy
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 import rerun as rr
+from rerun import FileSink as rr_file_sink
 from rerun.chunk import RrdReader
 
 from wheelcal.estimate.joint import JointFit
@@ -22,11 +24,13 @@ from wheelcal.io.calibration_json import calibration_dict
 from wheelcal.simulate import table2
 from wheelcal.simulate.session import simulate_session
 from wheelcal.viz.batch_rrd import write_batch_rrd
+from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import RrdWriteError
 from wheelcal.viz.session_rrd import (
     ANGLE_BINS,
     angle_mdeg,
     binned_mean_by_angle,
+    session_blueprint,
     session_rrd,
     wheel_angle_rad,
     write_session_rrd,
@@ -204,6 +208,10 @@ def test_mean_residual_per_angle_bin(session, session_file):
         values = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:values")[0]
         abscissa = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:abscissa")[0]
         assert len(abscissa["buffer"]) == ANGLE_BINS  # every 5° bin holds samples
+        widths = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:widths")
+        assert widths == [5.0] * ANGLE_BINS
+        color = static(chunks, f"/residual_angle_mean/{axis}/fit", "BarChart:color")
+        assert color == [(38 << 24) | (110 << 16) | (210 << 8) | 170]  # the fit set's, translucent
         # Independent check of one bin: 90°–95°.
         j = 18
         assert abscissa["buffer"][j] == pytest.approx(92.5)
@@ -248,11 +256,73 @@ def test_session_blueprint(session, session_file):
     assert blueprint_component(path, "TimePanelBlueprint:timeline") == [["time"]]
     (selection,) = blueprint_component(path, "TimePanelBlueprint:time_selection")
     assert selection[0] == {"min": round(window.start_s * 1e9), "max": round(window.end_s * 1e9)}
-    # Per-axis views show one of the three series of an entity.
-    masks = blueprint_component(path, "SeriesLines:visible_series")
-    assert [True, False, False] in [m for m in masks]
+    # Per-axis views show one of the three series of their entities (a view default).
+    contents = blueprint_contents(path)
+    names = {e: v[0][0] for (e, c, _), v in contents.items() if c == "ViewBlueprint:display_name"}
+    for k, axis in enumerate("xyz"):
+        for title in (f"{axis}: raw and model (m/s²)", f"{axis}: residual, data − model (m/s²)"):
+            (view,) = [e for e, name in names.items() if name == title]
+            mask = contents[(f"{view}/defaults", "SeriesLines:visible_series", False)]
+            assert mask == [[j == k for j in range(3)]]
     reader = RrdReader(path)
     assert reader.recordings()[0].application_id == "wheelcal"
+
+
+def blueprint_contents(path):
+    """{(entity, component, static): values} of the file's blueprint store."""
+    out = {}
+    for entity, chunks in read_store(path, blueprint=True).items():
+        for chunk in chunks:
+            batch = chunk.to_record_batch()
+            for name in batch.schema.names:
+                if ":" in name:  # components, not row ids or timelines
+                    out[(entity, name, chunk.is_static)] = batch.column(name).to_pylist()
+    return out
+
+
+def test_blueprint_chunks_send_what_send_blueprint_sends(tmp_path):
+    """The cached-chunk path gives the blueprint store Rerun's own send_blueprint gives."""
+    blueprint = session_blueprint(1.5, 80.25, ("fit", "after"))
+    paths = []
+    for name, send in (
+        ("rerun", lambda s: s.send_blueprint(blueprint)),
+        ("chunks", lambda s: send_blueprint_chunks(s, blueprint_chunks(blueprint))),
+    ):
+        stream = rr.RecordingStream("wheelcal", recording_id=f"bp-{name}")
+        sink = stream.binary_stream()
+        send(stream)
+        paths.append(tmp_path / f"{name}.rrd")
+        paths[-1].write_bytes(sink.read(flush=True))
+        stream.disconnect()
+    expected, got = (blueprint_contents(p) for p in paths)
+    kinds = {component for _, component, _ in expected}
+    assert {
+        "ViewBlueprint:display_name",
+        "ViewContents:query",
+        "SeriesLines:visible_series",
+        "SeriesPoints:markers",
+        "ContainerBlueprint:contents",
+        "TimeAxis:link",
+        "TimePanelBlueprint:time_selection",
+    } <= kinds
+    assert got == expected
+    assert RrdReader(paths[1]).blueprints()[0].application_id == "wheelcal"
+
+
+def test_each_file_gets_its_own_time_selection(session, tmp_path):
+    """The layout is cached per process; the window pre-selection is not."""
+    recording, window, result = session
+    write_session_rrd(tmp_path / "a.rrd", result, recording, window)
+    write_session_rrd(tmp_path / "b.rrd", result, recording, None)
+    for name, (start, end) in (
+        ("a", (window.start_s, window.end_s)),
+        ("b", (result.time_s[0], result.time_s[-1])),
+    ):
+        (selection,) = blueprint_component(
+            tmp_path / f"{name}.rrd", "TimePanelBlueprint:time_selection"
+        )
+        assert selection[0] == {"min": round(start * 1e9), "max": round(end * 1e9)}
+    assert blueprint_views(tmp_path / "a.rrd") == blueprint_views(tmp_path / "b.rrd")
 
 
 def test_window_none_marks_the_fitted_span(session, tmp_path):
@@ -316,6 +386,55 @@ def test_rerun_misuse_raises_instead_of_warning(session, tmp_path):
             rrd.stream.log("oops", rr.Scalars(["not a number"]))
     assert not path.exists() and no_leftovers(tmp_path)
     assert not rr.strict_mode()  # only inside the writer
+
+
+@pytest.mark.filterwarnings("ignore:wheelcal .rrd writer:rerun.error_utils.RerunWarning")
+def test_an_exception_after_a_rerun_warning_still_leaves_no_file(session, tmp_path):
+    """A Rerun warning inside ``stream.log`` must not switch the writer's strict mode off.
+
+    rerun-sdk 0.41's ``RecordingStream.log`` passes ``strict=None`` down, and the
+    warning it then logs re-enters the same decorator, which restores the wrong
+    strict setting: afterwards the writer's guard swallowed any exception of the
+    block (a warning instead) and wrote the file.
+    """
+    recording, window, result = session
+    path = tmp_path / "warned.rrd"
+    style = rr.SeriesLines(names=["a"])
+    with pytest.raises(RuntimeError, match="boom"):
+        with session_rrd(path, result, recording, window) as rrd:
+            with pytest.warns(rr.error_utils.RerunWarning, match="multiple times"):
+                rrd.stream.log("dup", style, style, static=True)  # a component twice
+            raise RuntimeError("boom")
+    assert not path.exists() and no_leftovers(tmp_path)
+
+
+def test_an_unfinished_file_is_an_error(session, tmp_path, monkeypatch):
+    """The file sink writes on Rerun's thread; a file without the stream footer is refused."""
+    recording, window, result = session
+    path = tmp_path / "cut.rrd"
+    path.write_bytes(b"previous")
+    # A sink that stops short of the footer, as a failed write on Rerun's thread would.
+    monkeypatch.setattr(rr, "FileSink", lambda p: rr_file_sink(p, write_footer=False))
+    with pytest.raises(RrdWriteError, match="no stream footer"):
+        write_session_rrd(path, result, recording, window)
+    assert path.read_bytes() == b"previous" and no_leftovers(tmp_path)
+
+
+def test_rerun_verifies_the_session_file(session_file):
+    """Rerun's own loader (``rerun rrd verify``, as the viewer loads a file) accepts it."""
+    path, _ = session_file
+    cli = Path(sys.executable).parent / "rerun"
+    if not cli.exists():
+        pytest.skip("the rerun command of rerun-sdk is not installed next to this Python")
+    out = subprocess.run([cli, "rrd", "verify", path], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "1 file verified without error" in out.stdout + out.stderr  # "0 files" for junk
+
+
+def test_a_written_file_ends_with_the_stream_footer(session_file):
+    path, _ = session_file
+    assert path.read_bytes()[-12:-4] == b"RRF2FOOT"
+    assert no_leftovers(path.parent)
 
 
 def test_rerun_disabled_is_an_error(session, tmp_path, monkeypatch):

@@ -20,6 +20,14 @@ def column_means(x: np.ndarray) -> np.ndarray:
     return np.array([x[:, k].mean() for k in range(x.shape[1])])
 
 
+def difference_stds(x: np.ndarray) -> np.ndarray:
+    """Std of each column's first differences: ``np.std(np.diff(x, axis=0), axis=0)``."""
+    rows = np.ascontiguousarray(x.T, dtype=float)
+    steps = rows[:, 1:] - rows[:, :-1]
+    steps -= steps.mean(axis=1, keepdims=True)
+    return np.sqrt(np.einsum("ij,ij->i", steps, steps) / max(steps.shape[1], 1))
+
+
 def centred_rows(x: np.ndarray, mean: np.ndarray) -> np.ndarray:
     """(x − mean)ᵀ as a C-ordered (k, N) array: one contiguous row per column of ``x``."""
     out = np.empty((x.shape[1], x.shape[0]))

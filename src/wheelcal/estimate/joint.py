@@ -8,14 +8,18 @@ Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound
 1. start from the closed-form guess of :mod:`wheelcal.estimate.initial` (the
    data and the radius only — never the truth);
 2. least squares with per-axis weights from a first-difference noise estimate
-   (on a decimated copy: it only needs to get within a few σ);
+   (on a decimated copy of ~3 000 samples: it only needs to get within a few σ;
+   then, on a long or fast recording, stages on N/100 and N/10 of the N samples
+   (those above 6 000), so that stage 2 starts ≲ 10 σ away and its noise model
+   is not fitted to a start's misfit);
 3. estimate the noise model (AR colour per axis, cross-axis correlation) from
    full residual and refit the whitened (generalised least squares) problem on
    every sample, from the canonical twin (the smaller offset: the decimated fit
-   already tells the twins apart).  From 5–10 σ away this takes two passes with
-   the Jacobian; the last Gauss–Newton step (< 0.3 σ) is confirmed by the cost
-   alone (:mod:`wheelcal.estimate.levenberg_marquardt`), whose residual is the
-   result's;
+   already tells the twins apart).  From 5–10 σ away this takes one pass with
+   the Jacobian (H and g at the start), a Gauss–Newton step judged by the
+   gradient alone (the start's H serving), and a last step (< 0.3 σ) confirmed
+   by the cost alone (:mod:`wheelcal.estimate.levenberg_marquardt`), whose
+   residual is the result's;
 4. choose the discrete twin with the smaller offset, and compute the covariance
    from the Fisher information, the systematic budget and the identifiability
    verdict there.  (Stage 2 moves the estimate by a small fraction of σ, so the
@@ -35,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.columns import difference_stds
 from wheelcal.estimate.decimation import thinning_stride
 from wheelcal.estimate.gyro_equations import accumulate_gyro, combined, gyro_prediction
 from wheelcal.estimate.identifiability import check_identifiability
@@ -46,6 +51,8 @@ from wheelcal.estimate.normal_equations import (
     CHUNK_SAMPLES,
     NormalEquations,
     accumulate,
+    accumulate_fitting_noise,
+    gradient_pass,
     whitened_cost,
 )
 from wheelcal.estimate.reporting import report_transform, transform_covariance
@@ -72,6 +79,12 @@ _STAGE1_SAMPLES = 3000
 _FINAL_STEP_TOL = 0.1
 #: The same for stage 1 (it only needs to get close: stage 2 iterates from there).
 _STAGE1_FINAL_STEP_TOL = 10.0
+#: Between stage 1 and all N samples, stages on N/10, N/100, … samples (those above
+#: ``_LADDER_MIN_SAMPLES``): a decimated stage on M samples with white weights ends
+#: ~k·√(N/M) σ of the whole from its optimum (k ≈ 1–3, more for coloured noise), and
+#: stage 2's one Gauss–Newton step lands within 0.3 σ from ~10 σ, not from 20.
+_LADDER_STEP = 10
+_LADDER_MIN_SAMPLES = 2 * _STAGE1_SAMPLES
 
 
 @dataclass(frozen=True)
@@ -252,7 +265,7 @@ class JointFit:
         # (never below 16 samples per turn at the fastest rate: no aliasing)
         omega_max = float(np.max(np.abs(initial.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
         stride = thinning_stride(t.size, _STAGE1_SAMPLES, recording.rate_hz, omega_max)
-        std0 = np.maximum(np.std(np.diff(v, axis=0), axis=0) / np.sqrt(2), 1e-6)
+        std0 = np.maximum(difference_stds(v) / np.sqrt(2), 1e-6)
         gyro1 = None
         if gyro is not None:
             gyro_std0 = np.maximum(np.std(np.diff(gyro, axis=0), axis=0) / np.sqrt(2), 1e-9)
@@ -268,7 +281,32 @@ class JointFit:
             initial_damping=1e-7 if gyro is not None else 1e-3,
             # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
             final_step_tol=_STAGE1_FINAL_STEP_TOL,
+            # The step's end judged by its gradient, the start's Hessian serving: the
+            # paper's model only.  Effects are freed here from zero, where the Hessian
+            # is not the end's (a warm-up's τ has no column while its amplitude is 0).
+            gradient_fn=None
+            if gyro is not None or self.effects
+            else _gradient_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
         )
+        if gyro is None:  # a ladder of decimations toward all samples (a long, fast recording)
+            for target in _ladder(t.size):
+                finer = thinning_stride(t.size, target, recording.rate_hz, omega_max)
+                if finer >= stride:
+                    continue
+                stride = finer
+                out = levenberg_marquardt(
+                    _residual_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
+                    out.params,
+                    layout,
+                    self.max_iterations,
+                    tol=1e-2,
+                    initial_damping=1e-9,  # warm start: Gauss–Newton steps
+                    jacobian_on_trial=True,
+                    final_step_tol=_STAGE1_FINAL_STEP_TOL,
+                    gradient_fn=_gradient_fn(
+                        tc[::stride], v[::stride], layout, NoiseModel.white(std0)
+                    ),
+                )
         # Stage 2: noise model from the full residual, whitened refit on all samples.
         # The accumulations carry the sensitivities to the fixed quantities as
         # extra columns, so the last one also gives the systematic budget.
@@ -279,7 +317,13 @@ class JointFit:
             # canonical too (no second Jacobian pass for the other twin in stage 3).
             # The gyro's reading and the spline mirror with the twin (twins.py).
             start = choose_twin(start).chosen
-        noise = self._noise_model(residual_of(start, tc, v, layout))
+        normal0 = None
+        if gyro is None and tc.size <= CHUNK_SAMPLES:  # one evaluation for both
+            normal0, noise = accumulate_fitting_noise(
+                start, tc, v, layout, self._noise_model, nuisance_extra(nuisance_columns(layout))
+            )
+        else:
+            noise = self._noise_model(residual_of(start, tc, v, layout))
         gyro2 = gyro_noise = None
         if gyro is not None:
             gyro_noise = self._noise_model(gyro - gyro_prediction(start, gyro_t, layout))
@@ -296,6 +340,11 @@ class JointFit:
             jacobian_on_trial=True,  # ... which are accepted: one pass per step
             # The last step (< 0.3 σ) needs no Jacobian: the cost confirms it.
             final_step_tol=_FINAL_STEP_TOL,
+            # The step from the start lands within a small fraction of σ: there the
+            # gradient (the whitening applied to the residual, not to J) and the
+            # start's Hessian decide the last step, and serve as the Fisher information.
+            gradient_fn=last_residual.gradient if last_residual is not None else None,
+            normal0=normal0,
         )
         iterations = out.iterations
         converged = out.converged
@@ -384,10 +433,11 @@ class JointFit:
 
 
 class _LastResidual:
-    """``normal_fn`` whose cost-only evaluations keep their residual (data − model).
+    """``normal_fn`` whose cost-only and gradient evaluations keep their residual.
 
-    The LM's last step is confirmed by a cost-only pass at the final parameters;
-    keeping that pass's residual saves the result a model evaluation.
+    The LM's last point is reached by a gradient pass (a step below the
+    tolerance) or confirmed by a cost-only pass; keeping that pass's residual
+    (data − model) saves the result a model evaluation.
     """
 
     def __init__(self, normal_fn, tc, v, layout: ParameterLayout, noise: NoiseModel) -> None:
@@ -404,6 +454,14 @@ class _LastResidual:
         self._params, self._residual = params, residual
         rows = max(residual.shape[0] - self._noise.order, 0)
         return NormalEquations(whitened_cost(residual, self._noise), None, None, 3 * rows)
+
+    def gradient(self, params: CalibrationParams) -> NormalEquations:
+        """Cost and gradient (:func:`gradient_pass`), the residual kept."""
+        tc, v, layout = self._args
+        residual = np.empty_like(v, dtype=float)
+        out = gradient_pass(params, tc, v, layout, self._noise, residual_out=residual)
+        self._params, self._residual = params, residual
+        return out
 
     def at(self, params: CalibrationParams) -> np.ndarray | None:
         """The kept residual if it was evaluated at ``params`` itself, else None."""
@@ -466,6 +524,25 @@ def _residual_fn(
         return combined(acc, rate, accel_layout.size)
 
     return normal
+
+
+def _ladder(samples: int) -> list[int]:
+    """Sample counts of the stages between stage 1 and all ``samples``, smallest first."""
+    targets = []
+    target = samples // _LADDER_STEP
+    while target >= _LADDER_MIN_SAMPLES:
+        targets.append(target)
+        target //= _LADDER_STEP
+    return targets[::-1]
+
+
+def _gradient_fn(tc: np.ndarray, v: np.ndarray, layout: ParameterLayout, noise: NoiseModel):
+    """Cost and gradient of (model − data), no Hessian (see ``levenberg_marquardt``)."""
+
+    def gradient(params: CalibrationParams) -> NormalEquations:
+        return gradient_pass(params, tc, v, layout, noise)
+
+    return gradient
 
 
 def _rolling_of(effects: tuple):

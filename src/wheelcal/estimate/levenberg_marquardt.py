@@ -43,7 +43,8 @@ class LMOutcome:
     """Where the iterations ended and why.
 
     ``normal`` is evaluated at ``params`` — or, after a final step taken without
-    a Jacobian (``final_step``), one step (< √final_step_tol σ) before it.
+    a Jacobian (``final_step``), one step (< √final_step_tol σ) before it.  With
+    a ``gradient_fn`` its Hessian may come from one step earlier still.
     """
 
     params: CalibrationParams
@@ -69,6 +70,7 @@ def levenberg_marquardt(
     jacobian_on_trial: bool = False,
     normal0: NormalEquations | None = None,
     final_step_tol: float | None = None,
+    gradient_fn: Callable[[CalibrationParams], NormalEquations] | None = None,
 ) -> LMOutcome:
     """Minimise the whitened cost from ``params0``.
 
@@ -82,26 +84,30 @@ def levenberg_marquardt(
     ``normal0`` is ``normal_fn(params0, True)`` when the caller has it already.
     ``final_step_tol`` (> ``tol``) allows a last step without a Jacobian (see
     the module doc).
+
+    ``gradient_fn(params)`` (cost and gradient, no Hessian: cheaper than a
+    Jacobian pass) evaluates the trials instead, and the Hessian of the point
+    the step was taken from serves at the trial — for the stopping tests and the
+    final step only: before any other step a Hessian of its own is evaluated.
+    From a warm start one step lands within a small fraction of σ, where the
+    Hessian of a point a few σ away differs by O(step / parameter scale).
     """
     params = params0
     normal = normal0 if normal0 is not None else normal_fn(params, True)
+    fresh = True  # normal.hessian was evaluated at params
     lam = initial_damping
     message = "maximum iterations reached"
     converged = False
     iteration = 0
     size = layout.size  # the normal equations may carry extra columns after these
     for iteration in range(1, max_iterations + 1):
-        a, g, cost = normal.hessian[:size, :size], normal.gradient[:size], normal.cost
-        scale = np.sqrt(np.maximum(np.diag(a), 1e-300))
-        a_s = a / np.outer(scale, scale)
-        g_s = g / scale
-        decrease = _gauss_newton_decrease(a_s, g_s)
+        a_s, g_s, scale, decrease = _scaled(normal, size)
         if decrease < tol:
             converged, message = True, "step below tolerance (in units of the parameter σ)"
             iteration -= 1
             break
         if final_step_tol is not None and decrease < final_step_tol:
-            last = _final_step(normal_fn, layout, params, a_s, g_s, scale, cost)
+            last = _final_step(normal_fn, layout, params, a_s, g_s, scale, normal.cost)
             if last is not None:
                 return LMOutcome(
                     last,
@@ -111,6 +117,13 @@ def levenberg_marquardt(
                     f"last step ({np.sqrt(decrease):.2g} σ) confirmed by the cost",
                     final_step=True,
                 )
+        if not fresh:  # an earlier point's Hessian only serves the tests above
+            normal, fresh = normal_fn(params, True), True
+            a_s, g_s, scale, decrease = _scaled(normal, size)
+            if decrease < tol:
+                converged, message = True, "step below tolerance (in units of the parameter σ)"
+                break
+        cost = normal.cost
         accepted = False
         identity = np.eye(a_s.shape[0])
         while lam <= 1e12:
@@ -122,7 +135,10 @@ def levenberg_marquardt(
             step = step_s / scale
             try:
                 trial = layout.unpack(layout.pack(params) + step, params)
-                trial_normal = normal_fn(trial, jacobian_on_trial)
+                if gradient_fn is not None:
+                    trial_normal = gradient_fn(trial)
+                else:
+                    trial_normal = normal_fn(trial, jacobian_on_trial)
                 cost_trial = trial_normal.cost
             except (ValueError, FloatingPointError):
                 cost_trial = np.inf
@@ -140,7 +156,13 @@ def levenberg_marquardt(
             converged = decrease < 1e3 * tol
             message = "no further decrease possible" + ("" if converged else " (stalled)")
             break
-        normal = trial_normal if jacobian_on_trial else normal_fn(params, True)
+        if gradient_fn is not None:
+            normal = NormalEquations(
+                trial_normal.cost, normal.hessian, trial_normal.gradient, trial_normal.entries
+            )
+            fresh = False
+        else:
+            normal = trial_normal if jacobian_on_trial else normal_fn(params, True)
     return LMOutcome(params, normal, iteration, converged, message)
 
 
@@ -189,6 +211,15 @@ EXACT_NULL_EIGEN_FRACTION = 1e-12
 #: do not determine (σ along them > 10⁴ × the parameters' own scale).  Clean recordings
 #: stay above 1e-5; an axis along the wheel axis or a radial axis gives 1e-10.
 UNDETERMINED_EIGEN_FRACTION = 1e-8
+
+
+def _scaled(normal: NormalEquations, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """H and g of the free parameters scaled to unit diagonal, the scale, and gᵀH⁻¹g."""
+    a, g = normal.hessian[:size, :size], normal.gradient[:size]
+    scale = np.sqrt(np.maximum(np.diag(a), 1e-300))
+    a_s = a / np.outer(scale, scale)
+    g_s = g / scale
+    return a_s, g_s, scale, _gauss_newton_decrease(a_s, g_s)
 
 
 def _gauss_newton_decrease(a_s: np.ndarray, g_s: np.ndarray) -> float:

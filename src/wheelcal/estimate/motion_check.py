@@ -31,14 +31,15 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from wheelcal.estimate.information import scaled_pinv
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import accumulate
+from wheelcal.estimate.normal_equations import CHUNK_SAMPLES
 from wheelcal.estimate.result import CalibrationResult
-from wheelcal.model.effects import SpinSpline, basis_cache_off
-from wheelcal.model.forward import candidate_columns
+from wheelcal.model import evaluate
+from wheelcal.model.effects import SpinSpline, cubic_bspline_slots
+from wheelcal.model.forward import spin_columns
 from wheelcal.model.parameters import AXES
 
 #: Knots of the alternative motion, and the fewest turns between two of them.
@@ -90,8 +91,6 @@ def broadband_noise(noise: NoiseModel, broadband_mps2: np.ndarray) -> NoiseModel
 
 #: Singular values of the normalised Schur complement below this × the largest are null.
 RANK_RTOL = 1e-10
-#: Each accumulation covers whole knot intervals and at least this many samples.
-MIN_CHUNK_SAMPLES = 2048
 
 
 def _normal_with_spline(
@@ -99,43 +98,89 @@ def _normal_with_spline(
 ) -> tuple[np.ndarray, np.ndarray]:
     """H = J̃ᵀJ̃ and g = J̃ᵀr̃ over [the fit's parameters | the spline's coefficients].
 
-    A cubic B-spline coefficient acts on four knot intervals only, so the
-    samples are taken a few intervals at a time with just the coefficients
-    alive there as extra columns (6 of ~20 at 200 Hz: a third of the Gram
-    product's work).  Each part starts ``noise.order`` samples early for the
-    FIR whitening's history, whose outputs it drops: the sums are those of the
-    whole series, whitened at once.
+    One pass over the samples in chunks (:data:`CHUNK_SAMPLES`, FIR history
+    carried as in :func:`~wheelcal.estimate.normal_equations.accumulate`)
+    evaluates the model and its Jacobian once.  A coefficient c_k acts on the
+    wheel angle alone (Δϑ = B_k, Δω = B_k′, Δω̇ = B_k″), and in knot interval j
+    only B_j … B_{j+3} are not zero: each sample's four *slot* columns (its
+    interval's functions, :func:`~wheelcal.model.forward.spin_columns`) are
+    computed once, whitened an interval at a time with the functions its FIR
+    history reaches back to, and their Gram blocks with the base columns and
+    with each other added per interval by small products.  The sums are those
+    of one dense accumulation over every coefficient, to round-off.
     """
+    if spline.first != 0:
+        raise ValueError("the motion check's spline must span the whole window")
     tc = result.centred_time_s
     layout = result.layout
+    params = result.params
     size = layout.size
-    n = tc.size
-    rate = (n - 1) / max(float(tc[-1] - tc[0]), 1e-12)
-    per = max(1, int(np.ceil(MIN_CHUNK_SAMPLES / (spline.spacing_s * rate))))
-    step_s = spline.spacing_s * per
-    edges = spline.start_s + step_s * np.arange(1, int(np.ceil((tc[-1] - tc[0]) / step_s)))
-    edges = edges[edges < tc[-1] - 0.5 * step_s]  # no short last part
-    bounds = [0, *np.searchsorted(tc, edges, side="left").tolist(), n]
-    hess = np.zeros((size + spline.size, size + spline.size))
-    grad = np.zeros(size + spline.size)
-    for start, stop in itertools.pairwise(bounds):
-        if stop <= start:
-            continue
-        lo = max(0, start - noise.order)
-        active = spline.active(float(tc[lo]), float(tc[stop - 1]))
-        local = spline.restricted(active)
-
-        def extra(params, output, t_s, local=local):
-            return candidate_columns(params, t_s, layout, local, output)
-
-        extra.size = local.size  # columns written in place (see accumulate)
-        part = accumulate(
-            result.params, tc[lo:stop], accel_mps2[lo:stop], layout, noise, extra=extra
+    p = noise.order
+    # Three rows past the last function: the last sample's slot 3 (exactly zero there).
+    total = size + spline.size + 3
+    hess = np.zeros((total, total))  # the spline rows' blocks are filled below the diagonal
+    grad = np.zeros(total)
+    white = p == 0
+    for start in range(0, tc.size, CHUNK_SAMPLES):
+        stop = min(tc.size, start + CHUNK_SAMPLES)
+        lo = max(0, start - p)  # p samples of history; whitening drops p outputs
+        t = tc[lo:stop]
+        # Rows: the base columns, the residual, and (white noise: nothing to carry
+        # across intervals) the four slot columns, all whitened at once; one product
+        # per knot interval then gives its rows of H and g.
+        buf = np.empty((size + 1 + 4 * white, 3, t.size))
+        out = evaluate(params, t, layout, jacobian=True, out=buf[:size])
+        residual = out.predicted_mps2 - accel_mps2[lo:stop]
+        buf[size] = residual.T
+        interval, *rows = cubic_bspline_slots(t, spline.start_s, spline.spacing_s)
+        slots = spin_columns(
+            params, t, layout, tuple(rows), out, buf[size + 1 :] if white else None
         )
-        index = np.concatenate([np.arange(size), size + np.arange(active.start, active.stop)])
-        hess[np.ix_(index, index)] += part.hessian
-        grad[index] += part.gradient
-    return hess, grad
+        _, jw = noise.whiten(residual, buf)  # (white: one batched product, not in place)
+        jt = jw[: size + 1].reshape(size + 1, -1)
+        gram = jt @ jt.T
+        hess[:size, :size] += gram[:size, :size]
+        grad[:size] += gram[:size, size]
+        cuts = np.flatnonzero(np.diff(interval[p:])) + p + 1
+        for a, b in itertools.pairwise([p, *cuts.tolist(), t.size]):
+            jg = jw[:, :, a - p : b - p]
+            if white:
+                first, sw = int(interval[a]), jg[size + 1 :]
+            else:
+                first, sw = _whitened_group(interval, slots, noise, a, b)
+            cross = sw[:, 0, :] @ jg[:, 0, :].T
+            cross += sw[:, 1, :] @ jg[:, 1, :].T
+            cross += sw[:, 2, :] @ jg[:, 2, :].T
+            rows_here = slice(size + first, size + first + sw.shape[0])
+            hess[rows_here, :size] += cross[:, :size]
+            grad[rows_here] += cross[:, size]
+            if white:
+                hess[rows_here, rows_here] += cross[:, size + 1 :]
+            else:
+                flat = sw.reshape(sw.shape[0], -1)
+                hess[rows_here, rows_here] += flat @ flat.T
+    keep = size + spline.size
+    hess[:size, size:] = hess[size:, :size].T
+    return hess[:keep, :keep], grad[:keep]
+
+
+def _whitened_group(
+    interval: np.ndarray, slots: np.ndarray, noise: NoiseModel, a: int, b: int
+) -> tuple[int, np.ndarray]:
+    """Whitened columns of one knot interval's samples [a, b): (first function, (k, 3, b − a)).
+
+    Every function alive over the FIR history [a − p, b) has a column (the one
+    before the interval leaks into its first p outputs).
+    """
+    h = a - noise.order
+    first = int(interval[h])
+    count = int(interval[a]) - first + 4
+    raw = np.zeros((count, 3, b - h))
+    cuts = np.flatnonzero(np.diff(interval[h:b])) + h + 1
+    for s, e in itertools.pairwise([h, *cuts.tolist(), b]):
+        row = int(interval[s]) - first
+        raw[row : row + 4, :, s - h : e - h] = slots[:, :, s:e]
+    return first, noise.whiten(np.zeros((b - h, 3)), raw)[1]
 
 
 def check_motion(
@@ -152,8 +197,7 @@ def check_motion(
         return None
     spline = SpinSpline(float(tc[0]), float(tc[-1]), spacing)
     layout = result.layout
-    with basis_cache_off():  # every part is visited once
-        h, g = _normal_with_spline(result, accel_mps2, noise, spline)
+    h, g = _normal_with_spline(result, accel_mps2, noise, spline)
     size = layout.size
     h_bb_inv = scaled_pinv(h[:size, :size])
     h_inv = scaled_pinv(h)
@@ -169,7 +213,8 @@ def check_motion(
     normalised = schur / np.sqrt(np.outer(np.diag(schur), np.diag(schur)))
     singular = np.linalg.svd(normalised, compute_uv=False)
     dof = int(np.sum(singular > RANK_RTOL * singular[0]))
-    p_value = float(stats.chi2.sf(statistic, max(dof, 1)))
+    # The χ² survival function (what stats.chi2.sf returns, without its ~40 µs of checks).
+    p_value = float(special.chdtrc(max(dof, 1), statistic))
     # The sensor parameters' shift when the motion is freed (one Gauss–Newton step),
     # net of the base model's own (tiny) step under this noise model.
     shift = -(h_inv @ g)[:size] + h_bb_inv @ g[:size]

@@ -25,6 +25,7 @@ import numpy as np
 
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
+from wheelcal.model.forward import jacobian_transpose_times
 
 #: Samples per chunk: ~12 MB of Jacobian for 18 columns; one chunk for a typical
 #: 90 s / 200 Hz recording, bounded memory for long or fast ones.
@@ -130,34 +131,152 @@ def accumulate(
             cost += float(np.sum(rw * rw))
             entries += rw.size
             continue
-        # One buffer for the free parameters' columns and the extra ones: one
-        # whitening and one Gram product (cheaper than blocks, measured).
         view = local_view(params, layout, t_s[lo], t_s[stop - 1]) if sparse else None
         here, at = (view.layout, view.params) if view else (layout, params)
-        buf = np.empty((here.size + (extra_size or 0), 3, stop - lo))
-        out = evaluate(at, t_s[lo:stop], here, jacobian=True, out=buf[: here.size])
-        if extra is not None:
-            cols = extra(at, out, t_s[lo:stop])
-            if extra_size is None:  # first chunk: now we know how many
-                extra_size = cols.shape[0]
-                buf = np.concatenate([buf, cols])
-            else:
-                buf[here.size :] = cols
-        rw, jw = noise.whiten(out.predicted_mps2 - accel_mps2[lo:stop], buf, overwrite=True)
-        jt = jw.reshape(jw.shape[0], -1)
-        r_flat = rw.reshape(-1)
+        buf, residual, extra_size = _filled_buffer(
+            at, t_s[lo:stop], accel_mps2[lo:stop], here, extra, extra_size
+        )
+        gram, rows = _whitened_gram(buf, residual, noise)
         if hess is None:
             total = layout.size + (extra_size or 0)
             hess, grad = np.zeros((total, total)), np.zeros(total)
         if view is None:
-            hess += jt @ jt.T
-            grad += jt @ r_flat
+            hess += gram[:-1, :-1]
+            grad += gram[:-1, -1]
         else:
             index = np.concatenate([view.index, layout.size + np.arange(extra_size or 0)])
-            add_gram(hess, grad, jt, r_flat, index)
-        cost += float(r_flat @ r_flat)
-        entries += r_flat.size
+            hess[np.ix_(index, index)] += gram[:-1, :-1]
+            grad[index] += gram[:-1, -1]
+        cost += float(gram[-1, -1])
+        entries += rows
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
+
+
+def _filled_buffer(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    layout: ParameterLayout,
+    extra: ExtraColumns | None,
+    extra_size: int | None,
+) -> tuple[np.ndarray, np.ndarray, int | None]:
+    """[J | extra columns | residual] (P + k + 1, 3, n), the residual (model − data), k.
+
+    One buffer for the free parameters' columns, the extra ones and the residual:
+    one whitening, and one Gram product gives H, g and the cost together (a second
+    pass over J̃ for g costs more than the Gram's extra row).  ``extra_size`` None:
+    learnt from the callback's first columns (then one copy).
+    """
+    buf = np.empty((layout.size + (extra_size or 0) + 1, 3, t_s.size))
+    out = evaluate(params, t_s, layout, jacobian=True, out=buf[: layout.size])
+    residual = out.predicted_mps2 - accel_mps2
+    if extra is not None:
+        cols = extra(params, out, t_s)
+        if extra_size is None:
+            extra_size = cols.shape[0]
+            buf = np.concatenate([buf[: layout.size], cols, buf[-1:]])
+        else:
+            buf[layout.size : -1] = cols
+    buf[-1] = residual.T
+    return buf, residual, extra_size
+
+
+def _whitened_gram(
+    buf: np.ndarray, residual: np.ndarray, noise: NoiseModel
+) -> tuple[np.ndarray, int]:
+    """The Gram matrix of the whitened buffer, and the whitened residual entries."""
+    # Not in place: for white noise one batched 3×3 product beats six scaled adds.
+    _, jw = noise.whiten(residual, buf)
+    jt = jw.reshape(jw.shape[0], -1)
+    return jt @ jt.T, jw.shape[1] * jw.shape[2]
+
+
+def accumulate_fitting_noise(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    layout: ParameterLayout,
+    noise_of: Callable[[np.ndarray], NoiseModel],
+    extra: ExtraColumns | None = None,
+) -> tuple[NormalEquations, NoiseModel]:
+    """The noise model of the residual at ``params``, and :func:`accumulate` whitened by it.
+
+    ``noise_of`` takes the residual (data − model, (N, 3)).  The joint fit's
+    stage 2 needs both at its start: for a window of one chunk they come from
+    one evaluation of the model (its Jacobian kept until the noise is known).
+    """
+    if t_s.size > CHUNK_SAMPLES or chunking(layout, t_s, None)[1]:
+        raise ValueError("accumulate_fitting_noise takes one chunk of a dense layout")
+    extra_size = getattr(extra, "size", None) if extra is not None else None
+    buf, residual, extra_size = _filled_buffer(params, t_s, accel_mps2, layout, extra, extra_size)
+    noise = noise_of(np.negative(residual))
+    gram, rows = _whitened_gram(buf, residual, noise)
+    normal = NormalEquations(
+        cost=float(gram[-1, -1]),
+        hessian=gram[:-1, :-1].copy(),
+        gradient=gram[:-1, -1].copy(),
+        entries=rows,
+    )
+    return normal, noise
+
+
+def gradient_pass(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    layout: ParameterLayout,
+    noise: NoiseModel,
+    chunk: int | None = None,
+    residual_out: np.ndarray | None = None,
+) -> NormalEquations:
+    """Cost and g = J̃ᵀr̃ without H: the whitening applied to the residual, not to J.
+
+    With r̃ = W r and J̃ = W J (W = L⁻¹ F: the per-axis FIR F, then L⁻¹),
+    g = Jᵀ u with u = Wᵀ r̃ = Fᵀ L⁻ᵀ r̃: three rows are filtered (forwards, then
+    backwards) instead of every column of J, and Jᵀ u is taken in reverse mode
+    through the model (:func:`~wheelcal.model.forward.jacobian_transpose_times`,
+    no J at all; a layout with effects forms J and one matrix–vector product).
+    Exact: the sums of :func:`accumulate`, to round-off.  Each chunk's outputs
+    reach back over its p samples of history, whose model is evaluated with the
+    chunk; so the chunks' sums add up to the whole.  ``residual_out`` (N, 3), when
+    given, receives the residual data − model.
+    """
+    n = t_s.size
+    chunk, sparse = chunking(layout, t_s, chunk)
+    if sparse:
+        raise ValueError("gradient_pass does not take a layout with a local basis")
+    p = noise.order
+    # L⁻ᵀ of the noise model's Σ_e = L Lᵀ (3 × 3: its inverse once, then products).
+    inv_chol_t = np.linalg.inv(np.linalg.cholesky(noise.innovation_cov)).T
+    reverse = not layout.effects
+    cost = 0.0
+    entries = 0
+    grad = np.zeros(layout.size)
+    for start in range(0, n, chunk):
+        stop = min(n, start + chunk)
+        lo = max(0, start - p)
+        out = evaluate(params, t_s[lo:stop], layout, jacobian=not reverse)
+        residual = out.predicted_mps2 - accel_mps2[lo:stop]
+        if residual_out is not None:
+            np.negative(residual[start - lo :], out=residual_out[start:stop])
+        rw, _ = noise.whiten(residual)
+        cost += float(np.sum(rw * rw))
+        entries += rw.size
+        # Fᵀ L⁻ᵀ r̃: output m of the FIR sums input m + p − k with weight a_k (zero history),
+        # so input j receives Σ_k a_k y[j − p + k]; y is padded with p zeros each side.
+        m = stop - lo
+        padded = np.zeros((3, m + p))
+        np.matmul(inv_chol_t, rw, out=padded[:, p:m])
+        u = np.empty((3, m))
+        for i, a in enumerate(noise.ar_polynomials):
+            np.multiply(padded[i, :m], a[0], out=u[i])
+            for k in range(1, a.size):
+                u[i] += a[k] * padded[i, k : k + m]
+        if reverse:
+            grad += jacobian_transpose_times(params, t_s[lo:stop], layout, u, out)
+        else:
+            grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
+    return NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
 
 
 def whitened_cost(residual: np.ndarray, noise: NoiseModel, chunk: int = CHUNK_SAMPLES) -> float:

@@ -28,7 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from wheelcal.estimate.rests import RestSegment
 from wheelcal.estimate.result import CalibrationResult
@@ -71,7 +71,8 @@ def check_rests(
     gain = result.params.sensor.gain
     offset = result.params.sensor.offset_mps2
     g = result.params.gravity_mps2
-    z_limit = stats.norm.isf(alpha / (2 * len(rests)))
+    # The normal upper quantile (what stats.norm.isf returns, without its ~60 µs of checks).
+    z_limit = -special.ndtri(alpha / (2 * len(rests)))
     out = []
     for rest in rests:
         u = (rest.mean_mps2 - offset) / gain

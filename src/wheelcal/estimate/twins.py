@@ -118,7 +118,7 @@ def to_contract_frame(params: CalibrationParams) -> CalibrationParams:
     rot = params.bench.misalignment
     if alpha > np.pi / 2:  # Z points down: turn the frame 180° about X
         alpha = np.pi - alpha
-        rot = Rotation(rot.matrix @ _FLIP)
+        rot = Rotation.composed(rot.matrix @ _FLIP)
         spin = _negated_spin(spin)
         effects = _mirrored_effects(effects, negate=True)
     spin = SpinParams(theta0_rad=wrap_angle(spin.theta0_rad), omega_radps=spin.omega_radps)
@@ -133,7 +133,7 @@ def twin_of(params: CalibrationParams) -> CalibrationParams:
     return _with(
         params,
         spin=_negated_spin(params.spin),
-        rot=Rotation(rot @ _FLIP),
+        rot=Rotation.composed(rot @ _FLIP),
         offset=params.sensor.offset_mps2 + shift,
         effects=_mirrored_effects(params.effects, negate=True),
     )

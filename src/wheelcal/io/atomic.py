@@ -40,6 +40,19 @@ def _fsync_directory(directory: Path) -> None:
         os.close(fd)
 
 
+def _temporary_beside(path: str | os.PathLike) -> tuple[Path, Path, int, Path]:
+    """(target, its directory, fd, path) of a new hidden temporary file next to ``path``."""
+    target = Path(path)
+    directory = target.parent if str(target.parent) else Path(".")
+    if target.is_dir():  # found now: the final rename would name the temporary file
+        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file to write", str(target))
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:  # name the file the user asked for, not our hidden temporary one
+        raise OSError(exc.errno, exc.strerror, str(target)) from None
+    return target, directory, fd, Path(tmp_name)
+
+
 @contextlib.contextmanager
 def atomic_output(
     path: str | os.PathLike, binary: bool = True, durable: bool = True
@@ -65,15 +78,7 @@ def atomic_output(
         The open temporary file.  On an exception inside the block it is closed
         and deleted, the exception propagates, and ``path`` is untouched.
     """
-    target = Path(path)
-    directory = target.parent if str(target.parent) else Path(".")
-    if target.is_dir():  # found now: the final rename would name the temporary file
-        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file to write", str(target))
-    try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:  # name the file the user asked for, not our hidden temporary one
-        raise OSError(exc.errno, exc.strerror, str(target)) from None
-    tmp = Path(tmp_name)
+    target, directory, fd, tmp = _temporary_beside(path)
     try:
         mode = "wb" if binary else "w"
         kwargs = {} if binary else {"encoding": "utf-8", "newline": ""}
@@ -82,6 +87,36 @@ def atomic_output(
             stream.flush()
             if durable:
                 os.fsync(stream.fileno())
+        os.chmod(tmp, _default_mode())
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+    if durable:
+        _fsync_directory(directory)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, durable: bool = True) -> Iterator[Path]:
+    """A temporary file's path that replaces ``path`` when the ``with`` block succeeds.
+
+    For writers that open the file themselves (Rerun's file sink writes from
+    its own thread): the block writes the temporary file and has closed it when
+    it ends.  Then, as in :func:`atomic_output`, it is ``fsync``-ed (with
+    ``durable``) and renamed over ``path``; on an exception it is deleted and
+    ``path`` is untouched.
+    """
+    target, directory, fd, tmp = _temporary_beside(path)
+    os.close(fd)
+    try:
+        yield tmp
+        if durable:
+            fd = os.open(tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
         os.chmod(tmp, _default_mode())
         os.replace(tmp, target)
     except BaseException:

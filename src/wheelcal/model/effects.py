@@ -18,10 +18,7 @@ model's centred time, so drifting quantities are reported at the window centre.
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -276,6 +273,33 @@ class GyroReading(Effect):
         return out
 
 
+def cubic_bspline_slots(
+    t_s: np.ndarray, start_s: float, spacing_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each sample's knot interval j and its four live basis functions B_j … B_{j+3}.
+
+    Returns ``(interval, values, slopes, curves)``: the interval index (int, N) and
+    (4, N) arrays whose row m is B_{j+m}(t), B′_{j+m}(t), B″_{j+m}(t) (see
+    :func:`cubic_bspline_basis`, which scatters these rows into one row per function).
+    """
+    t = np.asarray(t_s, dtype=float)
+    position = (t - start_s) / spacing_s
+    interval = np.floor(position)
+    x = position - interval
+    x2, x3 = x * x, x * x * x
+    values = np.stack(
+        [
+            (1 - x) ** 3 / 6,
+            (3 * x3 - 6 * x2 + 4) / 6,
+            (-3 * x3 + 3 * x2 + 3 * x + 1) / 6,
+            x3 / 6,
+        ]
+    )
+    slopes = np.stack([-((1 - x) ** 2) / 2, 1.5 * x2 - 2 * x, -1.5 * x2 + x + 0.5, x2 / 2])
+    curves = np.stack([1 - x, 3 * x - 2, -3 * x + 1, x])
+    return interval.astype(np.int64), values, slopes / spacing_s, curves / spacing_s**2
+
+
 def cubic_bspline_basis(
     t_s: np.ndarray, start_s: float, spacing_s: float, count: int, first: int = 0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -291,30 +315,19 @@ def cubic_bspline_basis(
     functions of a window sum to 1 on it.
     """
     t = np.asarray(t_s, dtype=float)
-    position = (t - start_s) / spacing_s
-    interval = np.floor(position)
-    x = position - interval
-    x2, x3 = x * x, x * x * x
-    values = (
-        (1 - x) ** 3 / 6,
-        (3 * x3 - 6 * x2 + 4) / 6,
-        (-3 * x3 + 3 * x2 + 3 * x + 1) / 6,
-        x3 / 6,
-    )
-    slopes = (-((1 - x) ** 2) / 2, 1.5 * x2 - 2 * x, -1.5 * x2 + x + 0.5, x2 / 2)
-    curves = (1 - x, 3 * x - 2, -3 * x + 1, x)
+    interval, values, slopes, curves = cubic_bspline_slots(t, start_s, spacing_s)
     b = np.zeros((count, t.size))
     d1 = np.zeros((count, t.size))
     d2 = np.zeros((count, t.size))
     columns = np.arange(t.size)
     for m in range(4):
-        row = interval.astype(np.int64) + m - first
+        row = interval + m - first
         ok = (row >= 0) & (row < count)
         r, c = row[ok], columns[ok]
         b[r, c] = values[m][ok]
         d1[r, c] = slopes[m][ok]
         d2[r, c] = curves[m][ok]
-    return b, d1 / spacing_s, d2 / spacing_s**2
+    return b, d1, d2
 
 
 def cubic_bspline_sum(
@@ -359,24 +372,9 @@ _BASIS_CACHE: dict = {}
 _BASIS_CACHE_BYTES = [0]
 _BASIS_CACHE_SIZE = 256
 #: At most this many bytes of bases are remembered (oldest dropped first): the cache
-#: must not grow with the recording (a 2.9 M-sample motion check left ~116 B per sample).
+#: must not grow with the recording (a 2.9 M-sample motion check once left ~116 B per sample).
 #: A gyro-aided fit with 0.5 s knots over 90 s at 200 Hz needs ~80 MB of bases.
 _BASIS_CACHE_MAX_BYTES = 128 * 2**20
-_BASIS_CACHE_ON = contextvars.ContextVar("wheelcal_basis_cache", default=True)
-
-
-@contextlib.contextmanager
-def basis_cache_off() -> Iterator[None]:
-    """Within the block (this thread / context), bases are computed and not remembered.
-
-    For passes that visit each time only once (the motion check's parts): caching
-    them would only push out what an iterating fit will ask for again.
-    """
-    token = _BASIS_CACHE_ON.set(False)
-    try:
-        yield
-    finally:
-        _BASIS_CACHE_ON.reset(token)
 
 
 def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, first: int):
@@ -402,7 +400,7 @@ def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, f
         for array in hit:
             array.setflags(write=False)
         size = sum(array.nbytes for array in hit)
-        if size > _BASIS_CACHE_MAX_BYTES or not _BASIS_CACHE_ON.get():
+        if size > _BASIS_CACHE_MAX_BYTES:
             return hit
         while _BASIS_CACHE and (
             len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE

@@ -13,6 +13,7 @@ reporting, in the convention named by :data:`EULER_CONVENTION`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +69,14 @@ def log_so3(matrix: np.ndarray) -> np.ndarray:
     return angle / (2.0 * np.sin(angle)) * axis_term
 
 
+def _polar(m: np.ndarray) -> np.ndarray:
+    """The nearest orthonormal matrix (polar decomposition), read-only: round-off never grows."""
+    u, _, vt = np.linalg.svd(m)
+    m = u @ vt
+    m.setflags(write=False)
+    return m
+
+
 def _rot_x(a: float) -> np.ndarray:
     c, s = np.cos(a), np.sin(a)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
@@ -95,11 +104,21 @@ class Rotation:
             raise ValueError(f"a rotation is a finite 3x3 matrix, got shape {m.shape}")
         if not np.allclose(m.T @ m, np.eye(3), atol=1e-6) or np.linalg.det(m) < 0:
             raise ValueError("matrix is not a proper rotation (RᵀR ≠ I or det ≠ +1)")
-        # Re-orthonormalise (polar decomposition) so round-off never accumulates.
-        u, _, vt = np.linalg.svd(m)
-        m = u @ vt
-        m.setflags(write=False)
-        object.__setattr__(self, "matrix", m)
+        object.__setattr__(self, "matrix", _polar(m))
+
+    @classmethod
+    def composed(cls, matrix: np.ndarray) -> Rotation:
+        """R from a product of rotations this code built (``R @ exp_so3(δ)``, ``R @ flip``).
+
+        Re-orthonormalised as the constructor does (the same matrix, bit for bit),
+        but not validated: a product of rotations is one.  The optimiser builds
+        a dozen per calibration, where the validation's ``allclose`` and ``det``
+        cost more than the rest.  Never for a matrix from outside (use the
+        constructor).
+        """
+        rotation = object.__new__(cls)
+        object.__setattr__(rotation, "matrix", _polar(np.array(matrix, dtype=float)))
+        return rotation
 
     @classmethod
     def identity(cls) -> Rotation:
@@ -134,23 +153,43 @@ class Rotation:
     def euler_jacobian_deg(self) -> np.ndarray:
         """d(euler_deg)/dδ for the right perturbation R·exp([δ]×), a 3×3 matrix.
 
-        Central differences of the closed-form Euler extraction; used only to
-        carry covariances from the optimiser's δ to the reported angles.
+        Used only to carry covariances from the optimiser's δ to the reported
+        angles.  With R = Rz(e₁) Ry(e₂) Rx(e₃), a change of the angles turns R by
+        ω = E ė on the right, E = [[−s₂, 0, 1], [c₂s₃, c₃, 0], [c₂c₃, −s₃, 0]]
+        (sᵢ = sin eᵢ, cᵢ = cos eᵢ), so dε/dδ = E⁻¹: rows (0, s₃/c₂, c₃/c₂),
+        (0, c₃, −s₃), (1, s₂s₃/c₂, s₂c₃/c₂).  R's last row is (−s₂, c₂s₃, c₂c₃).
+        Near gimbal lock (c₂ → 0, where E⁻¹ blows up) central differences of
+        :meth:`euler_deg` instead.
         """
+        _, m21, m22 = self.matrix[2].tolist()
+        cos2_sq = m21 * m21 + m22 * m22
+        if cos2_sq < 1e-6:
+            return self._euler_jacobian_differences()
+        cos2 = math.sqrt(cos2_sq)
+        sin2 = -self.matrix[2, 0]
+        sin3, cos3 = m21 / cos2, m22 / cos2
+        inverse = [
+            [0.0, sin3 / cos2, cos3 / cos2],
+            [0.0, cos3, -sin3],
+            [1.0, sin2 * sin3 / cos2, sin2 * cos3 / cos2],
+        ]
+        return np.rad2deg(np.array(inverse))
+
+    def _euler_jacobian_differences(self) -> np.ndarray:
         step = 1e-6
         jac = np.empty((3, 3))
         for k in range(3):
             d = np.zeros(3)
             d[k] = step
-            plus = Rotation(self.matrix @ exp_so3(d)).euler_deg()
-            minus = Rotation(self.matrix @ exp_so3(-d)).euler_deg()
+            plus = self.perturbed(d).euler_deg()
+            minus = self.perturbed(-d).euler_deg()
             diff = (plus - minus + 180.0) % 360.0 - 180.0
             jac[:, k] = diff / (2 * step)
         return jac
 
     def perturbed(self, delta_rad: np.ndarray) -> Rotation:
         """Right perturbation ``R · exp([δ]×)``."""
-        return Rotation(self.matrix @ exp_so3(delta_rad))
+        return Rotation.composed(self.matrix @ exp_so3(delta_rad))
 
     def rotvec(self) -> np.ndarray:
         """Rotation vector (rad) of R."""

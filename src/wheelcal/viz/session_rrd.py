@@ -50,7 +50,11 @@ Blueprint (:func:`session_blueprint`): left, three columns x / y / z — raw and
 model; the window lane across them; residual against time; mean residual per
 5° of ϑ (bar chart); right — the report, ω(t), the residual scatter against ϑ.
 The per-axis views show one series of the three-column entities through a
-per-view ``visible_series`` override.  Time plots share their x-axis zoom.
+view default (``SeriesLines.visible_series``; one blueprint entity per view,
+where a per-entity override took two).  Time plots share their x-axis zoom.
+The layout is converted to blueprint chunks once per process and residual-set
+list (:mod:`wheelcal.viz.blueprint_chunks`); each file adds only its time
+panel, with the free-spin window pre-selected.
 
 More residual sets (the closed loop's "before/after"): inside
 :func:`session_rrd`, call :meth:`SessionRrd.log_residuals`; the set lands in
@@ -63,15 +67,20 @@ the same per-axis views (the blueprint is written last and knows every set)::
 Speed: no data are decimated (except ω, which is a polynomial).  Rerun's
 cost grows with the number of *rows* (each carries a 16-byte row id and its
 time), so the three axes share a row (≈ 4× faster than one entity per axis):
-≈ 56 000 rows for a 90 s / 200 Hz session.  What remains is mostly fixed per
-file — the blueprint (≈ 85 small blueprint messages), the fsync of the atomic
-write, the encoding — ≈ 30 ms of CPU for 1 800 samples, ≈ 35 ms for 18 000,
-so decimating would not buy much (``benchmarks/bench_rrd.py``).
+≈ 56 000 rows for a 90 s / 200 Hz session, ≈ 2.4 MB.  The rest is per
+message: each chunk (one per entity and kind, static or temporal) costs
+≈ 40–100 µs in Rerun (Arrow IPC schema, compression, hand-over between its
+threads), and the blueprint is ≈ 50 of them.  So the layout is built once per
+process (see above), styles are built once, the bar charts of a set share
+their abscissa, and the file is written by Rerun's file sink on its own
+thread.  ``benchmarks/bench_rrd.py --ref <rev>`` measures a file against an
+earlier revision in the same process.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import os
 import zlib
@@ -90,6 +99,7 @@ from wheelcal.model import predict
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
+from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import rrd_file
 
 APPLICATION_ID = "wheelcal"
@@ -122,6 +132,16 @@ def _time_column(time_s: np.ndarray) -> rr.TimeColumn:
     """A ``time`` duration column from seconds, rounded (not truncated) to whole ns."""
     ns = np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
     return rr.TimeColumn(TIME_TIMELINE, duration=ns.astype("timedelta64[ns]"))
+
+
+@functools.lru_cache(maxsize=64)
+def _series_style(names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None):
+    """Static ``rr.SeriesLines`` styling, built once per process (archetypes build slowly)."""
+    return rr.SeriesLines(
+        names=list(names),
+        colors=None if colors is None else list(colors),
+        widths=None if width is None else [width] * len(names),
+    )
 
 
 def angle_mdeg(theta_rad: np.ndarray) -> np.ndarray:
@@ -163,9 +183,7 @@ def log_signal(
     """Log (N, 3) samples in m/s² as ``/signal/<name>``: three line series on ``time``."""
     t, v = _check_series(time_s, accel_mps2, f"signal {name!r}")
     path = f"signal/{name}"
-    style = rr.SeriesLines(
-        colors=list(colors), names=[f"{name} {a}" for a in AXES], widths=[width] * 3
-    )
+    style = _series_style(tuple(f"{name} {a}" for a in AXES), tuple(colors), width)
     stream.log(path, style, static=True)
     stream.send_columns(path, indexes=[_time_column(t)], columns=rr.Scalars.columns(scalars=v))
 
@@ -209,29 +227,32 @@ def log_residuals(
         raise ValueError(f"residual set {name!r}: need {t.size} finite angles, got {theta.size}")
     rgb = set_color(name) if color is None else tuple(color)
     path = f"residual/{name}"
-    style = rr.SeriesLines(colors=[rgb] * 3, names=[f"{name} {a}" for a in AXES], widths=[1.0] * 3)
+    style = _series_style(tuple(f"{name} {a}" for a in AXES), (rgb,) * 3, 1.0)
     stream.log(path, style, static=True)
     angles = rr.TimeColumn(ANGLE_TIMELINE, sequence=angle_mdeg(theta))
     stream.send_columns(
         path, indexes=[_time_column(t), angles], columns=rr.Scalars.columns(scalars=r)
     )
     centres_deg, mean, _ = binned_mean_by_angle(theta, r, ANGLE_BINS)
-    widths = np.full(centres_deg.size, 360.0 / ANGLE_BINS)
-    for k, axis in enumerate(AXES):
-        chart = rr.BarChart(
-            mean[:, k],
-            abscissa=centres_deg,
-            widths=widths,
-            color=(*rgb, 170),  # translucent: several sets overlap in one view
-        )
-        stream.log(f"residual_angle_mean/{axis}/{name}", chart, static=True)
+    # The axes share abscissa, widths and colour: converted to Arrow once, not per axis.
+    first = rr.BarChart(
+        mean[:, 0],
+        abscissa=centres_deg,
+        widths=np.full(centres_deg.size, 360.0 / ANGLE_BINS),
+        color=(*rgb, 170),  # translucent: several sets overlap in one view
+    )
+    values = rr.BarChart.descriptor_values()
+    shared = [b for b in first.as_component_batches() if b.component_descriptor() != values]
+    stream.log(f"residual_angle_mean/{AXES[0]}/{name}", first, static=True)
+    for k, axis in enumerate(AXES[1:], start=1):
+        chart = rr.BarChart.from_fields(values=mean[:, k])
+        stream.log(f"residual_angle_mean/{axis}/{name}", chart, shared, static=True)
 
 
-def log_window(
-    stream: rr.RecordingStream, start_s: float, end_s: float, first_s: float, last_s: float
-) -> None:
-    """The free-spin window as a state lane ``/window`` on ``time``."""
-    config = rr.StateConfiguration(
+@functools.lru_cache(maxsize=1)
+def _window_configuration() -> rr.StateConfiguration:
+    """Labels and colours of the window lane's states (built once per process)."""
+    return rr.StateConfiguration(
         values=list(_WINDOW_STATES),
         labels=[
             "before (rest, push; not fitted)",
@@ -240,6 +261,13 @@ def log_window(
         ],
         colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
     )
+
+
+def log_window(
+    stream: rr.RecordingStream, start_s: float, end_s: float, first_s: float, last_s: float
+) -> None:
+    """The free-spin window as a state lane ``/window`` on ``time``."""
+    config = _window_configuration()
     stream.log("window", config, static=True)
     times, states = [start_s], [_WINDOW_STATES[1]]
     if first_s < start_s:
@@ -322,42 +350,32 @@ def _only_axis(k: int) -> list[bool]:
     return [j == k for j in range(3)]
 
 
-def session_blueprint(
-    start_s: float, end_s: float, residual_sets: tuple[str, ...] = (FIT_SET,)
-) -> rrb.Blueprint:
-    """The session layout (module docstring); the free-spin window is pre-selected.
+def _session_root(residual_sets: tuple[str, ...]) -> rrb.Horizontal:
+    """The views of the session layout (module docstring), in their containers.
 
     Parameters
     ----------
-    start_s, end_s:
-        The window on the ``time`` timeline, s.
     residual_sets:
         Names of the logged residual sets; each gets its per-axis overrides.
     """
     linked = rrb.TimeAxis(link=rrb.components.LinkAxis.LinkToGlobal)
 
+    # A per-axis view shows one of the three series of every entity in it: a view
+    # default (one blueprint entity) rather than a per-entity override (two each).
     def signal_view(k: int) -> rrb.TimeSeriesView:
-        only = _only_axis(k)
         return rrb.TimeSeriesView(
             origin="/signal",
             name=f"{AXES[k]}: raw and model (m/s²)",
             axis_x=linked,
-            overrides={
-                "/signal/raw": rr.SeriesLines(visible_series=only).visualizer(),
-                "/signal/model": rr.SeriesLines(visible_series=only).visualizer(),
-            },
+            defaults=[rr.SeriesLines.from_fields(visible_series=_only_axis(k))],
         )
 
     def residual_view(k: int) -> rrb.TimeSeriesView:
-        only = _only_axis(k)
         return rrb.TimeSeriesView(
             origin="/residual",
             name=f"{AXES[k]}: residual, data − model (m/s²)",
             axis_x=linked,
-            overrides={
-                f"/residual/{s}": rr.SeriesLines(visible_series=only).visualizer()
-                for s in residual_sets
-            },
+            defaults=[rr.SeriesLines.from_fields(visible_series=_only_axis(k))],
         )
 
     def mean_view(k: int) -> rrb.BarChartView:
@@ -393,11 +411,45 @@ def session_blueprint(
         scatter,
         row_shares=[3, 1, 2],
     )
+    return rrb.Horizontal(left, right, column_shares=[3, 1])
+
+
+def session_time_panel(start_s: float, end_s: float) -> rrb.TimePanel:
+    """The time panel on ``time`` with the free-spin window [start_s, end_s] pre-selected."""
     selection = rrb.components.AbsoluteTimeRange(min=round(start_s * 1e9), max=round(end_s * 1e9))
-    return rrb.Blueprint(
-        rrb.Horizontal(left, right, column_shares=[3, 1]),
-        rrb.TimePanel(timeline=TIME_TIMELINE, time_selection=selection),
-    )
+    return rrb.TimePanel(timeline=TIME_TIMELINE, time_selection=selection)
+
+
+def session_blueprint(
+    start_s: float, end_s: float, residual_sets: tuple[str, ...] = (FIT_SET,)
+) -> rrb.Blueprint:
+    """The session layout (module docstring); the free-spin window is pre-selected.
+
+    The files get the same blueprint through :func:`_layout_chunks` (built once
+    per process) and :func:`session_time_panel`.
+
+    Parameters
+    ----------
+    start_s, end_s:
+        The window on the ``time`` timeline, s.
+    residual_sets:
+        Names of the logged residual sets; each gets its per-axis overrides.
+    """
+    return rrb.Blueprint(_session_root(residual_sets), session_time_panel(start_s, end_s))
+
+
+@functools.lru_cache(maxsize=16)
+def _layout_chunks(residual_sets: tuple[str, ...]) -> tuple:
+    """The blueprint without its time panel as chunks, built once per process and set list."""
+    return blueprint_chunks(rrb.Blueprint(_session_root(residual_sets)))
+
+
+def send_session_blueprint(
+    stream: rr.RecordingStream, start_s: float, end_s: float, residual_sets: tuple[str, ...]
+) -> None:
+    """Send :func:`session_blueprint` into ``stream``, the layout from the per-process cache."""
+    panel = blueprint_chunks(session_time_panel(start_s, end_s))
+    send_blueprint_chunks(stream, _layout_chunks(tuple(residual_sets)) + panel)
 
 
 @dataclass
@@ -473,7 +525,7 @@ def session_rrd(
         every = max(1, math.ceil(fit_time_s.size / OMEGA_POINTS))
         omega_t = result.centred_time_s[::every]
         kin = wheel_kinematics(result.params, omega_t, result.layout.effects)  # Eq. (2) (+ spline)
-        stream.log("spin/omega_radps", rr.SeriesLines(names=["ω (model)"]), static=True)
+        stream.log("spin/omega_radps", _series_style(("ω (model)",), None, None), static=True)
         stream.send_columns(
             "spin/omega_radps",
             indexes=[_time_column(fit_time_s[::every])],
@@ -487,7 +539,7 @@ def session_rrd(
         rrd = SessionRrd(stream)
         rrd.log_residuals(FIT_SET, fit_time_s, result.residual_mps2, wheel_angle_rad(result))
         yield rrd
-        stream.send_blueprint(session_blueprint(start_s, end_s, tuple(rrd.residual_sets)))
+        send_session_blueprint(stream, start_s, end_s, tuple(rrd.residual_sets))
 
 
 def _log_gyro_rate(stream, result, recording, shift_s: float, every: int) -> None:
@@ -502,7 +554,7 @@ def _log_gyro_rate(stream, result, recording, shift_s: float, every: int) -> Non
     rows = gyro[fitted]
     ok = np.all(np.isfinite(rows), axis=1)
     omega = (rows[ok] - block.bias_radps) @ w / (w @ w)
-    stream.log("spin/omega_gyro_radps", rr.SeriesLines(names=["ω (gyro)"]), static=True)
+    stream.log("spin/omega_gyro_radps", _series_style(("ω (gyro)",), None, None), static=True)
     stream.send_columns(
         "spin/omega_gyro_radps",
         indexes=[_time_column(recording.time_s[fitted][ok])],
