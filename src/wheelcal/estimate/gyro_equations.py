@@ -49,12 +49,26 @@ def _force(params: CalibrationParams, kin) -> BenchForce:
     return bench_force(kin, bench.tilt_rad, bench.radius_m, params.gravity_mps2)
 
 
-def _rows(layout: ParameterLayout) -> list[slice]:
-    """Layout slices fed by the kinematics' derivative rows, in their order."""
+def _fed_blocks(
+    layout: ParameterLayout, effect, through_force: bool
+) -> tuple[dict[str, slice], np.ndarray]:
+    """The blocks the gyro stream depends on, as slices of a compact Jacobian, and their rows.
+
+    The spin and the spin effects (the kinematics' derivative rows, in their
+    order), the tilt and a fitted radius (only through G·a), the reading's own.
+    """
     blocks = layout.blocks
-    return [blocks["spin"]] + [
-        blocks[f"effect:{e.name}"] for e in layout.effects if e.stage == "spin"
-    ]
+    names = ["spin"] + [f"effect:{e.name}" for e in layout.effects if e.stage == "spin"]
+    if through_force:
+        names += [name for name in ("tilt", "radius") if name in blocks]
+    names.append(f"effect:{effect.name}")
+    fed, rows, start = {}, [], 0
+    for name in names:
+        block = blocks[name]
+        fed[name] = slice(start, start + block.stop - block.start)
+        rows.append(np.arange(block.start, block.stop))
+        start = fed[name].stop
+    return fed, np.concatenate(rows)
 
 
 def accumulate_gyro(
@@ -78,6 +92,7 @@ def accumulate_gyro(
     cost, entries = 0.0, 0
     hess = np.zeros((layout.size, layout.size)) if jacobian else None
     grad = np.zeros(layout.size) if jacobian else None
+    gyro_name = f"effect:{effect.name}"
     values = params.effect(effect.name, effect.size)
     w = values[:3]
     gx, gy = (values[6:9], values[9:12]) if effect.g_sensitivity else (None, None)
@@ -96,9 +111,13 @@ def accumulate_gyro(
             cost += float(np.sum(rw * rw))
             entries += rw.size
             continue
-        jac = np.zeros((here.size, 3, t.size))
+        # Only the rows the gyro depends on (not R, the gains, the offsets …): a
+        # compact Jacobian, its Gram added to those rows of H.
+        fed, rows = _fed_blocks(here, effect, force is not None)
+        jac = np.zeros((rows.size, 3, t.size))
         row = 0
-        for target in _rows(here):
+        for name in ("spin", *(n for n in fed if n.startswith("effect:") and n != gyro_name)):
+            target = fed[name]
             size = target.stop - target.start
             d_omega = kin.d_omega[row : row + size]  # (size, N)
             jac[target] = d_omega[:, None, :] * w[None, :, None]
@@ -112,16 +131,15 @@ def accumulate_gyro(
                 jac[target] += day[:, None, :] * gy[None, :, None]
             row += size
         if force is not None:
-            blocks = here.blocks
-            if here.fit_tilt:  # ∂a/∂α = g cosα (cosϑ, sinϑ, ·)
-                tilt = blocks["tilt"].start
+            if "tilt" in fed:  # ∂a/∂α = g cosα (cosϑ, sinϑ, ·)
+                tilt = fed["tilt"].start
                 jac[tilt] += np.outer(gx, force.g_cos_tilt * force.cos_theta)
                 jac[tilt] += np.outer(gy, force.g_cos_tilt * force.sin_theta)
-            if here.fit_radius:  # ∂a/∂r = (ω², ω̇, 0)
-                radius = blocks["radius"].start
+            if "radius" in fed:  # ∂a/∂r = (ω², ω̇, 0)
+                radius = fed["radius"].start
                 jac[radius] += np.outer(gx, kin.omega_radps**2)
                 jac[radius] += np.outer(gy, kin.omega_dot_radps2)
-        gyro_block = here.blocks[f"effect:{effect.name}"]
+        gyro_block = fed[gyro_name]
         for i in range(3):
             jac[gyro_block.start + i, i] = kin.omega_radps
             jac[gyro_block.start + 3 + i, i] = 1.0
@@ -131,27 +149,30 @@ def accumulate_gyro(
         rw, jw = noise.whiten(residual, jac)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)
-        if view is None:
-            hess += jt @ jt.T
-            grad += jt @ r_flat
-        else:
-            add_gram(hess, grad, jt, r_flat, view.index)
+        add_gram(hess, grad, jt, r_flat, rows if view is None else view.index[rows])
         cost += float(r_flat @ r_flat)
         entries += r_flat.size
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
 
 
-def combined(a: NormalEquations, b: NormalEquations) -> NormalEquations:
+def combined(a: NormalEquations, b: NormalEquations, a_free: int | None = None) -> NormalEquations:
     """The normal equations of two independent streams over the same parameters.
 
-    ``a`` may carry extra columns after the free parameters (the systematic
-    budget's); ``b`` covers the free parameters only, and adds to that block.
+    ``b`` covers the free parameters only.  ``a`` covers the first ``a_free``
+    of them (default: all; the rest — the gyro's reading, last in the layout —
+    do not act on its stream) and may carry extra columns after them (the
+    systematic budget's), which stay last.
     """
     if a.hessian is None or b.hessian is None:
         return NormalEquations(a.cost + b.cost, None, None, a.entries + b.entries)
     size = b.hessian.shape[0]
-    hess = a.hessian.copy()
-    grad = a.gradient.copy()
+    a_free = size if a_free is None else a_free
+    extra = a.hessian.shape[0] - a_free
+    order = np.r_[0:a_free, size : size + extra]  # a's rows in the combined matrix
+    hess = np.zeros((size + extra, size + extra))
+    grad = np.zeros(size + extra)
+    hess[np.ix_(order, order)] = a.hessian
+    grad[order] = a.gradient
     hess[:size, :size] += b.hessian
     grad[:size] += b.gradient
     return NormalEquations(a.cost + b.cost, hess, grad, a.entries + b.entries)

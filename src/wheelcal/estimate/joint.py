@@ -280,7 +280,7 @@ class JointFit:
             # spline enters linearly: Gauss–Newton steps (2 instead of 7 on a clean spin).
             initial_damping=1e-7 if gyro is not None else 1e-3,
             # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
-            final_step_tol=None if gyro is not None else _STAGE1_FINAL_STEP_TOL,
+            final_step_tol=_STAGE1_FINAL_STEP_TOL,
             # The step's end judged by its gradient, the start's Hessian serving: the
             # paper's model only.  Effects are freed here from zero, where the Hessian
             # is not the end's (a warm-up's τ has no column while its amplitude is 0).
@@ -311,10 +311,11 @@ class JointFit:
         # The accumulations carry the sensitivities to the fixed quantities as
         # extra columns, so the last one also gives the systematic budget.
         start = out.params
-        if gyro is None and not self.effects:
+        if not self.effects:
             # The canonical twin: the twins' offsets differ by far more than σ, so the
             # decimated fit already tells them apart, and the end point is then
             # canonical too (no second Jacobian pass for the other twin in stage 3).
+            # The gyro's reading and the spline mirror with the twin (twins.py).
             start = choose_twin(start).chosen
         normal0 = None
         if gyro is None and tc.size <= CHUNK_SAMPLES:  # one evaluation for both
@@ -338,7 +339,7 @@ class JointFit:
             initial_damping=1e-9,  # warm start: Gauss–Newton steps
             jacobian_on_trial=True,  # ... which are accepted: one pass per step
             # The last step (< 0.3 σ) needs no Jacobian: the cost confirms it.
-            final_step_tol=None if gyro is not None else _FINAL_STEP_TOL,
+            final_step_tol=_FINAL_STEP_TOL,
             # The step from the start lands within a small fraction of σ: there the
             # gradient (the whitening applied to the residual, not to J) and the
             # start's Hessian decide the last step, and serve as the Fisher information.
@@ -508,14 +509,19 @@ def _residual_fn(
     ``gyro`` = (times, samples, noise model) adds the gyroscope's stream.
     """
     extra = nuisance_extra(nuisances) if nuisances else None
+    # The accelerometer does not see the gyro's reading: its stream is accumulated
+    # without those (zero) rows, which come last in the layout.
+    accel_layout = layout
+    if gyro is not None and layout.effects[-1].stage == "gyro":
+        accel_layout = dataclasses.replace(layout, effects=layout.effects[:-1])
 
     def normal(params: CalibrationParams, want_jacobian: bool):
-        acc = accumulate(params, tc, v, layout, noise, jacobian=want_jacobian, extra=extra)
+        acc = accumulate(params, tc, v, accel_layout, noise, jacobian=want_jacobian, extra=extra)
         if gyro is None:
             return acc
         gyro_t, gyro_v, gyro_noise = gyro
         rate = accumulate_gyro(params, gyro_t, gyro_v, layout, gyro_noise, want_jacobian)
-        return combined(acc, rate)
+        return combined(acc, rate, accel_layout.size)
 
     return normal
 

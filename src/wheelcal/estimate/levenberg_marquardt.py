@@ -180,14 +180,21 @@ def _final_step(
     cost: float,
 ) -> CalibrationParams | None:
     """The Gauss–Newton step's end when the cost confirms it (one cost-only pass), else None."""
+    if not np.all(np.diag(a_s) > 0):  # a parameter no sample depends on: iterate as usual
+        return None
     w, v = np.linalg.eigh(a_s)
     keep = w > w.max() * UNDETERMINED_EIGEN_FRACTION
-    if not np.all(keep):  # a direction the data do not determine: iterate as usual
+    exact = w <= w.max() * EXACT_NULL_EIGEN_FRACTION
+    if np.any(~keep & ~exact):  # a direction the data barely determine: iterate as usual
         return None
+    # Along an exact null direction (e.g. a wheel-angle spline that reproduces the
+    # cubic) the cost is flat: no step there, as in the decrease the stopping rule measures.
+    w, v = w[keep], v[:, keep]
     proj = v.T @ g_s
     predicted = float(np.sum(proj**2 / w))
+    step_s = -(v @ (proj / w))
     try:
-        trial = layout.unpack(layout.pack(params) - (v @ (proj / w)) / scale, params)
+        trial = layout.unpack(layout.pack(params) + step_s / scale, params)
         actual = cost - normal_fn(trial, False).cost
     except (ValueError, FloatingPointError):
         return None
@@ -197,6 +204,9 @@ def _final_step(
     return trial
 
 
+#: Scaled-Hessian eigenvalues at most this fraction of the largest are exact null directions
+#: (rounding level: a spline that reproduces the cubic gives ~1e-16).
+EXACT_NULL_EIGEN_FRACTION = 1e-12
 #: Scaled-Hessian eigenvalues below this fraction of the largest mark directions the data
 #: do not determine (σ along them > 10⁴ × the parameters' own scale).  Clean recordings
 #: stay above 1e-5; an axis along the wheel axis or a radial axis gives 1e-10.

@@ -31,6 +31,11 @@ from wheelcal.model.forward import jacobian_transpose_times
 #: 90 s / 200 Hz recording, bounded memory for long or fast ones.
 CHUNK_SAMPLES = 32768
 
+#: With a spline: two knot intervals per chunk, within these bounds (the Jacobian of
+#: ~30 rows then stays in cache: 1.2-1.5x faster than 6400 samples for 16 s knots at
+#: 200 Hz, or 256 for 0.5 s knots, in either stream of the gyro-aided fit).
+SPARSE_CHUNK_SAMPLES = (1024, 2048)
+
 # (params, model output, chunk times) → (k, 3, n) extra columns at those times; a callback
 # with a ``size`` attribute (k) has its columns written straight after the free ones.
 ExtraColumns = Callable[[CalibrationParams, ModelOutput, np.ndarray], np.ndarray]
@@ -52,7 +57,8 @@ def chunking(layout: ParameterLayout, t_s: np.ndarray, chunk: int | None) -> tup
     if spline is None or spline.size < 8 or t_s.size < 2:
         return chunk or CHUNK_SAMPLES, False
     rate = (t_s.size - 1) / max(float(t_s[-1] - t_s[0]), 1e-12)
-    return chunk or max(256, int(2 * spline.spacing_s * rate)), True
+    lo, hi = SPARSE_CHUNK_SAMPLES
+    return chunk or min(max(lo, int(2 * spline.spacing_s * rate)), hi), True
 
 
 def _spline_of(layout: ParameterLayout):

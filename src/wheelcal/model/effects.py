@@ -330,7 +330,46 @@ def cubic_bspline_basis(
     return b, d1, d2
 
 
+def cubic_bspline_sum(
+    coef: np.ndarray, t_s: np.ndarray, start_s: float, spacing_s: float, first: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Σ c_k B_k(t) and its first two derivatives, each (N,), without the (count, N) bases.
+
+    The same sums as ``coef @`` :func:`cubic_bspline_basis` (``count`` = ``coef.size``).
+    On knot interval j the sum is one cubic in x (its coefficients from c_j … c_{j+3}
+    and the four pieces of B): computed once per interval, evaluated per sample by
+    Horner's rule — no basis matrix, whatever the count.
+    """
+    t = np.asarray(t_s, dtype=float)
+    coef = np.asarray(coef, dtype=float)
+    if t.size == 0:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    position = (t - start_s) / spacing_s
+    interval = np.floor(position)
+    x = position - interval
+    index = interval.astype(np.int64)
+    k0 = int(index.min())
+    # c_j … c_{j+3} of each interval present, zero outside 0 … count − 1.
+    padded = np.concatenate([np.zeros(4), coef, np.zeros(4)])
+    rows = np.clip(np.arange(k0, int(index.max()) + 1) - first, -4, coef.size) + 4
+    c0, c1, c2, c3 = (padded[rows + m] for m in range(4))
+    # c_j (1 − x)³/6 + c_{j+1} (3x³ − 6x² + 4)/6 + c_{j+2} (−3x³ + 3x² + 3x + 1)/6
+    # + c_{j+3} x³/6 = a0 + a1 x + a2 x² + a3 x³:
+    a0 = (c0 + 4 * c1 + c2) / 6
+    a1 = (c2 - c0) / 2
+    a2 = (c0 - 2 * c1 + c2) / 2
+    a3 = (-c0 + 3 * c1 - 3 * c2 + c3) / 6
+    local = index - k0
+    a0, a1, a2, a3 = a0[local], a1[local], a2[local], a3[local]
+    theta = ((a3 * x + a2) * x + a1) * x + a0
+    omega = ((3 * a3) * x + 2 * a2) * x + a1
+    omega_dot = (6 * a3) * x + 2 * a2
+    return theta, omega / spacing_s, omega_dot / spacing_s**2
+
+
 _BASIS_CACHE: dict = {}
+#: Bytes held by the cache's arrays (kept up to date as entries come and go).
+_BASIS_CACHE_BYTES = [0]
 _BASIS_CACHE_SIZE = 256
 #: At most this many bytes of bases are remembered (oldest dropped first): the cache
 #: must not grow with the recording (a 2.9 M-sample motion check once left ~116 B per sample).
@@ -364,15 +403,14 @@ def _cached_basis(t: np.ndarray, start_s: float, spacing_s: float, count: int, f
         if size > _BASIS_CACHE_MAX_BYTES:
             return hit
         while _BASIS_CACHE and (
-            len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE or _cache_bytes() + size > _BASIS_CACHE_MAX_BYTES
+            len(_BASIS_CACHE) >= _BASIS_CACHE_SIZE
+            or _BASIS_CACHE_BYTES[0] + size > _BASIS_CACHE_MAX_BYTES
         ):
-            _BASIS_CACHE.pop(next(iter(_BASIS_CACHE)))
+            dropped = _BASIS_CACHE.pop(next(iter(_BASIS_CACHE)))
+            _BASIS_CACHE_BYTES[0] -= sum(array.nbytes for array in dropped)
         _BASIS_CACHE[key] = hit
+        _BASIS_CACHE_BYTES[0] += size
     return hit
-
-
-def _cache_bytes() -> int:
-    return sum(array.nbytes for hit in _BASIS_CACHE.values() for array in hit)
 
 
 class SpinSpline(_SpinEffect):
@@ -428,6 +466,11 @@ class SpinSpline(_SpinEffect):
         )
 
     def spin_delta(self, values, t_s, kin, jacobian):
+        if not jacobian:  # the sums only: four basis functions per sample, no matrix
+            theta, omega, omega_dot = cubic_bspline_sum(
+                values, t_s, self.start_s, self.spacing_s, self.first
+            )
+            return SpinDelta(theta=theta, omega=omega, omega_dot=omega_dot)
         b, d1, d2 = _cached_basis(
             np.asarray(t_s, dtype=float), self.start_s, self.spacing_s, self.size, self.first
         )
