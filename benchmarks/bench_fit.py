@@ -22,13 +22,13 @@ import cProfile
 import dataclasses
 import pstats
 import statistics
-import time
 import tracemalloc
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _timing import fmt, interleaved_times
+from bench_versus import STAGES, stage_times
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.paper import PaperEstimator
 from wheelcal.estimate.session_fit import SessionFit, choose_window
@@ -51,39 +51,15 @@ def peak_bytes(fn) -> int:
         tracemalloc.stop()
 
 
-STAGES = (
-    "window search",
-    "rests",
-    "closed-form start",
-    "joint fit",
-    "noise reference + motion check",
-    "gates + rest check",
-)
-
-
 def stage_breakdown(recording, repeats: int) -> None:
     """Median ms of each stage of the whole calibration, run as SessionFit runs it."""
     from wheelcal.estimate import session_fit as sf
 
-    session = SessionFit()
-    gates = session.gates
+    run = stage_times(sf, recording)
     stages: dict[str, list[float]] = {}
     for _ in range(repeats + 1):
-        marks = [time.perf_counter()]
-        choice = choose_window(recording, None, None, gates.max_window_s)
-        marks.append(time.perf_counter())
-        rests = sf.find_rests(recording, (choice.found.start_s, choice.found.end_s))
-        marks.append(time.perf_counter())
-        guess = session.fitter.start(choice.recording)
-        marks.append(time.perf_counter())
-        result = session.fitter.fit(choice.recording, guess=guess)
-        marks.append(time.perf_counter())
-        motion, reference = sf._motion(result, choice.recording, rests)
-        marks.append(time.perf_counter())
-        sf.assess(result, rests, gates, motion, reference=reference)
-        marks.append(time.perf_counter())
-        for name, t0, t1 in zip(STAGES, marks[:-1], marks[1:], strict=True):
-            stages.setdefault(name, []).append(t1 - t0)
+        for name, seconds in zip(STAGES, run(), strict=True):
+            stages.setdefault(name, []).append(seconds)
     total = sum(statistics.median(v[1:]) for v in stages.values())
     print("where the whole calibration's time goes (median ms per stage):")
     for name, ts in stages.items():
