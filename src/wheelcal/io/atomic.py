@@ -54,6 +54,23 @@ def _temporary_beside(path: str | os.PathLike) -> tuple[Path, Path, int, Path]:
 
 
 @contextlib.contextmanager
+def _removed_on_error(tmp: Path) -> Iterator[None]:
+    """Delete the temporary file ``tmp`` if the block raises (and re-raise)."""
+    try:
+        yield
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+
+
+def _install(tmp: Path, target: Path) -> None:
+    """Give the finished temporary file the default mode and rename it over ``target``."""
+    os.chmod(tmp, _default_mode())
+    os.replace(tmp, target)
+
+
+@contextlib.contextmanager
 def atomic_output(
     path: str | os.PathLike, binary: bool = True, durable: bool = True
 ) -> Iterator[IO]:
@@ -79,7 +96,7 @@ def atomic_output(
         and deleted, the exception propagates, and ``path`` is untouched.
     """
     target, directory, fd, tmp = _temporary_beside(path)
-    try:
+    with _removed_on_error(tmp):
         mode = "wb" if binary else "w"
         kwargs = {} if binary else {"encoding": "utf-8", "newline": ""}
         with os.fdopen(fd, mode, **kwargs) as stream:
@@ -87,12 +104,7 @@ def atomic_output(
             stream.flush()
             if durable:
                 os.fsync(stream.fileno())
-        os.chmod(tmp, _default_mode())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
+        _install(tmp, target)
     if durable:
         _fsync_directory(directory)
 
@@ -109,7 +121,7 @@ def atomic_path(path: str | os.PathLike, durable: bool = True) -> Iterator[Path]
     """
     target, directory, fd, tmp = _temporary_beside(path)
     os.close(fd)
-    try:
+    with _removed_on_error(tmp):
         yield tmp
         if durable:
             fd = os.open(tmp, os.O_RDONLY)
@@ -117,12 +129,7 @@ def atomic_path(path: str | os.PathLike, durable: bool = True) -> Iterator[Path]
                 os.fsync(fd)
             finally:
                 os.close(fd)
-        os.chmod(tmp, _default_mode())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
+        _install(tmp, target)
     if durable:
         _fsync_directory(directory)
 
