@@ -74,7 +74,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     ),
     Mutation(
         "tangential_sign",
-        "sign of the tangential term r·ω̇ (model and forward Jacobian, consistently)",
+        "sign of the tangential term r·ω̇ (model, Jacobian and Jᵀu, consistently)",
         (
             Replacement(
                 _BENCH,
@@ -89,11 +89,21 @@ MUTATIONS: tuple[Mutation, ...] = (
                 "day += radius_m * d_omega_dot",
                 "day -= radius_m * d_omega_dot",
             ),
+            Replacement(
+                _FORWARD,
+                "powers[:degree] @ (r * u[1])",
+                "powers[:degree] @ (-r * u[1])",
+            ),
+            Replacement(
+                _FORWARD,
+                "kin.omega_radps**2 @ u[0] + kin.omega_dot_radps2 @ u[1]",
+                "kin.omega_radps**2 @ u[0] - kin.omega_dot_radps2 @ u[1]",
+            ),
         ),
     ),
     Mutation(
         "centripetal_sign",
-        "sign of the centripetal term r·ω² (model and forward Jacobian, consistently)",
+        "sign of the centripetal term r·ω² (model, Jacobian and Jᵀu, consistently)",
         (
             Replacement(
                 _BENCH,
@@ -108,11 +118,21 @@ MUTATIONS: tuple[Mutation, ...] = (
                 "dax += d_omega * ((2 * radius_m) * omega)",
                 "dax -= d_omega * ((2 * radius_m) * omega)",
             ),
+            Replacement(
+                _FORWARD,
+                "powers[:-1] @ ((2 * r) * kin.omega_radps * u[0])",
+                "powers[:-1] @ ((-2 * r) * kin.omega_radps * u[0])",
+            ),
+            Replacement(
+                _FORWARD,
+                "kin.omega_radps**2 @ u[0] + kin.omega_dot_radps2 @ u[1]",
+                "-kin.omega_radps**2 @ u[0] + kin.omega_dot_radps2 @ u[1]",
+            ),
         ),
     ),
     Mutation(
         "gravity_sin_sign",
-        "sign of g·sinα·sinϑ in a_Y (model and forward Jacobian, consistently)",
+        "sign of g·sinα·sinϑ in a_Y (model, Jacobian and Jᵀu, consistently)",
         (
             Replacement(
                 _BENCH,
@@ -133,6 +153,16 @@ MUTATIONS: tuple[Mutation, ...] = (
                 _FORWARD,
                 "day = d_theta * (force.g_sin_tilt * force.cos_theta)",
                 "day = d_theta * (-force.g_sin_tilt * force.cos_theta)",
+            ),
+            Replacement(
+                _FORWARD,
+                "force.g_sin_tilt * (force.cos_theta * u[1] - force.sin_theta * u[0])",
+                "force.g_sin_tilt * (-force.cos_theta * u[1] - force.sin_theta * u[0])",
+            ),
+            Replacement(
+                _FORWARD,
+                "force.cos_theta @ u[0] + force.sin_theta @ u[1]",
+                "force.cos_theta @ u[0] - force.sin_theta @ u[1]",
             ),
         ),
     ),
