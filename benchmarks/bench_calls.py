@@ -21,16 +21,13 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _timing import interleaved_times
-from bench_versus import extract
+from bench_versus import reference_code
 
 #: Calls per timed round (each call takes µs: one round takes a few ms).
 CALLS = 200
@@ -86,9 +83,7 @@ def main() -> None:
     ap.add_argument("--ref", required=True, help="git revision to compare with, e.g. main")
     ap.add_argument("--repeats", type=int, default=30)
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        extract(args.ref, Path(tmp))
-        sys.path.insert(0, tmp)
+    with reference_code(args.ref):
         from wheelcal_ref.model.forward import jacobian_transpose_times as ref_transpose_times
         from wheelcal_ref.model.rotation import Rotation as RefRotation
 

@@ -30,16 +30,13 @@ import argparse
 import dataclasses
 import importlib
 import statistics
-import sys
-import tempfile
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _timing import interleaved_times
-from bench_versus import extract
+from bench_versus import reference_code
 
 
 def _flat(params) -> np.ndarray:
@@ -82,9 +79,7 @@ def main() -> None:
     ap.add_argument("--recording", choices=("spin", "session", "both"), default="both")
     ap.add_argument("--rate-hz", type=float, default=200.0, help="sample rate (Table I: 200)")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        extract(args.ref, Path(tmp))
-        sys.path.insert(0, tmp)
+    with reference_code(args.ref):
         from wheelcal.runtime import tune_allocator
 
         ref, now = _tree("wheelcal_ref"), _tree("wheelcal")

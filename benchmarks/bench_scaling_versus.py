@@ -16,15 +16,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import statistics
-import sys
-import tempfile
-from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _timing import interleaved_times
-from bench_versus import extract
+from bench_versus import reference_code
 
 
 def main() -> None:
@@ -33,9 +30,7 @@ def main() -> None:
     ap.add_argument("--factors", type=int, nargs="+", default=[1, 10, 100])
     ap.add_argument("--repeats", type=int, default=10, help="rounds at 1× (÷ factor, ≥ 1)")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        extract(args.ref, Path(tmp))
-        sys.path.insert(0, tmp)
+    with reference_code(args.ref):
         from wheelcal_ref.estimate.joint import JointFit as RefJoint
         from wheelcal_ref.estimate.session_fit import SessionFit as RefSession
 

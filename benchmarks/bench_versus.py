@@ -23,6 +23,7 @@ Run:  python benchmarks/bench_versus.py --ref 7870c1d [--repeats 30] [--stages]
 from __future__ import annotations
 
 import argparse
+import contextlib
 import itertools
 import re
 import statistics
@@ -63,6 +64,18 @@ def extract(ref: str, into: Path) -> None:
             + "\n",
             encoding="utf-8",
         )
+
+
+@contextlib.contextmanager
+def reference_code(ref: str):
+    """``wheelcal_ref`` importable for the block: revision ``ref``'s package in a temp folder."""
+    with tempfile.TemporaryDirectory() as tmp:
+        extract(ref, Path(tmp))
+        sys.path.insert(0, tmp)
+        try:
+            yield
+        finally:
+            sys.path.remove(tmp)
 
 
 STAGES = (
@@ -133,9 +146,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--stages", action="store_true", help="also time each stage of the calibration")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        extract(args.ref, Path(tmp))
-        sys.path.insert(0, tmp)
+    with reference_code(args.ref):
         from wheelcal_ref.estimate.joint import JointFit as RefJoint
         from wheelcal_ref.estimate.session_fit import SessionFit as RefSession
         from wheelcal_ref.simulate import simulate as ref_simulate
