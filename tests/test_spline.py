@@ -139,3 +139,26 @@ def test_gyro_stream_jacobian_equals_finite_differences():
     )
     scale = np.sqrt(np.outer(np.diag(expected), np.diag(expected))) + 1e-30
     np.testing.assert_allclose(normal.hessian / scale, expected / scale, atol=1e-5)
+
+
+def test_slots_equal_the_textbook_pieces_and_their_derivatives():
+    """cubic_bspline_slots (products, scales folded in) against the plain formulas."""
+    from wheelcal.model.effects import cubic_bspline_slots
+
+    t = np.linspace(-15.0, 15.0, 6001)
+    start, spacing = -15.0, 5.0
+    interval, values, slopes, curves = cubic_bspline_slots(t, start, spacing)
+    position = (t - start) / spacing
+    np.testing.assert_array_equal(interval, np.floor(position).astype(np.int64))
+    x = position - np.floor(position)
+    expected_values = [
+        (1 - x) ** 3 / 6,
+        (3 * x**3 - 6 * x**2 + 4) / 6,
+        (-3 * x**3 + 3 * x**2 + 3 * x + 1) / 6,
+        x**3 / 6,
+    ]
+    expected_slopes = [-((1 - x) ** 2) / 2, 1.5 * x**2 - 2 * x, -1.5 * x**2 + x + 0.5, x**2 / 2]
+    expected_curves = [1 - x, 3 * x - 2, -3 * x + 1, x]
+    np.testing.assert_allclose(values, np.stack(expected_values), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(slopes * spacing, np.stack(expected_slopes), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(curves * spacing**2, np.stack(expected_curves), rtol=0, atol=1e-14)

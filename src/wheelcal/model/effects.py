@@ -286,18 +286,40 @@ def cubic_bspline_slots(
     position = (t - start_s) / spacing_s
     interval = np.floor(position)
     x = position - interval
-    x2, x3 = x * x, x * x * x
-    values = np.stack(
-        [
-            (1 - x) ** 3 / 6,
-            (3 * x3 - 6 * x2 + 4) / 6,
-            (-3 * x3 + 3 * x2 + 3 * x + 1) / 6,
-            x3 / 6,
-        ]
-    )
-    slopes = np.stack([-((1 - x) ** 2) / 2, 1.5 * x2 - 2 * x, -1.5 * x2 + x + 0.5, x2 / 2])
-    curves = np.stack([1 - x, 3 * x - 2, -3 * x + 1, x])
-    return interval.astype(np.int64), values, slopes / spacing_s, curves / spacing_s**2
+    # Products, not ``**`` (numpy's float power is ~6× slower than two multiplications),
+    # each row written into its (4, N) table, with the 1/Δ, 1/Δ² scales folded in.
+    y = 1 - x
+    x2, y2 = x * x, y * y
+    x3 = x2 * x
+    values = np.empty((4, t.size))
+    np.multiply(y2, y, out=values[0])
+    np.multiply(x3, 3.0, out=values[1])
+    values[1] -= 6 * x2
+    values[1] += 4.0
+    np.multiply(x2, 3.0, out=values[2])
+    values[2] -= 3 * x3
+    values[2] += 3 * x
+    values[2] += 1.0
+    values[3] = x3
+    values /= 6.0
+    d1 = 1.0 / spacing_s
+    slopes = np.empty((4, t.size))
+    np.multiply(y2, -0.5 * d1, out=slopes[0])
+    np.multiply(x2, 1.5 * d1, out=slopes[1])
+    slopes[1] -= (2 * d1) * x
+    np.multiply(x2, -1.5 * d1, out=slopes[2])
+    slopes[2] += d1 * x
+    slopes[2] += 0.5 * d1
+    np.multiply(x2, 0.5 * d1, out=slopes[3])
+    d2 = d1 * d1
+    curves = np.empty((4, t.size))
+    np.multiply(y, d2, out=curves[0])
+    np.multiply(x, 3 * d2, out=curves[1])
+    curves[1] -= 2 * d2
+    np.multiply(x, -3 * d2, out=curves[2])
+    curves[2] += d2
+    np.multiply(x, d2, out=curves[3])
+    return interval.astype(np.int64), values, slopes, curves
 
 
 def cubic_bspline_basis(
