@@ -163,3 +163,27 @@ def test_jacobian_transpose_times_equals_the_jacobians_product(degree, fit_tilt,
     scale = np.sqrt(np.sum(full.jacobian.reshape(layout.size, -1) ** 2, axis=1) * t.size)
     np.testing.assert_allclose(got / scale, expected / scale, rtol=0, atol=1e-12)
     assert np.all(np.abs(expected / scale) > 1e-6)  # every entry is tested, none is zero
+
+
+@pytest.mark.parametrize("per_sample_w", [False, True])
+def test_spin_rows_to_v_equals_the_straightforward_sums(per_sample_w):
+    """The batched W[:, :2] product (constant W) and the per-axis loop (W per sample)."""
+    from wheelcal.model.bench import bench_force
+    from wheelcal.model.forward import _spin_rows_to_v
+    from wheelcal.model.kinematics import spin_kinematics
+
+    p = _params()
+    t = np.linspace(-40.0, 40.0, 2001)
+    kin = spin_kinematics(p.spin, t, derivatives=True)
+    force = bench_force(kin, p.bench.tilt_rad, p.bench.radius_m, p.gravity_mps2)
+    w = p.sensor.gain[:, None] * p.bench.misalignment.matrix
+    rng = np.random.default_rng(3)
+    w3 = w[:, :, None] + (rng.normal(0, 0.01, (3, 3, t.size)) if per_sample_w else 0.0)
+    rows = (kin.d_theta, kin.d_omega, kin.d_omega_dot)
+    got = _spin_rows_to_v(w3, force, rows, kin.omega_radps, p.bench.radius_m)
+    r, g_sin = p.bench.radius_m, force.g_sin_tilt
+    dax = -g_sin * np.sin(kin.theta_rad) * kin.d_theta + 2 * r * kin.omega_radps * kin.d_omega
+    day = g_sin * np.cos(kin.theta_rad) * kin.d_theta + r * kin.d_omega_dot
+    expected = np.stack([w3[i, 0] * dax + w3[i, 1] * day for i in range(3)], axis=1)
+    scale = np.abs(expected).max(axis=(1, 2))[:, None, None]
+    np.testing.assert_allclose(got / scale, expected / scale, rtol=0, atol=1e-14)
