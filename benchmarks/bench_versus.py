@@ -97,6 +97,9 @@ def stage_times(session_fit_module, recording):
     sf = session_fit_module
     session = sf.SessionFit()
     gates = session.gates
+    # The fit's last evaluation serves the motion check, as SessionFit runs it (not
+    # in revisions before JointFit.fit_evaluated).
+    keeps = hasattr(session.fitter, "fit_evaluated")
 
     def run() -> list[float]:
         marks = [time.perf_counter()]
@@ -106,9 +109,15 @@ def stage_times(session_fit_module, recording):
         marks.append(time.perf_counter())
         guess = session.fitter.start(choice.recording)
         marks.append(time.perf_counter())
-        result = session.fitter.fit(choice.recording, guess=guess)
+        if keeps:
+            result, evaluated = session.fitter.fit_evaluated(choice.recording, guess=guess)
+        else:
+            result = session.fitter.fit(choice.recording, guess=guess)
         marks.append(time.perf_counter())
-        motion, reference = sf._motion(result, choice.recording, rests)
+        if keeps:
+            motion, reference = sf._motion(result, choice.recording, rests, evaluated)
+        else:
+            motion, reference = sf._motion(result, choice.recording, rests)
         marks.append(time.perf_counter())
         sf.assess(result, rests, gates, motion, reference=reference)
         marks.append(time.perf_counter())

@@ -89,8 +89,11 @@ def test_sums_by_interval_when_the_fir_history_spans_several_intervals(
     np.testing.assert_allclose(grad / d, dense.gradient / d, atol=1e-9)
 
 
-def _dense_normal(result, accel_mps2, noise, spline):
-    """The sums by one accumulation with every coefficient as a dense extra column."""
+def _dense_normal(result, accel_mps2, noise, spline, evaluated=None):
+    """The sums by one accumulation with every coefficient as a dense extra column.
+
+    ``evaluated`` (the fit's kept evaluation) is not used: the model is evaluated afresh.
+    """
 
     def extra(params, output, t_s):
         return candidate_columns(params, t_s, result.layout, spline, output)

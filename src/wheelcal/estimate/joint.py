@@ -69,7 +69,7 @@ from wheelcal.estimate.twins import TwinChoice, choose_twin, twin_of
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
 from wheelcal.model.bench import bench_force
 from wheelcal.model.effects import GyroReading, SpinSpline
-from wheelcal.model.forward import wheel_kinematics
+from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
 from wheelcal.recording import Recording, RecordingError
 
 GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling")
@@ -238,10 +238,25 @@ class JointFit:
         end in recording time) keeps the time origin and the spline's knots of a
         larger window when refitting a subset of it from its ``initial``.
         """
+        return self.fit_evaluated(recording, initial, guess, frame)[0]
+
+    def fit_evaluated(
+        self,
+        recording: Recording,
+        initial: CalibrationParams | None = None,
+        guess: InitialGuess | None = None,
+        frame: tuple[float, float] | None = None,
+    ) -> tuple[CalibrationResult, EvaluatedModel | None]:
+        """:meth:`fit`, and the model as its last pass evaluated it at the result.
+
+        The evaluation (:class:`~wheelcal.model.forward.EvaluatedModel`) is there
+        for a window of one chunk and the paper's model (None otherwise): a check
+        at the result (the motion check) forms its Jacobian from it.
+        """
         if self.geometry == "rolling" and _rolling_of(self.effects) is None:
             from wheelcal.estimate.rolling_fit import fit_rolling
 
-            return fit_rolling(self, recording, initial=initial, guess=guess, frame=frame)
+            return fit_rolling(self, recording, initial=initial, guess=guess, frame=frame), None
         info = self._checked_info(recording)
         t = recording.time_s
         frame = frame or (float(t[0]), float(t[-1]))
@@ -402,7 +417,7 @@ class JointFit:
                 "vertical wheel: the wheel axis has no upward side, so R is reported for the "
                 "positive spin direction (gains and offsets are unaffected)"
             )
-        return CalibrationResult(
+        result = CalibrationResult(
             params=params,
             layout=layout,
             names=names,
@@ -425,6 +440,8 @@ class JointFit:
             notes=tuple(notes) + recording.notes,
             gyro_noise=gyro_noise,
         )
+        evaluated = last_residual.evaluated_at(params) if last_residual is not None else None
+        return result, evaluated
 
     def _noise_model(self, residual: np.ndarray) -> NoiseModel:
         if self.coloured_noise:
@@ -437,7 +454,10 @@ class _LastResidual:
 
     The LM's last point is reached by a gradient pass (a step below the
     tolerance) or confirmed by a cost-only pass; keeping that pass's residual
-    (data − model) saves the result a model evaluation.
+    (data − model) saves the result a model evaluation.  For a window of one
+    chunk and the paper's model the pass's whole evaluation is kept too
+    (:class:`~wheelcal.model.forward.EvaluatedModel`: ~100 B per sample), for
+    the motion check at the result.
     """
 
     def __init__(self, normal_fn, tc, v, layout: ParameterLayout, noise: NoiseModel) -> None:
@@ -446,12 +466,24 @@ class _LastResidual:
         self._noise = noise
         self._params: CalibrationParams | None = None
         self._residual: np.ndarray | None = None
+        self._evaluated: EvaluatedModel | None = None
+        self._keep = tc.size <= CHUNK_SAMPLES and not layout.effects
+
+    def _evaluated_at(self, params: CalibrationParams) -> EvaluatedModel | None:
+        if not self._keep:
+            return None
+        tc, _, layout = self._args
+        return EvaluatedModel(params, tc, evaluate(params, tc, layout))
 
     def __call__(self, params: CalibrationParams, want_jacobian: bool) -> NormalEquations:
         if want_jacobian:
             return self._normal_fn(params, True)
-        residual = residual_of(params, *self._args)
-        self._params, self._residual = params, residual
+        evaluated = self._evaluated_at(params)
+        if evaluated is None:
+            residual = residual_of(params, *self._args)
+        else:
+            residual = np.subtract(self._args[1], evaluated.output.predicted_mps2)
+        self._params, self._residual, self._evaluated = params, residual, evaluated
         rows = max(residual.shape[0] - self._noise.order, 0)
         return NormalEquations(whitened_cost(residual, self._noise), None, None, 3 * rows)
 
@@ -459,13 +491,21 @@ class _LastResidual:
         """Cost and gradient (:func:`gradient_pass`), the residual kept."""
         tc, v, layout = self._args
         residual = np.empty_like(v, dtype=float)
-        out = gradient_pass(params, tc, v, layout, self._noise, residual_out=residual)
-        self._params, self._residual = params, residual
+        evaluated = self._evaluated_at(params)
+        output = evaluated.output if evaluated is not None else None
+        out = gradient_pass(
+            params, tc, v, layout, self._noise, residual_out=residual, output=output
+        )
+        self._params, self._residual, self._evaluated = params, residual, evaluated
         return out
 
     def at(self, params: CalibrationParams) -> np.ndarray | None:
         """The kept residual if it was evaluated at ``params`` itself, else None."""
         return self._residual if params is self._params else None
+
+    def evaluated_at(self, params: CalibrationParams) -> EvaluatedModel | None:
+        """The kept evaluation if it was at ``params`` itself (and kept at all), else None."""
+        return self._evaluated if params is self._params else None
 
 
 def _same_point(a: CalibrationParams, b: CalibrationParams) -> bool:

@@ -39,7 +39,7 @@ from wheelcal.estimate.normal_equations import CHUNK_SAMPLES
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import evaluate
 from wheelcal.model.effects import SpinSpline, cubic_bspline_slots
-from wheelcal.model.forward import spin_columns
+from wheelcal.model.forward import EvaluatedModel, spin_columns
 from wheelcal.model.parameters import AXES
 
 #: Knots of the alternative motion, and the fewest turns between two of them.
@@ -94,7 +94,11 @@ RANK_RTOL = 1e-10
 
 
 def _normal_with_spline(
-    result: CalibrationResult, accel_mps2: np.ndarray, noise: NoiseModel, spline: SpinSpline
+    result: CalibrationResult,
+    accel_mps2: np.ndarray,
+    noise: NoiseModel,
+    spline: SpinSpline,
+    evaluated: EvaluatedModel | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """H = J̃ᵀJ̃ and g = J̃ᵀr̃ over [the fit's parameters | the spline's coefficients].
 
@@ -108,6 +112,8 @@ def _normal_with_spline(
     history reaches back to, and their Gram blocks with the base columns and
     with each other added per interval by small products.  The sums are those
     of one dense accumulation over every coefficient, to round-off.
+    ``evaluated``: the model at the result without a Jacobian (the fit's last
+    pass); a chunk it covers forms only the Jacobian from it.
     """
     if spline.first != 0:
         raise ValueError("the motion check's spline must span the whole window")
@@ -129,7 +135,8 @@ def _normal_with_spline(
         # across intervals) the four slot columns, all whitened at once; one product
         # per knot interval then gives its rows of H and g.
         buf = np.empty((size + 1 + 4 * white, 3, t.size))
-        out = evaluate(params, t, layout, jacobian=True, out=buf[:size])
+        shared = evaluated.output_at(params, t) if evaluated is not None else None
+        out = evaluate(params, t, layout, jacobian=True, out=buf[:size], output=shared)
         residual = out.predicted_mps2 - accel_mps2[lo:stop]
         buf[size] = residual.T
         interval, *rows = cubic_bspline_slots(t, spline.start_s, spline.spacing_s)
@@ -188,8 +195,13 @@ def check_motion(
     accel_mps2: np.ndarray,
     noise: NoiseModel,
     spacing_s: float = KNOT_SPACING_S,
+    evaluated: EvaluatedModel | None = None,
 ) -> MotionCheck | None:
-    """Score and Hausman test of a spline motion at ``result`` (None: window too short)."""
+    """Score and Hausman test of a spline motion at ``result`` (None: window too short).
+
+    ``evaluated``: the model at the result as the fit's last pass left it
+    (:meth:`~wheelcal.estimate.joint.JointFit.fit_evaluated`), to save evaluating it again.
+    """
     tc = result.centred_time_s
     span = float(tc[-1] - tc[0])
     spacing = max(spacing_s, span / MAX_KNOTS)
@@ -197,7 +209,7 @@ def check_motion(
         return None
     spline = SpinSpline(float(tc[0]), float(tc[-1]), spacing)
     layout = result.layout
-    h, g = _normal_with_spline(result, accel_mps2, noise, spline)
+    h, g = _normal_with_spline(result, accel_mps2, noise, spline, evaluated)
     size = layout.size
     h_bb_inv = scaled_pinv(h[:size, :size])
     h_inv = scaled_pinv(h)

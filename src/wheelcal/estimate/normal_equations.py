@@ -273,6 +273,7 @@ def gradient_pass(
     noise: NoiseModel,
     chunk: int | None = None,
     residual_out: np.ndarray | None = None,
+    output: ModelOutput | None = None,
 ) -> NormalEquations:
     """Cost and g = J̃ᵀr̃ without H: the whitening applied to the residual, not to J.
 
@@ -284,7 +285,9 @@ def gradient_pass(
     Exact: the sums of :func:`accumulate`, to round-off.  Each chunk's outputs
     reach back over its p samples of history, whose model is evaluated with the
     chunk; so the chunks' sums add up to the whole.  ``residual_out`` (N, 3), when
-    given, receives the residual data − model.
+    given, receives the residual data − model.  ``output``: the model (no Jacobian)
+    at ``params`` over all of ``t_s`` when the caller has evaluated it (the paper's
+    model, one chunk).
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
@@ -294,13 +297,18 @@ def gradient_pass(
     # L⁻ᵀ of the noise model's Σ_e = L Lᵀ.
     inv_chol_t = noise.inverse_cholesky.T
     reverse = not layout.effects
+    if output is not None and (n > chunk or not reverse):
+        raise ValueError("an evaluated output serves one chunk of the paper's model")
     cost = 0.0
     entries = 0
     grad = np.zeros(layout.size)
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         lo = max(0, start - p)
-        out = evaluate(params, t_s[lo:stop], layout, jacobian=not reverse)
+        if output is None:
+            out = evaluate(params, t_s[lo:stop], layout, jacobian=not reverse)
+        else:
+            out = output
         residual = out.predicted_mps2 - accel_mps2[lo:stop]
         if residual_out is not None:
             np.negative(residual[start - lo :], out=residual_out[start:stop])

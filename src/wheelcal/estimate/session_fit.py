@@ -58,7 +58,7 @@ from wheelcal.estimate.window import (
     find_free_spin,
     find_motion_window,
 )
-from wheelcal.model.forward import wheel_kinematics
+from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 
 #: Each retry keeps this fraction of the window (its start).
@@ -226,8 +226,8 @@ class SessionFit:
         while True:
             guess = self.fitter.start(window)
             _check_implied_radius(guess, window, gates)
-            result = self.fitter.fit(window, guess=guess)
-            motion, reference = _motion(result, window, rests)
+            result, evaluated = self.fitter.fit_evaluated(window, guess=guess)
+            motion, reference = _motion(result, window, rests, evaluated)
             if motion is None or not motion.inadequate(gates.motion_z, gates.motion_shift_sigma):
                 break
             if window.duration_s * SHRINK < gates.min_window_s:
@@ -368,17 +368,27 @@ def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) 
 
 
 def _motion(
-    result: CalibrationResult, window: Recording, rests: tuple[RestSegment, ...]
+    result: CalibrationResult,
+    window: Recording,
+    rests: tuple[RestSegment, ...],
+    evaluated: EvaluatedModel | None = None,
 ) -> tuple[MotionCheck | None, NoiseReference]:
-    """The motion check with the residual's broadband level as the noise, and that reference."""
-    reference = noise_reference(result.residual_mps2, _theta(result), rests)
+    """The motion check with the residual's broadband level as the noise, and that reference.
+
+    ``evaluated``: the model at the result as the fit's last pass left it (its ϑ
+    and bench force then serve both).
+    """
+    reference = noise_reference(result.residual_mps2, _theta(result, evaluated), rests)
     noise = broadband_noise(result.noise, reference.broadband_mps2)
-    return check_motion(result, window.accel_mps2, noise), reference
+    return check_motion(result, window.accel_mps2, noise, evaluated=evaluated), reference
 
 
-def _theta(result: CalibrationResult) -> np.ndarray:
+def _theta(result: CalibrationResult, evaluated: EvaluatedModel | None = None) -> np.ndarray:
     """The fitted wheel angle ϑ(t) at every sample (the kinematics only, in chunks)."""
     tc = result.centred_time_s
+    output = evaluated.output_at(result.params, tc) if evaluated is not None else None
+    if output is not None:
+        return output.kinematics.theta_rad
     theta = np.empty_like(tc)
     for start in range(0, tc.size, CHUNK_SAMPLES):
         stop = min(tc.size, start + CHUNK_SAMPLES)

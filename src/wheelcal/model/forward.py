@@ -32,7 +32,7 @@ from wheelcal.model.bench import (
     d_force_d_radius,
     d_force_d_tilt,
 )
-from wheelcal.model.kinematics import Kinematics, spin_kinematics
+from wheelcal.model.kinematics import Kinematics, spin_kinematics, spin_partials
 from wheelcal.model.layout import ParameterLayout
 from wheelcal.model.parameters import CalibrationParams
 
@@ -48,6 +48,28 @@ class ModelOutput:
     sensed_mps2: np.ndarray
     #: ∂Δa/∂r (N, 3) of the force-stage effects (with a Jacobian), for the radius' budget.
     force_by_radius: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class EvaluatedModel:
+    """The model (no Jacobian) at ``params`` and times ``t_s``, kept for a later pass there.
+
+    A fit's last pass evaluates the model at its result; a check at that very
+    point (the motion check) then forms the Jacobian from its ϑ, ω, ω̇ and bench
+    force (:func:`evaluate` with ``output``) instead of evaluating them again.
+    Keyed by the parameter object itself and the times' values: any other point
+    gets nothing.  Its callers keep it for windows of one chunk only (memory).
+    """
+
+    params: CalibrationParams
+    t_s: np.ndarray
+    output: ModelOutput
+
+    def output_at(self, params: CalibrationParams, t_s: np.ndarray) -> ModelOutput | None:
+        """The kept output if it was evaluated at ``params`` itself and these times, else None."""
+        if params is not self.params or t_s.shape != self.t_s.shape:
+            return None
+        return self.output if np.array_equal(t_s, self.t_s) else None
 
 
 def _apply_spin_effect(
@@ -248,6 +270,7 @@ def evaluate(
     effects: tuple = (),
     kinematics: Kinematics | None = None,
     out: np.ndarray | None = None,
+    output: ModelOutput | None = None,
 ) -> ModelOutput:
     """Evaluate eq. (6) at times ``t_s`` (s from the window centre).
 
@@ -258,9 +281,16 @@ def evaluate(
     (the simulator's physical spin-down laws); no Jacobian then.
     ``out`` is an optional (P, 3, N) buffer for the Jacobian (its contents are
     overwritten), so callers can stack extra columns after it without a copy.
+    ``output`` (the paper's model, with ``jacobian``): an evaluation without a
+    Jacobian at the same ``params`` and ``t_s``, whose ϑ, ω, ω̇, bench force and
+    prediction serve; only ∂ϑ/∂p, ∂ω/∂p, ∂ω̇/∂p and the Jacobian are formed.
     """
     if jacobian and (layout is None or kinematics is not None):
         raise ValueError("a Jacobian needs a ParameterLayout and the model's own spin")
+    if output is not None:
+        if not jacobian or layout.effects or output.predicted_mps2.shape[0] != np.size(t_s):
+            raise ValueError("output serves a Jacobian of the paper's model at its own samples")
+        return _jacobian_from(params, np.asarray(t_s, dtype=float), layout, output, out)
     effects = layout.effects if layout is not None else tuple(effects)
     t = np.asarray(t_s, dtype=float)
     kin = wheel_kinematics(params, t, effects, jacobian, kinematics)
@@ -292,7 +322,52 @@ def evaluate(
             sensor_terms.append((effect, term))
     if not jacobian:
         return ModelOutput(predicted, None, kin, force, sensed)
+    return _with_jacobian(
+        params,
+        t,
+        layout,
+        ModelOutput(predicted, None, kin, force, sensed),
+        out,
+        force_terms,
+        sensor_terms,
+    )
 
+
+def _jacobian_from(
+    params: CalibrationParams,
+    t: np.ndarray,
+    layout: ParameterLayout,
+    output: ModelOutput,
+    out: np.ndarray | None,
+) -> ModelOutput:
+    """:func:`evaluate` with a Jacobian, from an evaluation without one (the paper's model)."""
+    base = output.kinematics
+    kin = Kinematics(
+        base.theta_rad, base.omega_radps, base.omega_dot_radps2, *spin_partials(params.spin, t)
+    )
+    done = ModelOutput(output.predicted_mps2, None, kin, output.force, output.sensed_mps2)
+    return _with_jacobian(params, t, layout, done, out, [], [])
+
+
+def _with_jacobian(
+    params: CalibrationParams,
+    t: np.ndarray,
+    layout: ParameterLayout,
+    model: ModelOutput,
+    out: np.ndarray | None,
+    force_terms: list,
+    sensor_terms: list,
+) -> ModelOutput:
+    """``model`` (kinematics with their partials) with ∂v/∂x (P, 3, N), into ``out`` when given."""
+    kin, force, sensed, predicted = (
+        model.kinematics,
+        model.force,
+        model.sensed_mps2,
+        model.predicted_mps2,
+    )
+    effects = layout.effects
+    rot = params.bench.misalignment.matrix
+    gain = params.sensor.gain
     if out is None:
         jac = np.zeros((layout.size, 3, t.size))
     else:

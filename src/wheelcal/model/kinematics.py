@@ -34,10 +34,7 @@ def spin_kinematics(spin: SpinParams, t_s: np.ndarray, derivatives: bool = False
     """Evaluate eq. (2) at times ``t_s`` (seconds from the window centre)."""
     t = np.asarray(t_s, dtype=float)
     degree = spin.degree
-    powers = np.empty((degree + 2, t.size))  # t^0 … t^(K+1), by products (pow is slow)
-    powers[0] = 1.0
-    for k in range(1, degree + 2):
-        powers[k] = powers[k - 1] * t
+    powers = _powers(t, degree)
     k = np.arange(degree + 1)
     omega_coef = spin.omega_radps
     # Eq. (2): ϑ = ϑ₀ + Σ ω_k t^(k+1)/(k+1), ω = Σ ω_k t^k, ω̇ = Σ k ω_k t^(k−1).
@@ -46,12 +43,34 @@ def spin_kinematics(spin: SpinParams, t_s: np.ndarray, derivatives: bool = False
     omega_dot = (omega_coef[1:] * k[1:]) @ powers[:-2] if degree >= 1 else np.zeros_like(t)
     if not derivatives:
         return Kinematics(theta, omega, omega_dot)
-    d_theta = np.empty((degree + 2, t.size))
+    return Kinematics(theta, omega, omega_dot, *_partials(powers, degree))
+
+
+def spin_partials(spin: SpinParams, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(∂ϑ/∂p, ∂ω/∂p, ∂ω̇/∂p), each (K + 2, N): the rows :func:`spin_kinematics` adds.
+
+    For a caller that has ϑ, ω, ω̇ at these times already (the same numbers).
+    """
+    return _partials(_powers(np.asarray(t_s, dtype=float), spin.degree), spin.degree)
+
+
+def _powers(t: np.ndarray, degree: int) -> np.ndarray:
+    """t^0 … t^(K+1), (K + 2, N), by products (pow is slow)."""
+    powers = np.empty((degree + 2, t.size))
+    powers[0] = 1.0
+    for k in range(1, degree + 2):
+        powers[k] = powers[k - 1] * t
+    return powers
+
+
+def _partials(powers: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    k = np.arange(degree + 1)
+    d_theta = np.empty(powers.shape)
     d_theta[0] = 1.0
     d_theta[1:] = powers[1:] / (k + 1)[:, None]
-    d_omega = np.zeros((degree + 2, t.size))
+    d_omega = np.zeros(powers.shape)
     d_omega[1:] = powers[:-1]
-    d_omega_dot = np.zeros((degree + 2, t.size))
+    d_omega_dot = np.zeros(powers.shape)
     if degree >= 1:
         d_omega_dot[2:] = powers[:degree] * k[1:, None]
-    return Kinematics(theta, omega, omega_dot, d_theta, d_omega, d_omega_dot)
+    return d_theta, d_omega, d_omega_dot

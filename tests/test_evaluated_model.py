@@ -1,0 +1,116 @@
+"""The model at the fit's result, evaluated once by its last pass and kept for the motion check.
+
+Each shortcut is compared with the straightforward computation: the Jacobian
+formed from a kept evaluation with a fresh :func:`evaluate` (bit for bit), the
+gradient pass given that evaluation with one that evaluates itself, and the
+motion check given the fit's kept evaluation with one that evaluates again.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from wheelcal.estimate import session_fit as sf
+from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, gradient_pass
+from wheelcal.model import ParameterLayout, evaluate
+from wheelcal.model.effects import QuadraticNonlinearity
+from wheelcal.model.forward import EvaluatedModel
+from wheelcal.simulate import NoiseSpec, simulate, table1
+from wheelcal.simulate.presets import random_setup
+
+
+def _window(recording):
+    choice = sf.choose_window(recording, max_window_s=sf.Gates().max_window_s)
+    rests = sf.find_rests(recording, (choice.found.start_s, choice.found.end_s))
+    return choice.recording, rests
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    recording = simulate(table1(), np.random.default_rng(8)).recording
+    window, rests = _window(recording)
+    result, evaluated = JointFit().fit_evaluated(window)
+    return window, rests, result, evaluated
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("geometry", [{}, {"fit_tilt": False, "fit_radius": True}])
+def test_a_jacobian_from_a_kept_evaluation_is_the_fresh_one(seed, geometry):
+    rng = np.random.default_rng(seed)
+    params = random_setup(rng).truth
+    layout = ParameterLayout(**geometry)
+    t = np.linspace(-20.0, 20.0, 3001)
+    fresh = evaluate(params, t, layout, jacobian=True)
+    kept = evaluate(params, t, layout)
+    out = np.full((layout.size, 3, t.size), np.nan)
+    shared = evaluate(params, t, layout, jacobian=True, out=out, output=kept)
+    assert shared.jacobian is out
+    np.testing.assert_array_equal(shared.jacobian, fresh.jacobian)
+    np.testing.assert_array_equal(shared.predicted_mps2, fresh.predicted_mps2)
+    for name in ("d_theta", "d_omega", "d_omega_dot", "theta_rad", "omega_radps"):
+        np.testing.assert_array_equal(
+            getattr(shared.kinematics, name), getattr(fresh.kinematics, name)
+        )
+
+
+def test_a_kept_evaluation_does_not_serve_effects_or_other_samples():
+    params = random_setup(np.random.default_rng(4)).truth
+    t = np.linspace(-5.0, 5.0, 101)
+    kept = evaluate(params, t)
+    effect = QuadraticNonlinearity(axis=0)
+    with pytest.raises(ValueError):
+        evaluate(params, t, ParameterLayout(effects=(effect,)), jacobian=True, output=kept)
+    with pytest.raises(ValueError):
+        evaluate(params, t[:50], ParameterLayout(), jacobian=True, output=kept)
+    evaluated = EvaluatedModel(params, t, kept)
+    assert evaluated.output_at(params, t.copy()) is kept
+    assert evaluated.output_at(params, t + 1e-9) is None
+    assert evaluated.output_at(params.with_changes(), t) is None
+
+
+@pytest.mark.parametrize("coloured", [False, True])
+def test_the_gradient_pass_from_a_kept_evaluation_is_the_same(fitted, coloured):
+    window, _, result, _ = fitted
+    tc, v, layout = result.centred_time_s, window.accel_mps2, result.layout
+    noise = NoiseModel.estimate(result.residual_mps2) if coloured else result.noise
+    a_res, b_res = np.empty_like(v), np.empty_like(v)
+    a = gradient_pass(result.params, tc, v, layout, noise, residual_out=a_res)
+    kept = evaluate(result.params, tc, layout)
+    b = gradient_pass(result.params, tc, v, layout, noise, residual_out=b_res, output=kept)
+    np.testing.assert_array_equal(a.gradient, b.gradient)
+    np.testing.assert_array_equal(a_res, b_res)
+    assert a.cost == b.cost
+
+
+def test_the_fit_keeps_its_last_evaluation_at_the_result(fitted):
+    window, _, result, evaluated = fitted
+    assert evaluated is not None and evaluated.params is result.params
+    fresh = evaluate(result.params, result.centred_time_s, result.layout)
+    np.testing.assert_array_equal(evaluated.output.predicted_mps2, fresh.predicted_mps2)
+    np.testing.assert_array_equal(result.residual_mps2, window.accel_mps2 - fresh.predicted_mps2)
+    plain = JointFit().fit(window)
+    np.testing.assert_array_equal(plain.values, result.values)
+    np.testing.assert_array_equal(plain.covariance, result.covariance)
+
+
+def test_the_motion_check_from_the_kept_evaluation_is_the_same(fitted):
+    window, rests, result, evaluated = fitted
+    shared, shared_reference = sf._motion(result, window, rests, evaluated)
+    fresh, fresh_reference = sf._motion(result, window, rests)
+    assert shared == fresh
+    np.testing.assert_array_equal(shared_reference.broadband_mps2, fresh_reference.broadband_mps2)
+
+
+def test_no_evaluation_is_kept_beyond_one_chunk_or_with_effects():
+    recording = simulate(table1(NoiseSpec(0.05)), np.random.default_rng(9)).recording
+    window, _ = _window(recording)
+    _, evaluated = JointFit(effects=(QuadraticNonlinearity(axis=0),)).fit_evaluated(window)
+    assert evaluated is None
+    fast = dataclasses.replace(table1(), rate_hz=400.0)  # 36 k samples: two chunks
+    window, _ = _window(simulate(fast, np.random.default_rng(10)).recording)
+    assert window.time_s.size > CHUNK_SAMPLES
+    result, evaluated = JointFit().fit_evaluated(window)
+    assert evaluated is None and result.converged
