@@ -50,10 +50,10 @@ def test_sensor_blocks_equal_the_dense_product(session, noise, extras):
     params, t, v = session
     layout = ParameterLayout()
     extra = nuisance_extra(nuisance_columns(layout)) if extras else None
-    buf, residual, out, _ = _filled_buffer(params, t, v, layout, extra, None)
+    buf, residual, sensed, _ = _filled_buffer(params, t, v, layout, extra, None)
     rows = sensor_rows(layout)
     assert rows == slice(layout.blocks["gain"].start, layout.blocks["offset"].stop)
-    fast, entries = _whitened_gram(buf, out, noise, rows)
+    fast, entries = _whitened_gram(buf, sensed, noise, rows)
     dense = _dense(buf, residual, noise)
     assert entries == 3 * (t.size - noise.order)
     scale = np.sqrt(np.outer(np.diag(dense), np.diag(dense)))

@@ -134,10 +134,10 @@ def accumulate(
             continue
         view = local_view(params, layout, t_s[lo], t_s[stop - 1]) if sparse else None
         here, at = (view.layout, view.params) if view else (layout, params)
-        buf, _, out, extra_size = _filled_buffer(
+        buf, _, sensed, extra_size = _filled_buffer(
             at, t_s[lo:stop], accel_mps2[lo:stop], here, extra, extra_size
         )
-        gram, rows = _whitened_gram(buf, out, noise, sensor_rows(here))
+        gram, rows = _whitened_gram(buf, sensed, noise, sensor_rows(here))
         if hess is None:
             total = layout.size + (extra_size or 0)
             hess, grad = np.zeros((total, total)), np.zeros(total)
@@ -160,10 +160,12 @@ def _filled_buffer(
     layout: ParameterLayout,
     extra: ExtraColumns | None,
     extra_size: int | None,
-) -> tuple[np.ndarray, np.ndarray, ModelOutput, int | None]:
-    """[J | extra columns | residual] (P + k + 1, 3, n), the residual, the model's output, k.
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int | None]:
+    """[J | extra columns | residual] (P + k + 1, 3, n), the residual, s = R a, k.
 
-    The residual is model − data, (n, 3).
+    The residual is model − data, (n, 3); s (n, 3) gives the gain columns' blocks
+    (:mod:`wheelcal.estimate.sensor_gram`).  The rest of the model's output is let
+    go (its ϑ, ω, ω̇ partials: ~200 B per sample while the buffer is whitened).
 
     One buffer for the free parameters' columns, the extra ones and the residual:
     one whitening, and one Gram product gives H, g and the cost together (a second
@@ -181,7 +183,7 @@ def _filled_buffer(
         else:
             buf[layout.size : -1] = cols
     buf[-1] = residual.T
-    return buf, residual, out, extra_size
+    return buf, residual, out.sensed_mps2, extra_size
 
 
 def sensor_rows(layout: ParameterLayout) -> slice | None:
@@ -200,13 +202,13 @@ def sensor_rows(layout: ParameterLayout) -> slice | None:
 
 
 def _whitened_gram(
-    buf: np.ndarray, output: ModelOutput, noise: NoiseModel, sensor: slice | None = None
+    buf: np.ndarray, sensed_mps2: np.ndarray, noise: NoiseModel, sensor: slice | None = None
 ) -> tuple[np.ndarray, int]:
     """The Gram matrix of the whitened buffer, and the whitened residual entries.
 
     ``sensor`` (the gain and offset rows, :func:`sensor_rows`): those rows are left
     out of the whitening and of the dense product; their blocks come from the
-    sensed samples (:mod:`wheelcal.estimate.sensor_gram`).
+    sensed samples ``sensed_mps2`` (:mod:`wheelcal.estimate.sensor_gram`).
     """
     if sensor is None:
         # Not in place: for white noise one batched 3×3 product beats six scaled adds.
@@ -220,7 +222,7 @@ def _whitened_gram(
     noise.whiten_columns(buf[b:], out=jw[a:])
     jt = jw.reshape(jw.shape[0], -1)
     dense = jt @ jt.T
-    cross, block = sensor_gram(jw, sensor_series(output.sensed_mps2, noise), noise)
+    cross, block = sensor_gram(jw, sensor_series(sensed_mps2, noise), noise)
     gram = np.empty((total, total))
     gram[:a, :a] = dense[:a, :a]
     gram[:a, b:] = dense[:a, a:]
@@ -251,11 +253,11 @@ def accumulate_fitting_noise(
     if t_s.size > CHUNK_SAMPLES or chunking(layout, t_s, None)[1]:
         raise ValueError("accumulate_fitting_noise takes one chunk of a dense layout")
     extra_size = getattr(extra, "size", None) if extra is not None else None
-    buf, residual, out, extra_size = _filled_buffer(
+    buf, residual, sensed, extra_size = _filled_buffer(
         params, t_s, accel_mps2, layout, extra, extra_size
     )
     noise = noise_of(np.negative(residual))
-    gram, rows = _whitened_gram(buf, out, noise, sensor_rows(layout))
+    gram, rows = _whitened_gram(buf, sensed, noise, sensor_rows(layout))
     normal = NormalEquations(
         cost=float(gram[-1, -1]),
         hessian=gram[:-1, :-1].copy(),
