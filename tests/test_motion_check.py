@@ -4,8 +4,7 @@ check_motion accumulates the normal equations in one pass, the spline
 coefficients' blocks a knot interval at a time with only the functions alive
 there; the sums must equal one dense accumulation over every sample (FIR
 history carried across the intervals, even when it spans several), and the
-check's numbers those computed from the dense sums (every column, the gain
-and offset ones too, whitened and multiplied densely).  Its
+check's numbers those computed from the dense sums.  Its
 score test has as many degrees of freedom as the spline has directions
 beyond the cubic's own: a cubic B-spline of ϑ spans 1, t, t², t³ — the
 directions of ϑ₀, ω₀, ω₁, ω₂ — so dof = coefficients − 4.
@@ -14,24 +13,16 @@ directions of ϑ₀, ω₀, ω₁, ω₂ — so dof = coefficients − 4.
 from __future__ import annotations
 
 import dataclasses
-from unittest import mock
 
 import numpy as np
 import pytest
 
-from wheelcal.estimate import normal_equations
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.motion_check import KNOT_SPACING_S, _normal_with_spline, check_motion
 from wheelcal.estimate.normal_equations import accumulate
 from wheelcal.model.effects import SpinSpline
 from wheelcal.model.forward import candidate_columns
 from wheelcal.simulate import NoiseSpec, simulate, table1
-
-
-def _plain_accumulate(*args, **kwargs):
-    """:func:`accumulate` with every column in the dense whitened product (no sensor blocks)."""
-    with mock.patch.object(normal_equations, "sensor_rows", lambda layout: None):
-        return accumulate(*args, **kwargs)
 
 
 @pytest.fixture(scope="module", params=["white", "coloured"])
@@ -54,9 +45,7 @@ def test_sums_by_parts_equal_one_dense_accumulation(fitted):
     def extra(params, output, t_s):
         return candidate_columns(params, t_s, layout, spline, output)
 
-    dense = _plain_accumulate(
-        result.params, tc, recording.accel_mps2, layout, result.noise, extra=extra
-    )
+    dense = accumulate(result.params, tc, recording.accel_mps2, layout, result.noise, extra=extra)
     hess, grad = _normal_with_spline(result, recording.accel_mps2, result.noise, spline)
     scale = np.sqrt(np.outer(np.diag(dense.hessian), np.diag(dense.hessian)))
     np.testing.assert_allclose(hess / scale, dense.hessian / scale, rtol=0, atol=1e-10)
@@ -93,7 +82,7 @@ def test_sums_by_interval_when_the_fir_history_spans_several_intervals(
     def extra(params, output, t_s):
         return candidate_columns(params, t_s, layout, spline, output)
 
-    dense = _plain_accumulate(short.params, tc, accel, layout, short.noise, extra=extra)
+    dense = accumulate(short.params, tc, accel, layout, short.noise, extra=extra)
     hess, grad = _normal_with_spline(short, accel, short.noise, spline)
     d = np.sqrt(np.diag(dense.hessian))
     np.testing.assert_allclose(hess / np.outer(d, d), dense.hessian / np.outer(d, d), atol=1e-10)
@@ -109,7 +98,7 @@ def _dense_normal(result, accel_mps2, noise, spline, evaluated=None):
     def extra(params, output, t_s):
         return candidate_columns(params, t_s, result.layout, spline, output)
 
-    dense = _plain_accumulate(
+    dense = accumulate(
         result.params, result.centred_time_s, accel_mps2, result.layout, noise, extra=extra
     )
     return dense.hessian, dense.gradient

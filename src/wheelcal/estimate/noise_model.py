@@ -100,11 +100,6 @@ class NoiseModel:
         d = np.sqrt(np.diag(self.innovation_cov))
         return self.innovation_cov / np.outer(d, d)
 
-    @property
-    def inverse_cholesky(self) -> np.ndarray:
-        """L⁻¹ (3 × 3, lower triangular) of Σ_e = L Lᵀ: the whitening across axes."""
-        return self._inv_chol
-
     def whiten(
         self, residual: np.ndarray, jacobian: np.ndarray | None = None, overwrite: bool = False
     ):
@@ -124,6 +119,7 @@ class NoiseModel:
         r = inv_chol @ r
         if jacobian is None:
             return r, None
+        size, _, n = jacobian.shape
         if p == 0 and overwrite:  # white, in place: row i of L⁻¹ needs rows ≤ i, so i = 2, 1, 0
             for i in (2, 1, 0):
                 row = jacobian[:, i, :]
@@ -132,27 +128,20 @@ class NoiseModel:
                     if inv_chol[i, k] != 0.0:
                         row += inv_chol[i, k] * jacobian[:, k, :]
             return r, jacobian
-        return r, self.whiten_columns(jacobian)
-
-    def whiten_columns(self, jacobian: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """The whitened Jacobian (P, 3, N − p) of :meth:`whiten`, into ``out`` when given."""
-        p = self.order
-        inv_chol = self._inv_chol
-        size, _, n = jacobian.shape
         if p == 0:  # white: L⁻¹ across axes in one batched product
-            return np.matmul(inv_chol, jacobian, out=out)
+            return r, np.matmul(inv_chol, jacobian)
         filtered = [
             jacobian[:, i, p:] if a.size == 1 else fir_filter(a, jacobian[:, i, :])[:, p:]
             for i, a in enumerate(self.ar_polynomials)
         ]
         # L⁻¹ (lower triangular) across axes: six scaled adds over (P, M) blocks.
-        j = np.empty((size, 3, n - p)) if out is None else out
+        j = np.empty((size, 3, n - p))
         for i in range(3):
             np.multiply(filtered[i], inv_chol[i, i], out=j[:, i, :])
             for k in range(i):
                 if inv_chol[i, k] != 0.0:
                     j[:, i, :] += inv_chol[i, k] * filtered[k]
-        return j
+        return r, j
 
     def to_dict(self) -> dict:
         """Summary for reports."""

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.sensor_gram import sensor_gram, sensor_series
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
 from wheelcal.model.forward import jacobian_transpose_times
 
@@ -134,10 +133,10 @@ def accumulate(
             continue
         view = local_view(params, layout, t_s[lo], t_s[stop - 1]) if sparse else None
         here, at = (view.layout, view.params) if view else (layout, params)
-        buf, _, sensed, extra_size = _filled_buffer(
+        buf, residual, extra_size = _filled_buffer(
             at, t_s[lo:stop], accel_mps2[lo:stop], here, extra, extra_size
         )
-        gram, rows = _whitened_gram(buf, sensed, noise, sensor_rows(here))
+        gram, rows = _whitened_gram(buf, residual, noise)
         if hess is None:
             total = layout.size + (extra_size or 0)
             hess, grad = np.zeros((total, total)), np.zeros(total)
@@ -160,12 +159,8 @@ def _filled_buffer(
     layout: ParameterLayout,
     extra: ExtraColumns | None,
     extra_size: int | None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, int | None]:
-    """[J | extra columns | residual] (P + k + 1, 3, n), the residual, s = R a, k.
-
-    The residual is model − data, (n, 3); s (n, 3) gives the gain columns' blocks
-    (:mod:`wheelcal.estimate.sensor_gram`).  The rest of the model's output is let
-    go (its ϑ, ω, ω̇ partials: ~200 B per sample while the buffer is whitened).
+) -> tuple[np.ndarray, np.ndarray, int | None]:
+    """[J | extra columns | residual] (P + k + 1, 3, n), the residual (model − data), k.
 
     One buffer for the free parameters' columns, the extra ones and the residual:
     one whitening, and one Gram product gives H, g and the cost together (a second
@@ -183,57 +178,17 @@ def _filled_buffer(
         else:
             buf[layout.size : -1] = cols
     buf[-1] = residual.T
-    return buf, residual, out.sensed_mps2, extra_size
-
-
-def sensor_rows(layout: ParameterLayout) -> slice | None:
-    """The gain and offset rows of ``layout``'s Jacobian when they are e_j s_j and e_j.
-
-    None when a sensor-stage effect adds to the gain columns or acts on the
-    sensor's output (its columns are then not one axis each).
-    """
-    if any(effect.stage == "sensor" for effect in layout.effects):
-        return None
-    blocks = layout.blocks
-    gain, offset = blocks["gain"], blocks["offset"]
-    if gain.stop != offset.start:
-        return None
-    return slice(gain.start, offset.stop)
+    return buf, residual, extra_size
 
 
 def _whitened_gram(
-    buf: np.ndarray, sensed_mps2: np.ndarray, noise: NoiseModel, sensor: slice | None = None
+    buf: np.ndarray, residual: np.ndarray, noise: NoiseModel
 ) -> tuple[np.ndarray, int]:
-    """The Gram matrix of the whitened buffer, and the whitened residual entries.
-
-    ``sensor`` (the gain and offset rows, :func:`sensor_rows`): those rows are left
-    out of the whitening and of the dense product; their blocks come from the
-    sensed samples ``sensed_mps2`` (:mod:`wheelcal.estimate.sensor_gram`).
-    """
-    if sensor is None:
-        # Not in place: for white noise one batched 3×3 product beats six scaled adds.
-        jw = noise.whiten_columns(buf)
-        jt = jw.reshape(jw.shape[0], -1)
-        return jt @ jt.T, jw.shape[1] * jw.shape[2]
-    a, b = sensor.start, sensor.stop
-    total = buf.shape[0]
-    jw = np.empty((total - (b - a), 3, buf.shape[2] - noise.order))
-    noise.whiten_columns(buf[:a], out=jw[:a])
-    noise.whiten_columns(buf[b:], out=jw[a:])
+    """The Gram matrix of the whitened buffer, and the whitened residual entries."""
+    # Not in place: for white noise one batched 3×3 product beats six scaled adds.
+    _, jw = noise.whiten(residual, buf)
     jt = jw.reshape(jw.shape[0], -1)
-    dense = jt @ jt.T
-    cross, block = sensor_gram(jw, sensor_series(sensed_mps2, noise), noise)
-    gram = np.empty((total, total))
-    gram[:a, :a] = dense[:a, :a]
-    gram[:a, b:] = dense[:a, a:]
-    gram[b:, :a] = dense[a:, :a]
-    gram[b:, b:] = dense[a:, a:]
-    gram[:a, a:b] = cross[:a]
-    gram[b:, a:b] = cross[a:]
-    gram[a:b, :a] = cross[:a].T
-    gram[a:b, b:] = cross[a:].T
-    gram[a:b, a:b] = block
-    return gram, jw.shape[1] * jw.shape[2]
+    return jt @ jt.T, jw.shape[1] * jw.shape[2]
 
 
 def accumulate_fitting_noise(
@@ -253,11 +208,9 @@ def accumulate_fitting_noise(
     if t_s.size > CHUNK_SAMPLES or chunking(layout, t_s, None)[1]:
         raise ValueError("accumulate_fitting_noise takes one chunk of a dense layout")
     extra_size = getattr(extra, "size", None) if extra is not None else None
-    buf, residual, sensed, extra_size = _filled_buffer(
-        params, t_s, accel_mps2, layout, extra, extra_size
-    )
+    buf, residual, extra_size = _filled_buffer(params, t_s, accel_mps2, layout, extra, extra_size)
     noise = noise_of(np.negative(residual))
-    gram, rows = _whitened_gram(buf, sensed, noise, sensor_rows(layout))
+    gram, rows = _whitened_gram(buf, residual, noise)
     normal = NormalEquations(
         cost=float(gram[-1, -1]),
         hessian=gram[:-1, :-1].copy(),
@@ -296,8 +249,8 @@ def gradient_pass(
     if sparse:
         raise ValueError("gradient_pass does not take a layout with a local basis")
     p = noise.order
-    # L⁻ᵀ of the noise model's Σ_e = L Lᵀ.
-    inv_chol_t = noise.inverse_cholesky.T
+    # L⁻ᵀ of the noise model's Σ_e = L Lᵀ (3 × 3: its inverse once, then products).
+    inv_chol_t = np.linalg.inv(np.linalg.cholesky(noise.innovation_cov)).T
     reverse = not layout.effects
     if output is not None and (n > chunk or not reverse):
         raise ValueError("an evaluated output serves one chunk of the paper's model")
