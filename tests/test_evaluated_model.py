@@ -96,6 +96,35 @@ def test_the_fit_keeps_its_last_evaluation_at_the_result(fitted):
     np.testing.assert_array_equal(plain.covariance, result.covariance)
 
 
+@pytest.mark.parametrize(("seed", "last"), [(0, "cost"), (2, "gradient")])
+def test_either_last_pass_keeps_its_evaluation(monkeypatch, seed, last):
+    # The LM's last pass is the cost-only one confirming a last step (seed 0) or a
+    # gradient pass whose step ended below the tolerance (seed 2): both keep theirs.
+    from wheelcal.estimate import joint as joint_module
+
+    passes: list[str] = []
+    call, gradient = joint_module._LastResidual.__call__, joint_module._LastResidual.gradient
+
+    def spy_call(self, params, want_jacobian):
+        passes.append("jacobian" if want_jacobian else "cost")
+        return call(self, params, want_jacobian)
+
+    def spy_gradient(self, params):
+        passes.append("gradient")
+        return gradient(self, params)
+
+    monkeypatch.setattr(joint_module._LastResidual, "__call__", spy_call)
+    monkeypatch.setattr(joint_module._LastResidual, "gradient", spy_gradient)
+    recording = simulate(table1(), np.random.default_rng(seed)).recording
+    result, evaluated = JointFit().fit_evaluated(recording)
+    assert passes[-1] == last
+    assert evaluated is not None and evaluated.params is result.params
+    fresh = evaluate(result.params, result.centred_time_s, result.layout)
+    np.testing.assert_array_equal(evaluated.output.predicted_mps2, fresh.predicted_mps2)
+    np.testing.assert_array_equal(evaluated.output.force.sin_theta, fresh.force.sin_theta)
+    np.testing.assert_array_equal(result.residual_mps2, recording.accel_mps2 - fresh.predicted_mps2)
+
+
 def test_the_motion_check_from_the_kept_evaluation_is_the_same(fitted):
     window, rests, result, evaluated = fitted
     shared, shared_reference = sf._motion(result, window, rests, evaluated)
