@@ -35,6 +35,7 @@ from wheelcal.viz.session_rrd import (
     wheel_angle_rad,
     write_session_rrd,
 )
+from wheelcal.viz.static_rows import column, row_columns, static_chunk, tensor_f64
 
 # ---------------------------------------------------------------- reading back
 
@@ -270,8 +271,13 @@ def test_session_blueprint(session, session_file):
 
 def blueprint_contents(path):
     """{(entity, component, static): values} of the file's blueprint store."""
+    return store_contents(path, blueprint=True)
+
+
+def store_contents(path, blueprint=False):
+    """{(entity, component, static): values} of the file's recording (or blueprint) store."""
     out = {}
-    for entity, chunks in read_store(path, blueprint=True).items():
+    for entity, chunks in read_store(path, blueprint=blueprint).items():
         for chunk in chunks:
             batch = chunk.to_record_batch()
             for name in batch.schema.names:
@@ -307,6 +313,69 @@ def test_blueprint_chunks_send_what_send_blueprint_sends(tmp_path):
     } <= kinds
     assert got == expected
     assert RrdReader(paths[1]).blueprints()[0].application_id == "wheelcal"
+
+
+def test_static_chunks_store_what_log_stores(tmp_path):
+    """Pre-converted static rows (``static_rows``) give the store ``log(static=True)`` gives."""
+    chart = rr.BarChart(
+        np.linspace(-1, 1, 72),
+        abscissa=np.arange(72) * 5.0 + 2.5,
+        widths=np.full(72, 5.0),
+        color=(38, 110, 210, 170),
+    )
+    values = rr.BarChart.descriptor_values()
+    shared = [c for c in row_columns(chart) if c.component_descriptor() != values]
+    entities = {
+        "style": [rr.SeriesLines(names=["a x", "a y"], colors=[(1, 2, 3)] * 2, widths=[1.5] * 2)],
+        "lane": [
+            rr.StateConfiguration(
+                values=["p", "q"], labels=["P", "Q"], colors=np.array([1, 2], np.uint32)
+            )
+        ],
+        "report": [rr.TextDocument("# title\n| a | b |", media_type=rr.MediaType.MARKDOWN)],
+        "bars": [chart],
+        # The bar chart's values replaced, its abscissa, widths and colour shared.
+        "bars2": [
+            rr.BarChart.from_fields(values=np.arange(72.0)),
+            [b for b in chart.as_component_batches() if b.component_descriptor() != values],
+        ],
+    }
+    fast = {
+        **{path: static_chunk(path, row_columns(*parts)) for path, parts in entities.items()},
+        "bars2": static_chunk("bars2", (column(values, tensor_f64(np.arange(72.0))), *shared)),
+    }
+    paths = []
+    for name, send in (
+        ("log", lambda s: [s.log(p, *parts, static=True) for p, parts in entities.items()]),
+        ("chunks", lambda s: s.send_chunks(list(fast.values()))),
+    ):
+        stream = rr.RecordingStream("wheelcal", recording_id=f"static-{name}")
+        sink = stream.binary_stream()
+        send(stream)
+        paths.append(tmp_path / f"{name}.rrd")
+        paths[-1].write_bytes(sink.read(flush=True))
+        stream.disconnect()
+    expected, got = (
+        {k: v for k, v in store_contents(p).items() if k[0] != "/__properties"} for p in paths
+    )
+    assert {e for e, _, _ in expected} == {f"/{p}" for p in entities}
+    assert all(is_static for _, _, is_static in expected)
+    # "bars2" differs from "bars" in its values only, by construction.
+    assert (
+        expected[("/bars2", "BarChart:values", True)]
+        != expected[("/bars", "BarChart:values", True)]
+    )
+    assert got == expected
+
+
+@pytest.mark.parametrize("size", [1, 5, 72])
+def test_tensor_f64_is_rerun_tensor_data(size):
+    values = np.random.default_rng(size).normal(size=size)
+    expected = rr.components.TensorDataBatch(values).as_arrow_array()
+    got = tensor_f64(values)
+    got.validate(full=True)
+    assert got.type == expected.type and got.equals(expected)
+    assert got.to_pylist()[0]["buffer"] == values.tolist()
 
 
 def test_each_file_gets_its_own_time_selection(session, tmp_path):

@@ -91,6 +91,7 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+from rerun.chunk import Chunk
 
 from wheelcal.estimate.residual_profile import binned_mean_by_angle
 from wheelcal.estimate.result import CalibrationResult
@@ -101,6 +102,7 @@ from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
 from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import rrd_file
+from wheelcal.viz.static_rows import column, row_columns, static_chunk, tensor_f64
 
 APPLICATION_ID = "wheelcal"
 TIME_TIMELINE = "time"
@@ -135,13 +137,30 @@ def _time_column(time_s: np.ndarray) -> rr.TimeColumn:
 
 
 @functools.lru_cache(maxsize=64)
-def _series_style(names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None):
-    """Static ``rr.SeriesLines`` styling, built once per process (archetypes build slowly)."""
-    return rr.SeriesLines(
-        names=list(names),
-        colors=None if colors is None else list(colors),
-        widths=None if width is None else [width] * len(names),
+def _series_style(
+    names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None
+) -> tuple[rr.ComponentColumn, ...]:
+    """Static ``rr.SeriesLines`` styling as one-row columns, built once per process."""
+    return row_columns(
+        rr.SeriesLines(
+            names=list(names),
+            colors=None if colors is None else list(colors),
+            widths=None if width is None else [width] * len(names),
+        )
     )
+
+
+def _series_chunks(
+    path: str,
+    style: tuple[rr.ComponentColumn, ...],
+    indexes: list[rr.TimeColumn],
+    values: np.ndarray,
+) -> list[Chunk]:
+    """The static style and the temporal ``Scalars`` rows of one series entity."""
+    return [
+        static_chunk(path, style),
+        Chunk.from_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values)),
+    ]
 
 
 def angle_mdeg(theta_rad: np.ndarray) -> np.ndarray:
@@ -182,10 +201,8 @@ def log_signal(
 ) -> None:
     """Log (N, 3) samples in m/s² as ``/signal/<name>``: three line series on ``time``."""
     t, v = _check_series(time_s, accel_mps2, f"signal {name!r}")
-    path = f"signal/{name}"
     style = _series_style(tuple(f"{name} {a}" for a in AXES), tuple(colors), width)
-    stream.log(path, style, static=True)
-    stream.send_columns(path, indexes=[_time_column(t)], columns=rr.Scalars.columns(scalars=v))
+    stream.send_chunks(_series_chunks(f"signal/{name}", style, [_time_column(t)], v))
 
 
 def log_residuals(
@@ -226,40 +243,45 @@ def log_residuals(
     if theta.size != t.size or not np.all(np.isfinite(theta)):
         raise ValueError(f"residual set {name!r}: need {t.size} finite angles, got {theta.size}")
     rgb = set_color(name) if color is None else tuple(color)
-    path = f"residual/{name}"
     style = _series_style(tuple(f"{name} {a}" for a in AXES), (rgb,) * 3, 1.0)
-    stream.log(path, style, static=True)
     angles = rr.TimeColumn(ANGLE_TIMELINE, sequence=angle_mdeg(theta))
-    stream.send_columns(
-        path, indexes=[_time_column(t), angles], columns=rr.Scalars.columns(scalars=r)
-    )
+    chunks = _series_chunks(f"residual/{name}", style, [_time_column(t), angles], r)
     centres_deg, mean, _ = binned_mean_by_angle(theta, r, ANGLE_BINS)
-    # The axes share abscissa, widths and colour: converted to Arrow once, not per axis.
-    first = rr.BarChart(
-        mean[:, 0],
-        abscissa=centres_deg,
-        widths=np.full(centres_deg.size, 360.0 / ANGLE_BINS),
+    # The axes share abscissa, widths and colour (one conversion per process).
+    shared = _bar_chart_shared(tuple(centres_deg.tolist()), rgb)
+    values = rr.BarChart.descriptor_values()
+    for k, axis in enumerate(AXES):
+        bars = (column(values, tensor_f64(mean[:, k])), *shared)
+        chunks.append(static_chunk(f"residual_angle_mean/{axis}/{name}", bars))
+    stream.send_chunks(chunks)
+
+
+@functools.lru_cache(maxsize=16)
+def _bar_chart_shared(centres_deg: tuple[float, ...], rgb: Rgb) -> tuple[rr.ComponentColumn, ...]:
+    """A mean-residual bar chart's abscissa, bar widths and colour, as one-row columns."""
+    chart = rr.BarChart(
+        np.zeros(len(centres_deg)),
+        abscissa=np.array(centres_deg),
+        widths=np.full(len(centres_deg), 360.0 / ANGLE_BINS),
         color=(*rgb, 170),  # translucent: several sets overlap in one view
     )
     values = rr.BarChart.descriptor_values()
-    shared = [b for b in first.as_component_batches() if b.component_descriptor() != values]
-    stream.log(f"residual_angle_mean/{AXES[0]}/{name}", first, static=True)
-    for k, axis in enumerate(AXES[1:], start=1):
-        chart = rr.BarChart.from_fields(values=mean[:, k])
-        stream.log(f"residual_angle_mean/{axis}/{name}", chart, shared, static=True)
+    return tuple(c for c in row_columns(chart) if c.component_descriptor() != values)
 
 
 @functools.lru_cache(maxsize=1)
-def _window_configuration() -> rr.StateConfiguration:
-    """Labels and colours of the window lane's states (built once per process)."""
-    return rr.StateConfiguration(
-        values=list(_WINDOW_STATES),
-        labels=[
-            "before (rest, push; not fitted)",
-            "free spin (fitted)",
-            "after (brake, rest; not fitted)",
-        ],
-        colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
+def _window_configuration() -> tuple[rr.ComponentColumn, ...]:
+    """Labels and colours of the window lane's states (one-row columns, built once)."""
+    return row_columns(
+        rr.StateConfiguration(
+            values=list(_WINDOW_STATES),
+            labels=[
+                "before (rest, push; not fitted)",
+                "free spin (fitted)",
+                "after (brake, rest; not fitted)",
+            ],
+            colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
+        )
     )
 
 
@@ -267,8 +289,6 @@ def log_window(
     stream: rr.RecordingStream, start_s: float, end_s: float, first_s: float, last_s: float
 ) -> None:
     """The free-spin window as a state lane ``/window`` on ``time``."""
-    config = _window_configuration()
-    stream.log("window", config, static=True)
     times, states = [start_s], [_WINDOW_STATES[1]]
     if first_s < start_s:
         times.insert(0, first_s)
@@ -276,11 +296,12 @@ def log_window(
     if end_s < last_s:
         times.append(end_s)
         states.append(_WINDOW_STATES[2])
-    stream.send_columns(
+    lane = Chunk.from_columns(
         "window",
         indexes=[_time_column(np.array(times))],
         columns=rr.StateChange.columns(state=states),
     )
+    stream.send_chunks([static_chunk("window", _window_configuration()), lane])
 
 
 def _fmt(x: float, digits: int) -> str:
@@ -525,40 +546,40 @@ def session_rrd(
         every = max(1, math.ceil(fit_time_s.size / OMEGA_POINTS))
         omega_t = result.centred_time_s[::every]
         kin = wheel_kinematics(result.params, omega_t, result.layout.effects)  # Eq. (2) (+ spline)
-        stream.log("spin/omega_radps", _series_style(("ω (model)",), None, None), static=True)
-        stream.send_columns(
+        chunks = _series_chunks(
             "spin/omega_radps",
-            indexes=[_time_column(fit_time_s[::every])],
-            columns=rr.Scalars.columns(scalars=kin.omega_radps),
+            _series_style(("ω (model)",), None, None),
+            [_time_column(fit_time_s[::every])],
+            kin.omega_radps,
         )
-        _log_gyro_rate(stream, result, recording, shift_s, every)
+        chunks += _gyro_rate_chunks(result, recording, shift_s, every)
         markdown = report_markdown(result, window, start_s, end_s)
-        stream.log(
-            "report", rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True
-        )
+        report = rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN)
+        chunks.append(static_chunk("report", row_columns(report)))
+        stream.send_chunks(chunks)
         rrd = SessionRrd(stream)
         rrd.log_residuals(FIT_SET, fit_time_s, result.residual_mps2, wheel_angle_rad(result))
         yield rrd
         send_session_blueprint(stream, start_s, end_s, tuple(rrd.residual_sets))
 
 
-def _log_gyro_rate(stream, result, recording, shift_s: float, every: int) -> None:
+def _gyro_rate_chunks(result, recording, shift_s: float, every: int) -> list[Chunk]:
     """``/spin/omega_gyro_radps``: ω as the gyro measures it, (ω_meas − b)·w/|w|²."""
     gyro = getattr(recording, "gyro_radps", None)
     block = None if result.assessment is None else result.assessment.gyro
     if gyro is None or block is None:
-        return
+        return []
     w = block.scale * block.axis
     fitted = np.searchsorted(recording.time_s, result.time_s + shift_s)[::every]
     fitted = fitted[fitted < recording.time_s.size]
     rows = gyro[fitted]
     ok = np.all(np.isfinite(rows), axis=1)
     omega = (rows[ok] - block.bias_radps) @ w / (w @ w)
-    stream.log("spin/omega_gyro_radps", _series_style(("ω (gyro)",), None, None), static=True)
-    stream.send_columns(
+    return _series_chunks(
         "spin/omega_gyro_radps",
-        indexes=[_time_column(recording.time_s[fitted][ok])],
-        columns=rr.Scalars.columns(scalars=omega),
+        _series_style(("ω (gyro)",), None, None),
+        [_time_column(recording.time_s[fitted][ok])],
+        omega,
     )
 
 
