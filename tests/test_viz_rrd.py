@@ -16,18 +16,28 @@ import numpy as np
 import pytest
 import rerun as rr
 from rerun import FileSink as rr_file_sink
-from rerun.chunk import RrdReader
+from rerun.chunk import Chunk, RrdReader
 
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.window import find_free_spin
 from wheelcal.io.calibration_json import calibration_dict
 from wheelcal.simulate import table2
 from wheelcal.simulate.session import simulate_session
+from wheelcal.viz.arrow_chunks import (
+    column,
+    duration_index,
+    row_columns,
+    scalars_column,
+    sequence_index,
+    static_chunk,
+    tensor_f64,
+)
 from wheelcal.viz.batch_rrd import write_batch_rrd
 from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import RrdWriteError
 from wheelcal.viz.session_rrd import (
     ANGLE_BINS,
+    CHUNK_ROWS,
     angle_mdeg,
     binned_mean_by_angle,
     session_blueprint,
@@ -35,7 +45,6 @@ from wheelcal.viz.session_rrd import (
     wheel_angle_rad,
     write_session_rrd,
 )
-from wheelcal.viz.static_rows import column, row_columns, static_chunk, tensor_f64
 
 # ---------------------------------------------------------------- reading back
 
@@ -167,10 +176,34 @@ def test_residual_series_equals_the_result(session, session_file):
     np.testing.assert_array_equal(np.array(values), result.residual_mps2)
     assert np.max(np.abs(t_ns - result.time_s * 1e9)) <= 0.5  # rounded, not truncated
     # The same rows carry the wheel angle ϑ mod 360° in millidegrees.
-    batch = next(c for c in chunks["/residual/fit"] if not c.is_static).to_record_batch()
-    mdeg = batch.column("wheel_angle_mdeg").to_numpy()
+    batches = [c.to_record_batch() for c in chunks["/residual/fit"] if not c.is_static]
+    rows = {
+        t: m
+        for b in batches
+        for t, m in zip(
+            b.column("time").cast("int64").to_pylist(),
+            b.column("wheel_angle_mdeg").to_pylist(),
+            strict=True,
+        )
+    }
+    mdeg = np.array([rows[t] for t in t_ns])
     np.testing.assert_array_equal(mdeg, angle_mdeg(wheel_angle_rad(result)))
     assert mdeg.min() >= 0 and mdeg.max() < 360_000
+
+
+def test_long_series_are_cut_into_store_sized_chunks(session, session_file):
+    """≤ CHUNK_ROWS rows per chunk, in order, together every row once (a file sink cost)."""
+    recording, _, result = session
+    _, chunks = session_file
+    for entity, n in (("/signal/raw", recording.samples), ("/residual/fit", result.time_s.size)):
+        temporal_chunks = [c for c in chunks[entity] if not c.is_static]
+        sizes = [c.num_rows for c in temporal_chunks]
+        assert sum(sizes) == n and len(sizes) == -(-n // CHUNK_ROWS)
+        assert max(sizes) == CHUNK_ROWS
+        starts = [
+            c.to_record_batch().column("time").cast("int64")[0].as_py() for c in temporal_chunks
+        ]
+        assert starts == sorted(starts)
 
 
 def test_model_plus_residual_is_the_data(session, session_file):
@@ -316,7 +349,7 @@ def test_blueprint_chunks_send_what_send_blueprint_sends(tmp_path):
 
 
 def test_static_chunks_store_what_log_stores(tmp_path):
-    """Pre-converted static rows (``static_rows``) give the store ``log(static=True)`` gives."""
+    """Pre-converted static rows (``arrow_chunks``) give the store ``log(static=True)`` gives."""
     chart = rr.BarChart(
         np.linspace(-1, 1, 72),
         abscissa=np.arange(72) * 5.0 + 2.5,
@@ -366,6 +399,49 @@ def test_static_chunks_store_what_log_stores(tmp_path):
         != expected[("/bars", "BarChart:values", True)]
     )
     assert got == expected
+
+
+@pytest.mark.parametrize("width", [1, 3])
+def test_direct_columns_store_what_send_columns_stores(tmp_path, width):
+    """Sample chunks built from numpy (``arrow_chunks``) equal ``send_columns``' rows."""
+    rng = np.random.default_rng(width)
+    n = 257
+    values = rng.normal(size=(n, width)) if width > 1 else rng.normal(size=n)
+    ns = np.cumsum(rng.integers(1, 10_000_000, size=n))
+    seq = rng.integers(0, 360_000, size=n)  # unsorted, as the wheel angle
+    plain_index = [
+        rr.TimeColumn("time", duration=ns.astype("timedelta64[ns]")),
+        rr.TimeColumn("angle", sequence=seq),
+    ]
+    direct_index = [duration_index("time", ns), sequence_index("angle", seq)]
+    for plain, direct in zip(plain_index, direct_index, strict=True):
+        assert direct.as_arrow_array().equals(plain.as_arrow_array())
+    (plain_column,) = rr.Scalars.columns(scalars=values)
+    direct_column = scalars_column(values)
+    assert direct_column.as_arrow_array().equals(plain_column.as_arrow_array())
+    assert direct_column.component_descriptor() == plain_column.component_descriptor()
+    batches = []
+    for name, send in (
+        ("plain", lambda s: s.send_columns("e", plain_index, rr.Scalars.columns(scalars=values))),
+        (
+            "direct",
+            lambda s: s.send_chunks([Chunk.from_columns("e", direct_index, [direct_column])]),
+        ),
+    ):
+        stream = rr.RecordingStream("wheelcal", recording_id=f"columns-{name}")
+        sink = stream.binary_stream()
+        send(stream)
+        path = tmp_path / f"{name}.rrd"
+        path.write_bytes(sink.read(flush=True))
+        stream.disconnect()
+        (chunk,) = read_store(path)["/e"]
+        batches.append(chunk.to_record_batch().drop_columns(["rerun.controls.RowId"]))
+    assert batches[1].schema == batches[0].schema
+    assert batches[1].equals(batches[0])
+    # Both as written (the reader may reorder rows: compare in the order of time).
+    order = np.argsort(batches[1].column("time").cast("int64").to_numpy())
+    stored = np.array(batches[1].column("Scalars:scalars").to_pylist())[order]
+    np.testing.assert_array_equal(stored.reshape(values.shape), values)
 
 
 @pytest.mark.parametrize("size", [1, 5, 72])

@@ -68,13 +68,18 @@ Speed: no data are decimated (except ω, which is a polynomial).  Rerun's
 cost grows with the number of *rows* (each carries a 16-byte row id and its
 time), so the three axes share a row (≈ 4× faster than one entity per axis):
 ≈ 56 000 rows for a 90 s / 200 Hz session, ≈ 2.4 MB.  The rest is per
-message: each chunk (one per entity and kind, static or temporal) costs
-≈ 40–100 µs in Rerun (Arrow IPC schema, compression, hand-over between its
-threads), and the blueprint is ≈ 50 of them.  So the layout is built once per
-process (see above), styles are built once, the bar charts of a set share
-their abscissa, and the file is written by Rerun's file sink on its own
-thread.  ``benchmarks/bench_rrd.py --ref <rev>`` measures a file against an
-earlier revision in the same process.
+message: each chunk costs ≈ 40–100 µs in Rerun (Arrow IPC schema,
+compression, hand-over between its threads), and the blueprint is ≈ 50 of
+them.  So the layout is built once per process (see above); the static rows
+(styles, the window lane's states, the bar charts' abscissa) are converted
+once per process and every entity group goes to Rerun as ready chunks in one
+``send_chunks`` call (:mod:`wheelcal.viz.arrow_chunks`: the sample columns
+are built from numpy directly, not through Rerun's generic converters).  Long
+series are cut into chunks of :data:`CHUNK_ROWS` rows, the size the viewer's
+store keeps anyway: one chunk of 18 001 rows made Rerun's file sink fetch
+fresh memory pages for every file (≈ 2 ms of CPU time).  The file is written
+by Rerun's file sink on its own thread.  ``benchmarks/bench_rrd.py --ref
+<rev>`` measures a file against an earlier revision in the same process.
 """
 
 from __future__ import annotations
@@ -100,9 +105,18 @@ from wheelcal.model import predict
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
+from wheelcal.viz.arrow_chunks import (
+    ArrowColumn,
+    column,
+    duration_index,
+    row_columns,
+    scalars_column,
+    sequence_index,
+    static_chunk,
+    tensor_f64,
+)
 from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import rrd_file
-from wheelcal.viz.static_rows import column, row_columns, static_chunk, tensor_f64
 
 APPLICATION_ID = "wheelcal"
 TIME_TIMELINE = "time"
@@ -113,6 +127,12 @@ ANGLE_BINS = 72
 FIT_SET = "fit"
 #: At most this many samples of ω(t) (a polynomial: nothing is lost).
 OMEGA_POINTS = 1000
+#: At most this many rows per temporal chunk: the size the viewer's store keeps its own
+#: chunks to (Rerun's ``ChunkStoreConfig``, 4096 rows).  Rerun's file sink encodes a
+#: chunk into one buffer; at 18 001 rows (≈ 1 MB) its allocator fetches fresh pages
+#: for every one (≈ 1 600 page faults per session file against ≈ 550 in 4096-row
+#: chunks, ≈ 2 ms of CPU time, ``benchmarks/bench_rrd.py``).
+CHUNK_ROWS = 4096
 
 Rgb = tuple[int, int, int]
 
@@ -130,16 +150,20 @@ _WINDOW_STATES = ("before", "free spin", "after")
 _MARKERS = ("circle", "cross", "diamond", "plus", "square", "asterisk")
 
 
+def _time_ns(time_s: np.ndarray) -> np.ndarray:
+    """Seconds to whole nanoseconds, rounded (Rerun's own float conversion truncates)."""
+    return np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
+
+
 def _time_column(time_s: np.ndarray) -> rr.TimeColumn:
     """A ``time`` duration column from seconds, rounded (not truncated) to whole ns."""
-    ns = np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
-    return rr.TimeColumn(TIME_TIMELINE, duration=ns.astype("timedelta64[ns]"))
+    return rr.TimeColumn(TIME_TIMELINE, duration=_time_ns(time_s).view("timedelta64[ns]"))
 
 
 @functools.lru_cache(maxsize=64)
 def _series_style(
     names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None
-) -> tuple[rr.ComponentColumn, ...]:
+) -> tuple[ArrowColumn, ...]:
     """Static ``rr.SeriesLines`` styling as one-row columns, built once per process."""
     return row_columns(
         rr.SeriesLines(
@@ -152,15 +176,26 @@ def _series_style(
 
 def _series_chunks(
     path: str,
-    style: tuple[rr.ComponentColumn, ...],
-    indexes: list[rr.TimeColumn],
+    style: tuple[ArrowColumn, ...],
+    time_s: np.ndarray,
     values: np.ndarray,
+    sequences: dict[str, np.ndarray] | None = None,
 ) -> list[Chunk]:
-    """The static style and the temporal ``Scalars`` rows of one series entity."""
-    return [
-        static_chunk(path, style),
-        Chunk.from_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values)),
-    ]
+    """The static style and the temporal ``Scalars`` rows of one series entity.
+
+    The rows go in consecutive chunks of at most :data:`CHUNK_ROWS`, each on
+    the ``time`` timeline and on the sequence timelines of ``sequences``
+    (name → one integer per row).
+    """
+    time_ns = _time_ns(time_s)
+    chunks = [static_chunk(path, style)]
+    for start in range(0, len(values), CHUNK_ROWS):
+        rows = slice(start, start + CHUNK_ROWS)
+        indexes = [duration_index(TIME_TIMELINE, time_ns[rows])]
+        indexes += [sequence_index(name, seq[rows]) for name, seq in (sequences or {}).items()]
+        columns = [scalars_column(values[rows])]
+        chunks.append(Chunk.from_columns(path, indexes=indexes, columns=columns))
+    return chunks
 
 
 def angle_mdeg(theta_rad: np.ndarray) -> np.ndarray:
@@ -202,7 +237,7 @@ def log_signal(
     """Log (N, 3) samples in m/s² as ``/signal/<name>``: three line series on ``time``."""
     t, v = _check_series(time_s, accel_mps2, f"signal {name!r}")
     style = _series_style(tuple(f"{name} {a}" for a in AXES), tuple(colors), width)
-    stream.send_chunks(_series_chunks(f"signal/{name}", style, [_time_column(t)], v))
+    stream.send_chunks(_series_chunks(f"signal/{name}", style, t, v))
 
 
 def log_residuals(
@@ -244,8 +279,8 @@ def log_residuals(
         raise ValueError(f"residual set {name!r}: need {t.size} finite angles, got {theta.size}")
     rgb = set_color(name) if color is None else tuple(color)
     style = _series_style(tuple(f"{name} {a}" for a in AXES), (rgb,) * 3, 1.0)
-    angles = rr.TimeColumn(ANGLE_TIMELINE, sequence=angle_mdeg(theta))
-    chunks = _series_chunks(f"residual/{name}", style, [_time_column(t), angles], r)
+    angles = {ANGLE_TIMELINE: angle_mdeg(theta)}
+    chunks = _series_chunks(f"residual/{name}", style, t, r, angles)
     centres_deg, mean, _ = binned_mean_by_angle(theta, r, ANGLE_BINS)
     # The axes share abscissa, widths and colour (one conversion per process).
     shared = _bar_chart_shared(tuple(centres_deg.tolist()), rgb)
@@ -257,7 +292,7 @@ def log_residuals(
 
 
 @functools.lru_cache(maxsize=16)
-def _bar_chart_shared(centres_deg: tuple[float, ...], rgb: Rgb) -> tuple[rr.ComponentColumn, ...]:
+def _bar_chart_shared(centres_deg: tuple[float, ...], rgb: Rgb) -> tuple[ArrowColumn, ...]:
     """A mean-residual bar chart's abscissa, bar widths and colour, as one-row columns."""
     chart = rr.BarChart(
         np.zeros(len(centres_deg)),
@@ -270,7 +305,7 @@ def _bar_chart_shared(centres_deg: tuple[float, ...], rgb: Rgb) -> tuple[rr.Comp
 
 
 @functools.lru_cache(maxsize=1)
-def _window_configuration() -> tuple[rr.ComponentColumn, ...]:
+def _window_configuration() -> tuple[ArrowColumn, ...]:
     """Labels and colours of the window lane's states (one-row columns, built once)."""
     return row_columns(
         rr.StateConfiguration(
@@ -549,7 +584,7 @@ def session_rrd(
         chunks = _series_chunks(
             "spin/omega_radps",
             _series_style(("ω (model)",), None, None),
-            [_time_column(fit_time_s[::every])],
+            fit_time_s[::every],
             kin.omega_radps,
         )
         chunks += _gyro_rate_chunks(result, recording, shift_s, every)
@@ -578,7 +613,7 @@ def _gyro_rate_chunks(result, recording, shift_s: float, every: int) -> list[Chu
     return _series_chunks(
         "spin/omega_gyro_radps",
         _series_style(("ω (gyro)",), None, None),
-        [_time_column(recording.time_s[fitted][ok])],
+        recording.time_s[fitted][ok],
         omega,
     )
 
