@@ -8,6 +8,7 @@ blueprint store.
 
 import copy
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -452,6 +453,36 @@ def test_tensor_f64_is_rerun_tensor_data(size):
     got.validate(full=True)
     assert got.type == expected.type and got.equals(expected)
     assert got.to_pylist()[0]["buffer"] == values.tolist()
+
+
+def without_ids(contents):
+    """Blueprint contents with the random view, container and visualizer ids blanked."""
+    uuid = re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}")
+    raw_id = re.compile(r"\[(\d+, ){15}\d+\]")  # a 16-byte id as a list of ints
+    return sorted(
+        (uuid.sub("<id>", repr(key)), raw_id.sub("<id>", uuid.sub("<id>", repr(value))))
+        for key, value in contents.items()
+    )
+
+
+@pytest.mark.parametrize("extra_sets", [(), ("after",)])
+def test_session_file_blueprint_is_what_send_blueprint_sends(session, tmp_path, extra_sets):
+    """A file's blueprint (cached layout, per-file time panel) equals Rerun's own send_blueprint."""
+    recording, window, result = session
+    path = tmp_path / "s.rrd"
+    with session_rrd(path, result, recording, window) as rrd:
+        for name in extra_sets:
+            rrd.log_residuals(name, result.time_s, result.residual_mps2, wheel_angle_rad(result))
+    blueprint = session_blueprint(window.start_s, window.end_s, ("fit", *extra_sets))
+    stream = rr.RecordingStream("wheelcal", recording_id="bp-reference")
+    sink = stream.binary_stream()
+    stream.send_blueprint(blueprint)
+    reference = tmp_path / "reference.rrd"
+    reference.write_bytes(sink.read(flush=True))
+    stream.disconnect()
+    got, expected = (without_ids(blueprint_contents(p)) for p in (path, reference))
+    assert len(expected) > 80  # ≈ 50 entities, every component
+    assert got == expected
 
 
 def test_each_file_gets_its_own_time_selection(session, tmp_path):

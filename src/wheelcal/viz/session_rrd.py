@@ -94,6 +94,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 import rerun.blueprint as rrb
 from rerun.chunk import Chunk
@@ -115,7 +116,12 @@ from wheelcal.viz.arrow_chunks import (
     static_chunk,
     tensor_f64,
 )
-from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
+from wheelcal.viz.blueprint_chunks import (
+    blueprint_chunk,
+    blueprint_chunks,
+    blueprint_rows,
+    send_blueprint_chunks,
+)
 from wheelcal.viz.rrd_file import rrd_file
 
 APPLICATION_ID = "wheelcal"
@@ -500,12 +506,31 @@ def _layout_chunks(residual_sets: tuple[str, ...]) -> tuple:
     return blueprint_chunks(rrb.Blueprint(_session_root(residual_sets)))
 
 
+@functools.lru_cache(maxsize=1)
+def _time_panel_rows() -> tuple[str, bool, tuple[ArrowColumn, ...], rr.ComponentDescriptor]:
+    """The time panel's entity, its columns and the descriptor of the one that varies."""
+    ((path, static, columns),) = blueprint_rows(session_time_panel(0.0, 0.0))
+    (selection,) = [c for c in columns if c.component_descriptor().component.endswith("selection")]
+    return path, static, columns, selection.component_descriptor()
+
+
+def _time_panel_chunk(start_s: float, end_s: float) -> Chunk:
+    """:func:`session_time_panel` as a chunk; only the selection is converted per file."""
+    path, static, columns, selection = _time_panel_rows()
+    # ``rrb.components.AbsoluteTimeRange``: whole ns, as the panel rounds them.
+    ns = {"min": round(start_s * 1e9), "max": round(end_s * 1e9)}
+    template = next(c for c in columns if c.component_descriptor() == selection)
+    value = pa.array([ns], type=template.as_arrow_array().type.value_type)
+    varying = [column(selection, value) if c is template else c for c in columns]
+    return blueprint_chunk(path, static, varying)
+
+
 def send_session_blueprint(
     stream: rr.RecordingStream, start_s: float, end_s: float, residual_sets: tuple[str, ...]
 ) -> None:
     """Send :func:`session_blueprint` into ``stream``, the layout from the per-process cache."""
-    panel = blueprint_chunks(session_time_panel(start_s, end_s))
-    send_blueprint_chunks(stream, _layout_chunks(tuple(residual_sets)) + panel)
+    panel = _time_panel_chunk(start_s, end_s)
+    send_blueprint_chunks(stream, (*_layout_chunks(tuple(residual_sets)), panel))
 
 
 @dataclass
