@@ -8,6 +8,7 @@ blueprint store.
 
 import copy
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -16,18 +17,28 @@ import numpy as np
 import pytest
 import rerun as rr
 from rerun import FileSink as rr_file_sink
-from rerun.chunk import RrdReader
+from rerun.chunk import Chunk, RrdReader
 
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.window import find_free_spin
 from wheelcal.io.calibration_json import calibration_dict
 from wheelcal.simulate import table2
 from wheelcal.simulate.session import simulate_session
+from wheelcal.viz.arrow_chunks import (
+    column,
+    duration_index,
+    row_columns,
+    scalars_column,
+    sequence_index,
+    static_chunk,
+    tensor_f64,
+)
 from wheelcal.viz.batch_rrd import write_batch_rrd
 from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import RrdWriteError
 from wheelcal.viz.session_rrd import (
     ANGLE_BINS,
+    CHUNK_ROWS,
     angle_mdeg,
     binned_mean_by_angle,
     session_blueprint,
@@ -166,10 +177,34 @@ def test_residual_series_equals_the_result(session, session_file):
     np.testing.assert_array_equal(np.array(values), result.residual_mps2)
     assert np.max(np.abs(t_ns - result.time_s * 1e9)) <= 0.5  # rounded, not truncated
     # The same rows carry the wheel angle ϑ mod 360° in millidegrees.
-    batch = next(c for c in chunks["/residual/fit"] if not c.is_static).to_record_batch()
-    mdeg = batch.column("wheel_angle_mdeg").to_numpy()
+    batches = [c.to_record_batch() for c in chunks["/residual/fit"] if not c.is_static]
+    rows = {
+        t: m
+        for b in batches
+        for t, m in zip(
+            b.column("time").cast("int64").to_pylist(),
+            b.column("wheel_angle_mdeg").to_pylist(),
+            strict=True,
+        )
+    }
+    mdeg = np.array([rows[t] for t in t_ns])
     np.testing.assert_array_equal(mdeg, angle_mdeg(wheel_angle_rad(result)))
     assert mdeg.min() >= 0 and mdeg.max() < 360_000
+
+
+def test_long_series_are_cut_into_store_sized_chunks(session, session_file):
+    """≤ CHUNK_ROWS rows per chunk, in order, together every row once (a file sink cost)."""
+    recording, _, result = session
+    _, chunks = session_file
+    for entity, n in (("/signal/raw", recording.samples), ("/residual/fit", result.time_s.size)):
+        temporal_chunks = [c for c in chunks[entity] if not c.is_static]
+        sizes = [c.num_rows for c in temporal_chunks]
+        assert sum(sizes) == n and len(sizes) == -(-n // CHUNK_ROWS)
+        assert max(sizes) == CHUNK_ROWS
+        starts = [
+            c.to_record_batch().column("time").cast("int64")[0].as_py() for c in temporal_chunks
+        ]
+        assert starts == sorted(starts)
 
 
 def test_model_plus_residual_is_the_data(session, session_file):
@@ -270,8 +305,13 @@ def test_session_blueprint(session, session_file):
 
 def blueprint_contents(path):
     """{(entity, component, static): values} of the file's blueprint store."""
+    return store_contents(path, blueprint=True)
+
+
+def store_contents(path, blueprint=False):
+    """{(entity, component, static): values} of the file's recording (or blueprint) store."""
     out = {}
-    for entity, chunks in read_store(path, blueprint=True).items():
+    for entity, chunks in read_store(path, blueprint=blueprint).items():
         for chunk in chunks:
             batch = chunk.to_record_batch()
             for name in batch.schema.names:
@@ -307,6 +347,142 @@ def test_blueprint_chunks_send_what_send_blueprint_sends(tmp_path):
     } <= kinds
     assert got == expected
     assert RrdReader(paths[1]).blueprints()[0].application_id == "wheelcal"
+
+
+def test_static_chunks_store_what_log_stores(tmp_path):
+    """Pre-converted static rows (``arrow_chunks``) give the store ``log(static=True)`` gives."""
+    chart = rr.BarChart(
+        np.linspace(-1, 1, 72),
+        abscissa=np.arange(72) * 5.0 + 2.5,
+        widths=np.full(72, 5.0),
+        color=(38, 110, 210, 170),
+    )
+    values = rr.BarChart.descriptor_values()
+    shared = [c for c in row_columns(chart) if c.component_descriptor() != values]
+    entities = {
+        "style": [rr.SeriesLines(names=["a x", "a y"], colors=[(1, 2, 3)] * 2, widths=[1.5] * 2)],
+        "lane": [
+            rr.StateConfiguration(
+                values=["p", "q"], labels=["P", "Q"], colors=np.array([1, 2], np.uint32)
+            )
+        ],
+        "report": [rr.TextDocument("# title\n| a | b |", media_type=rr.MediaType.MARKDOWN)],
+        "bars": [chart],
+        # The bar chart's values replaced, its abscissa, widths and colour shared.
+        "bars2": [
+            rr.BarChart.from_fields(values=np.arange(72.0)),
+            [b for b in chart.as_component_batches() if b.component_descriptor() != values],
+        ],
+    }
+    fast = {
+        **{path: static_chunk(path, row_columns(*parts)) for path, parts in entities.items()},
+        "bars2": static_chunk("bars2", (column(values, tensor_f64(np.arange(72.0))), *shared)),
+    }
+    paths = []
+    for name, send in (
+        ("log", lambda s: [s.log(p, *parts, static=True) for p, parts in entities.items()]),
+        ("chunks", lambda s: s.send_chunks(list(fast.values()))),
+    ):
+        stream = rr.RecordingStream("wheelcal", recording_id=f"static-{name}")
+        sink = stream.binary_stream()
+        send(stream)
+        paths.append(tmp_path / f"{name}.rrd")
+        paths[-1].write_bytes(sink.read(flush=True))
+        stream.disconnect()
+    expected, got = (
+        {k: v for k, v in store_contents(p).items() if k[0] != "/__properties"} for p in paths
+    )
+    assert {e for e, _, _ in expected} == {f"/{p}" for p in entities}
+    assert all(is_static for _, _, is_static in expected)
+    # "bars2" differs from "bars" in its values only, by construction.
+    assert (
+        expected[("/bars2", "BarChart:values", True)]
+        != expected[("/bars", "BarChart:values", True)]
+    )
+    assert got == expected
+
+
+@pytest.mark.parametrize("width", [1, 3])
+def test_direct_columns_store_what_send_columns_stores(tmp_path, width):
+    """Sample chunks built from numpy (``arrow_chunks``) equal ``send_columns``' rows."""
+    rng = np.random.default_rng(width)
+    n = 257
+    values = rng.normal(size=(n, width)) if width > 1 else rng.normal(size=n)
+    ns = np.cumsum(rng.integers(1, 10_000_000, size=n))
+    seq = rng.integers(0, 360_000, size=n)  # unsorted, as the wheel angle
+    plain_index = [
+        rr.TimeColumn("time", duration=ns.astype("timedelta64[ns]")),
+        rr.TimeColumn("angle", sequence=seq),
+    ]
+    direct_index = [duration_index("time", ns), sequence_index("angle", seq)]
+    for plain, direct in zip(plain_index, direct_index, strict=True):
+        assert direct.as_arrow_array().equals(plain.as_arrow_array())
+    (plain_column,) = rr.Scalars.columns(scalars=values)
+    direct_column = scalars_column(values)
+    assert direct_column.as_arrow_array().equals(plain_column.as_arrow_array())
+    assert direct_column.component_descriptor() == plain_column.component_descriptor()
+    batches = []
+    for name, send in (
+        ("plain", lambda s: s.send_columns("e", plain_index, rr.Scalars.columns(scalars=values))),
+        (
+            "direct",
+            lambda s: s.send_chunks([Chunk.from_columns("e", direct_index, [direct_column])]),
+        ),
+    ):
+        stream = rr.RecordingStream("wheelcal", recording_id=f"columns-{name}")
+        sink = stream.binary_stream()
+        send(stream)
+        path = tmp_path / f"{name}.rrd"
+        path.write_bytes(sink.read(flush=True))
+        stream.disconnect()
+        (chunk,) = read_store(path)["/e"]
+        batches.append(chunk.to_record_batch().drop_columns(["rerun.controls.RowId"]))
+    assert batches[1].schema == batches[0].schema
+    assert batches[1].equals(batches[0])
+    # Both as written (the reader may reorder rows: compare in the order of time).
+    order = np.argsort(batches[1].column("time").cast("int64").to_numpy())
+    stored = np.array(batches[1].column("Scalars:scalars").to_pylist())[order]
+    np.testing.assert_array_equal(stored.reshape(values.shape), values)
+
+
+@pytest.mark.parametrize("size", [1, 5, 72])
+def test_tensor_f64_is_rerun_tensor_data(size):
+    values = np.random.default_rng(size).normal(size=size)
+    expected = rr.components.TensorDataBatch(values).as_arrow_array()
+    got = tensor_f64(values)
+    got.validate(full=True)
+    assert got.type == expected.type and got.equals(expected)
+    assert got.to_pylist()[0]["buffer"] == values.tolist()
+
+
+def without_ids(contents):
+    """Blueprint contents with the random view, container and visualizer ids blanked."""
+    uuid = re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}")
+    raw_id = re.compile(r"\[(\d+, ){15}\d+\]")  # a 16-byte id as a list of ints
+    return sorted(
+        (uuid.sub("<id>", repr(key)), raw_id.sub("<id>", uuid.sub("<id>", repr(value))))
+        for key, value in contents.items()
+    )
+
+
+@pytest.mark.parametrize("extra_sets", [(), ("after",)])
+def test_session_file_blueprint_is_what_send_blueprint_sends(session, tmp_path, extra_sets):
+    """A file's blueprint (cached layout, per-file time panel) equals Rerun's own send_blueprint."""
+    recording, window, result = session
+    path = tmp_path / "s.rrd"
+    with session_rrd(path, result, recording, window) as rrd:
+        for name in extra_sets:
+            rrd.log_residuals(name, result.time_s, result.residual_mps2, wheel_angle_rad(result))
+    blueprint = session_blueprint(window.start_s, window.end_s, ("fit", *extra_sets))
+    stream = rr.RecordingStream("wheelcal", recording_id="bp-reference")
+    sink = stream.binary_stream()
+    stream.send_blueprint(blueprint)
+    reference = tmp_path / "reference.rrd"
+    reference.write_bytes(sink.read(flush=True))
+    stream.disconnect()
+    got, expected = (without_ids(blueprint_contents(p)) for p in (path, reference))
+    assert len(expected) > 80  # ≈ 50 entities, every component
+    assert got == expected
 
 
 def test_each_file_gets_its_own_time_selection(session, tmp_path):

@@ -33,6 +33,8 @@ import rerun_bindings
 from rerun.chunk import Chunk
 from rerun.recording_stream import RecordingStream, get_application_id
 
+from wheelcal.viz.arrow_chunks import ArrowColumn, row_columns, sequence_index
+
 #: The timeline Rerun logs blueprints on (``rerun.blueprint.api``).
 BLUEPRINT_TIMELINE = "blueprint"
 
@@ -55,14 +57,32 @@ class _Recorder:
             for batch in batches() if batches is not None else part:
                 components[batch.component_descriptor()] = batch
 
-    def chunks(self) -> list[Chunk]:
-        """One single-row chunk per entity (static entities without a timeline)."""
-        out = []
-        for (path, static), components in self.entities.items():
-            index = [] if static else [rr.TimeColumn(BLUEPRINT_TIMELINE, sequence=[0])]
-            columns = [b.partition([len(b.as_arrow_array())]) for b in components.values()]
-            out.append(Chunk.from_columns(path, indexes=index, columns=columns))
-        return out
+    def rows(self) -> list[tuple[str, bool, tuple[ArrowColumn, ...]]]:
+        """(entity path, static, one-row columns) per entity."""
+        return [
+            (path, static, row_columns(components.values()))
+            for (path, static), components in self.entities.items()
+        ]
+
+
+def blueprint_chunk(path: str, static: bool, columns: Iterable[ArrowColumn]) -> Chunk:
+    """One blueprint entity's row as a chunk: at 0 on the ``blueprint`` timeline, or static."""
+    index = [] if static else [sequence_index(BLUEPRINT_TIMELINE, [0])]
+    return Chunk.from_columns(path, indexes=index, columns=columns)
+
+
+def blueprint_rows(*parts) -> list[tuple[str, bool, tuple[ArrowColumn, ...]]]:
+    """(entity path, static, one-row columns) of every entity that blueprint parts log.
+
+    Parameters
+    ----------
+    parts:
+        As for :func:`blueprint_chunks`.
+    """
+    recorder = _Recorder()
+    for part in parts:
+        part._log_to_stream(recorder)
+    return recorder.rows()
 
 
 def blueprint_chunks(*parts) -> tuple[Chunk, ...]:
@@ -79,10 +99,7 @@ def blueprint_chunks(*parts) -> tuple[Chunk, ...]:
     tuple of rerun.chunk.Chunk
         One chunk per blueprint entity.
     """
-    recorder = _Recorder()
-    for part in parts:
-        part._log_to_stream(recorder)
-    return tuple(recorder.chunks())
+    return tuple(blueprint_chunk(*row) for row in blueprint_rows(*parts))
 
 
 def send_blueprint_chunks(stream: rr.RecordingStream, chunks: Iterable[Chunk]) -> None:

@@ -68,13 +68,18 @@ Speed: no data are decimated (except ω, which is a polynomial).  Rerun's
 cost grows with the number of *rows* (each carries a 16-byte row id and its
 time), so the three axes share a row (≈ 4× faster than one entity per axis):
 ≈ 56 000 rows for a 90 s / 200 Hz session, ≈ 2.4 MB.  The rest is per
-message: each chunk (one per entity and kind, static or temporal) costs
-≈ 40–100 µs in Rerun (Arrow IPC schema, compression, hand-over between its
-threads), and the blueprint is ≈ 50 of them.  So the layout is built once per
-process (see above), styles are built once, the bar charts of a set share
-their abscissa, and the file is written by Rerun's file sink on its own
-thread.  ``benchmarks/bench_rrd.py --ref <rev>`` measures a file against an
-earlier revision in the same process.
+message: each chunk costs ≈ 40–100 µs in Rerun (Arrow IPC schema,
+compression, hand-over between its threads), and the blueprint is ≈ 50 of
+them.  So the layout is built once per process (see above); the static rows
+(styles, the window lane's states, the bar charts' abscissa) are converted
+once per process and every entity group goes to Rerun as ready chunks in one
+``send_chunks`` call (:mod:`wheelcal.viz.arrow_chunks`: the sample columns
+are built from numpy directly, not through Rerun's generic converters).  Long
+series are cut into chunks of :data:`CHUNK_ROWS` rows, the size the viewer's
+store keeps anyway: one chunk of 18 001 rows made Rerun's file sink fetch
+fresh memory pages for every file (see :data:`CHUNK_ROWS`).  The file is written
+by Rerun's file sink on its own thread.  ``benchmarks/bench_rrd.py --ref
+<rev>`` measures a file against an earlier revision in the same process.
 """
 
 from __future__ import annotations
@@ -89,8 +94,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 import rerun.blueprint as rrb
+from rerun.chunk import Chunk
 
 from wheelcal.estimate.residual_profile import binned_mean_by_angle
 from wheelcal.estimate.result import CalibrationResult
@@ -99,7 +106,22 @@ from wheelcal.model import predict
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
-from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
+from wheelcal.viz.arrow_chunks import (
+    ArrowColumn,
+    column,
+    duration_index,
+    row_columns,
+    scalars_column,
+    sequence_index,
+    static_chunk,
+    tensor_f64,
+)
+from wheelcal.viz.blueprint_chunks import (
+    blueprint_chunk,
+    blueprint_chunks,
+    blueprint_rows,
+    send_blueprint_chunks,
+)
 from wheelcal.viz.rrd_file import rrd_file
 
 APPLICATION_ID = "wheelcal"
@@ -111,6 +133,13 @@ ANGLE_BINS = 72
 FIT_SET = "fit"
 #: At most this many samples of ω(t) (a polynomial: nothing is lost).
 OMEGA_POINTS = 1000
+#: At most this many rows per temporal chunk: the size the viewer's store keeps its own
+#: chunks to (Rerun's ``ChunkStoreConfig``, 4096 rows).  Rerun's file sink encodes a
+#: chunk into one buffer; at 18 001 rows (≈ 1 MB) its allocator fetches fresh pages
+#: for every one: ≈ 1 200 minor page faults per session file against ≈ 740 in
+#: 4096-row chunks (each in its own process; ≈ 1 650 against ≈ 520, and 9 % less CPU
+#: time, alternating both in one process).
+CHUNK_ROWS = 4096
 
 Rgb = tuple[int, int, int]
 
@@ -128,20 +157,52 @@ _WINDOW_STATES = ("before", "free spin", "after")
 _MARKERS = ("circle", "cross", "diamond", "plus", "square", "asterisk")
 
 
+def _time_ns(time_s: np.ndarray) -> np.ndarray:
+    """Seconds to whole nanoseconds, rounded (Rerun's own float conversion truncates)."""
+    return np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
+
+
 def _time_column(time_s: np.ndarray) -> rr.TimeColumn:
     """A ``time`` duration column from seconds, rounded (not truncated) to whole ns."""
-    ns = np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
-    return rr.TimeColumn(TIME_TIMELINE, duration=ns.astype("timedelta64[ns]"))
+    return rr.TimeColumn(TIME_TIMELINE, duration=_time_ns(time_s).view("timedelta64[ns]"))
 
 
 @functools.lru_cache(maxsize=64)
-def _series_style(names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None):
-    """Static ``rr.SeriesLines`` styling, built once per process (archetypes build slowly)."""
-    return rr.SeriesLines(
-        names=list(names),
-        colors=None if colors is None else list(colors),
-        widths=None if width is None else [width] * len(names),
+def _series_style(
+    names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None
+) -> tuple[ArrowColumn, ...]:
+    """Static ``rr.SeriesLines`` styling as one-row columns, built once per process."""
+    return row_columns(
+        rr.SeriesLines(
+            names=list(names),
+            colors=None if colors is None else list(colors),
+            widths=None if width is None else [width] * len(names),
+        )
     )
+
+
+def _series_chunks(
+    path: str,
+    style: tuple[ArrowColumn, ...],
+    time_s: np.ndarray,
+    values: np.ndarray,
+    sequences: dict[str, np.ndarray] | None = None,
+) -> list[Chunk]:
+    """The static style and the temporal ``Scalars`` rows of one series entity.
+
+    The rows go in consecutive chunks of at most :data:`CHUNK_ROWS`, each on
+    the ``time`` timeline and on the sequence timelines of ``sequences``
+    (name → one integer per row).
+    """
+    time_ns = _time_ns(time_s)
+    chunks = [static_chunk(path, style)]
+    for start in range(0, len(values), CHUNK_ROWS):
+        rows = slice(start, start + CHUNK_ROWS)
+        indexes = [duration_index(TIME_TIMELINE, time_ns[rows])]
+        indexes += [sequence_index(name, seq[rows]) for name, seq in (sequences or {}).items()]
+        columns = [scalars_column(values[rows])]
+        chunks.append(Chunk.from_columns(path, indexes=indexes, columns=columns))
+    return chunks
 
 
 def angle_mdeg(theta_rad: np.ndarray) -> np.ndarray:
@@ -182,10 +243,8 @@ def log_signal(
 ) -> None:
     """Log (N, 3) samples in m/s² as ``/signal/<name>``: three line series on ``time``."""
     t, v = _check_series(time_s, accel_mps2, f"signal {name!r}")
-    path = f"signal/{name}"
     style = _series_style(tuple(f"{name} {a}" for a in AXES), tuple(colors), width)
-    stream.log(path, style, static=True)
-    stream.send_columns(path, indexes=[_time_column(t)], columns=rr.Scalars.columns(scalars=v))
+    stream.send_chunks(_series_chunks(f"signal/{name}", style, t, v))
 
 
 def log_residuals(
@@ -226,40 +285,45 @@ def log_residuals(
     if theta.size != t.size or not np.all(np.isfinite(theta)):
         raise ValueError(f"residual set {name!r}: need {t.size} finite angles, got {theta.size}")
     rgb = set_color(name) if color is None else tuple(color)
-    path = f"residual/{name}"
     style = _series_style(tuple(f"{name} {a}" for a in AXES), (rgb,) * 3, 1.0)
-    stream.log(path, style, static=True)
-    angles = rr.TimeColumn(ANGLE_TIMELINE, sequence=angle_mdeg(theta))
-    stream.send_columns(
-        path, indexes=[_time_column(t), angles], columns=rr.Scalars.columns(scalars=r)
-    )
+    angles = {ANGLE_TIMELINE: angle_mdeg(theta)}
+    chunks = _series_chunks(f"residual/{name}", style, t, r, angles)
     centres_deg, mean, _ = binned_mean_by_angle(theta, r, ANGLE_BINS)
-    # The axes share abscissa, widths and colour: converted to Arrow once, not per axis.
-    first = rr.BarChart(
-        mean[:, 0],
-        abscissa=centres_deg,
-        widths=np.full(centres_deg.size, 360.0 / ANGLE_BINS),
+    # The axes share abscissa, widths and colour (one conversion per process).
+    shared = _bar_chart_shared(tuple(centres_deg.tolist()), rgb)
+    values = rr.BarChart.descriptor_values()
+    for k, axis in enumerate(AXES):
+        bars = (column(values, tensor_f64(mean[:, k])), *shared)
+        chunks.append(static_chunk(f"residual_angle_mean/{axis}/{name}", bars))
+    stream.send_chunks(chunks)
+
+
+@functools.lru_cache(maxsize=16)
+def _bar_chart_shared(centres_deg: tuple[float, ...], rgb: Rgb) -> tuple[ArrowColumn, ...]:
+    """A mean-residual bar chart's abscissa, bar widths and colour, as one-row columns."""
+    chart = rr.BarChart(
+        np.zeros(len(centres_deg)),
+        abscissa=np.array(centres_deg),
+        widths=np.full(len(centres_deg), 360.0 / ANGLE_BINS),
         color=(*rgb, 170),  # translucent: several sets overlap in one view
     )
     values = rr.BarChart.descriptor_values()
-    shared = [b for b in first.as_component_batches() if b.component_descriptor() != values]
-    stream.log(f"residual_angle_mean/{AXES[0]}/{name}", first, static=True)
-    for k, axis in enumerate(AXES[1:], start=1):
-        chart = rr.BarChart.from_fields(values=mean[:, k])
-        stream.log(f"residual_angle_mean/{axis}/{name}", chart, shared, static=True)
+    return tuple(c for c in row_columns(chart) if c.component_descriptor() != values)
 
 
 @functools.lru_cache(maxsize=1)
-def _window_configuration() -> rr.StateConfiguration:
-    """Labels and colours of the window lane's states (built once per process)."""
-    return rr.StateConfiguration(
-        values=list(_WINDOW_STATES),
-        labels=[
-            "before (rest, push; not fitted)",
-            "free spin (fitted)",
-            "after (brake, rest; not fitted)",
-        ],
-        colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
+def _window_configuration() -> tuple[ArrowColumn, ...]:
+    """Labels and colours of the window lane's states (one-row columns, built once)."""
+    return row_columns(
+        rr.StateConfiguration(
+            values=list(_WINDOW_STATES),
+            labels=[
+                "before (rest, push; not fitted)",
+                "free spin (fitted)",
+                "after (brake, rest; not fitted)",
+            ],
+            colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
+        )
     )
 
 
@@ -267,8 +331,6 @@ def log_window(
     stream: rr.RecordingStream, start_s: float, end_s: float, first_s: float, last_s: float
 ) -> None:
     """The free-spin window as a state lane ``/window`` on ``time``."""
-    config = _window_configuration()
-    stream.log("window", config, static=True)
     times, states = [start_s], [_WINDOW_STATES[1]]
     if first_s < start_s:
         times.insert(0, first_s)
@@ -276,11 +338,12 @@ def log_window(
     if end_s < last_s:
         times.append(end_s)
         states.append(_WINDOW_STATES[2])
-    stream.send_columns(
+    lane = Chunk.from_columns(
         "window",
         indexes=[_time_column(np.array(times))],
         columns=rr.StateChange.columns(state=states),
     )
+    stream.send_chunks([static_chunk("window", _window_configuration()), lane])
 
 
 def _fmt(x: float, digits: int) -> str:
@@ -444,12 +507,31 @@ def _layout_chunks(residual_sets: tuple[str, ...]) -> tuple:
     return blueprint_chunks(rrb.Blueprint(_session_root(residual_sets)))
 
 
+@functools.lru_cache(maxsize=1)
+def _time_panel_rows() -> tuple[str, bool, tuple[ArrowColumn, ...], rr.ComponentDescriptor]:
+    """The time panel's entity, its columns and the descriptor of the one that varies."""
+    ((path, static, columns),) = blueprint_rows(session_time_panel(0.0, 0.0))
+    (selection,) = [c for c in columns if c.component_descriptor().component.endswith("selection")]
+    return path, static, columns, selection.component_descriptor()
+
+
+def _time_panel_chunk(start_s: float, end_s: float) -> Chunk:
+    """:func:`session_time_panel` as a chunk; only the selection is converted per file."""
+    path, static, columns, selection = _time_panel_rows()
+    # ``rrb.components.AbsoluteTimeRange``: whole ns, as the panel rounds them.
+    ns = {"min": round(start_s * 1e9), "max": round(end_s * 1e9)}
+    template = next(c for c in columns if c.component_descriptor() == selection)
+    value = pa.array([ns], type=template.as_arrow_array().type.value_type)
+    varying = [column(selection, value) if c is template else c for c in columns]
+    return blueprint_chunk(path, static, varying)
+
+
 def send_session_blueprint(
     stream: rr.RecordingStream, start_s: float, end_s: float, residual_sets: tuple[str, ...]
 ) -> None:
     """Send :func:`session_blueprint` into ``stream``, the layout from the per-process cache."""
-    panel = blueprint_chunks(session_time_panel(start_s, end_s))
-    send_blueprint_chunks(stream, _layout_chunks(tuple(residual_sets)) + panel)
+    panel = _time_panel_chunk(start_s, end_s)
+    send_blueprint_chunks(stream, (*_layout_chunks(tuple(residual_sets)), panel))
 
 
 @dataclass
@@ -525,40 +607,40 @@ def session_rrd(
         every = max(1, math.ceil(fit_time_s.size / OMEGA_POINTS))
         omega_t = result.centred_time_s[::every]
         kin = wheel_kinematics(result.params, omega_t, result.layout.effects)  # Eq. (2) (+ spline)
-        stream.log("spin/omega_radps", _series_style(("ω (model)",), None, None), static=True)
-        stream.send_columns(
+        chunks = _series_chunks(
             "spin/omega_radps",
-            indexes=[_time_column(fit_time_s[::every])],
-            columns=rr.Scalars.columns(scalars=kin.omega_radps),
+            _series_style(("ω (model)",), None, None),
+            fit_time_s[::every],
+            kin.omega_radps,
         )
-        _log_gyro_rate(stream, result, recording, shift_s, every)
+        chunks += _gyro_rate_chunks(result, recording, shift_s, every)
         markdown = report_markdown(result, window, start_s, end_s)
-        stream.log(
-            "report", rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True
-        )
+        report = rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN)
+        chunks.append(static_chunk("report", row_columns(report)))
+        stream.send_chunks(chunks)
         rrd = SessionRrd(stream)
         rrd.log_residuals(FIT_SET, fit_time_s, result.residual_mps2, wheel_angle_rad(result))
         yield rrd
         send_session_blueprint(stream, start_s, end_s, tuple(rrd.residual_sets))
 
 
-def _log_gyro_rate(stream, result, recording, shift_s: float, every: int) -> None:
+def _gyro_rate_chunks(result, recording, shift_s: float, every: int) -> list[Chunk]:
     """``/spin/omega_gyro_radps``: ω as the gyro measures it, (ω_meas − b)·w/|w|²."""
     gyro = getattr(recording, "gyro_radps", None)
     block = None if result.assessment is None else result.assessment.gyro
     if gyro is None or block is None:
-        return
+        return []
     w = block.scale * block.axis
     fitted = np.searchsorted(recording.time_s, result.time_s + shift_s)[::every]
     fitted = fitted[fitted < recording.time_s.size]
     rows = gyro[fitted]
     ok = np.all(np.isfinite(rows), axis=1)
     omega = (rows[ok] - block.bias_radps) @ w / (w @ w)
-    stream.log("spin/omega_gyro_radps", _series_style(("ω (gyro)",), None, None), static=True)
-    stream.send_columns(
+    return _series_chunks(
         "spin/omega_gyro_radps",
-        indexes=[_time_column(recording.time_s[fitted][ok])],
-        columns=rr.Scalars.columns(scalars=omega),
+        _series_style(("ω (gyro)",), None, None),
+        recording.time_s[fitted][ok],
+        omega,
     )
 
 
