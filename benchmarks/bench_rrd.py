@@ -4,8 +4,9 @@ The batch should be limited by the fit, not by logging.  Prints, for one
 90 s / 200 Hz Table I recording (18 001 samples × 3 axes):
 
 * the joint fit (raw samples → result);
-* ``write_session_rrd`` (encode + atomic write with fsync), and its ratio to the fit,
-  in wall time and in process CPU time;
+* ``write_session_rrd`` (encode + atomic write with fsync), and its ratio to the fit;
+  in wall time and in process CPU time; also as a batch writes it
+  (``durable=False``: no fsync per file, the batch syncs once at its end);
 * ``write_batch_rrd`` for many sessions' calibration dictionaries;
 * with ``--ref REV``: ``write_session_rrd`` of this tree against the one of an
   earlier git revision (extracted as ``wheelcal_ref``, as in
@@ -20,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -29,7 +29,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _timing import fmt, interleaved_times, times
-from bench_versus import extract
+from bench_versus import reference_code
 from wheelcal.estimate.joint import JointFit
 from wheelcal.io.calibration_json import calibration_dict
 from wheelcal.runtime import tune_allocator
@@ -56,6 +56,9 @@ def main() -> None:
         fit = times(lambda: JointFit().fit(recording), args.repeats)
         path = out / "session.rrd"
         write = times(lambda: write_session_rrd(path, result, recording, None), args.repeats)
+        write_batchlike = times(
+            lambda: write_session_rrd(path, result, recording, None, durable=False), args.repeats
+        )
         sessions = []
         for i in range(args.batch_sessions):
             d = calibration_dict(result)
@@ -73,6 +76,9 @@ def main() -> None:
         print(f"samples: {recording.samples} x 3 axes (90 s at 200 Hz), one BLAS thread")
         print(f"joint fit              : {fmt(fit)}")
         print(f"write_session_rrd      : {fmt(write)}   ({path.stat().st_size / 1e6:.1f} MB)")
+        print(
+            f"  as a batch writes it : {fmt(write_batchlike)}   (no fsync per file: a batch syncs once at its end)"
+        )
         ratio = statistics.median(write) / statistics.median(fit)
         print(f"write / fit (wall)     : {ratio:8.2f}   (the batch is limited by the fit if << 1)")
         print(f"joint fit, CPU         : {fmt(fit_cpu)}")
@@ -89,9 +95,7 @@ def main() -> None:
 
 def versus(ref: str, recording, result, out: Path, repeats: int) -> None:
     """``write_session_rrd`` of ``ref`` and of this tree, interleaved; wall and CPU."""
-    with tempfile.TemporaryDirectory() as tmp:
-        extract(ref, Path(tmp))
-        sys.path.insert(0, tmp)
+    with reference_code(ref):
         from wheelcal_ref.estimate.joint import JointFit as RefJoint
         from wheelcal_ref.simulate import simulate as ref_simulate
         from wheelcal_ref.simulate import table1 as ref_table1
