@@ -39,8 +39,19 @@ def run_key(input_sha256: str, options: SessionOptions, produces: dict) -> str:
 
 def stored_run_key(calibration_path: Path) -> str | None:
     """The run key recorded in an existing calibration JSON (None if absent/unreadable)."""
+    return run_key_of(read_document(calibration_path))
+
+
+def read_document(calibration_path: Path) -> dict | None:
+    """A calibration JSON's contents (None if absent or unreadable)."""
     try:
-        data = json.loads(calibration_path.read_text(encoding="utf-8"))
+        return json.loads(calibration_path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    return data.get("provenance", {}).get("run_key")
+
+
+def run_key_of(document) -> str | None:
+    """The run key recorded in a calibration document (None if it has none)."""
+    if document is None:
+        return None
+    return document.get("provenance", {}).get("run_key")

@@ -44,7 +44,9 @@ def _frozen(value):
     if isinstance(value, dict):
         return MappingProxyType({k: _frozen(v) for k, v in value.items()})
     if isinstance(value, list):
-        return tuple(_frozen(v) for v in value)
+        if any(isinstance(v, (dict, list)) for v in value):
+            return tuple(_frozen(v) for v in value)
+        return tuple(value)  # numbers and strings (most lists): nothing to freeze inside
     return value
 
 
@@ -52,7 +54,9 @@ def _thawed(value):
     if isinstance(value, Mapping):
         return {k: _thawed(v) for k, v in value.items()}
     if isinstance(value, tuple):
-        return [_thawed(v) for v in value]
+        if any(isinstance(v, (Mapping, tuple)) for v in value):
+            return [_thawed(v) for v in value]
+        return list(value)
     return value
 
 
@@ -130,6 +134,15 @@ class Calibration(Mapping):
         from wheelcal.io.calibration_json import load_calibration
 
         return cls(load_calibration(path, allow_partial=allow_partial))
+
+    @classmethod
+    def from_document(
+        cls, document: dict, path: str | os.PathLike, allow_partial: bool = True
+    ) -> Calibration:
+        """As :meth:`from_json`, for the document already read from ``path`` (same checks)."""
+        from wheelcal.io.calibration_json import check_calibration
+
+        return cls(check_calibration(document, path, allow_partial=allow_partial))
 
     def to_dict(self) -> dict:
         """The contract dictionary (a mutable copy)."""

@@ -312,6 +312,11 @@ def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> di
         raise CalibrationFileError(f"{path}: no such calibration file") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationFileError(f"{path}: not a calibration JSON ({exc})") from None
+    return check_calibration(data, path, allow_partial)
+
+
+def check_calibration(data, path: str | os.PathLike, allow_partial: bool = False) -> dict:
+    """The checks of :func:`load_calibration` on a document already read from ``path``."""
     if not isinstance(data, dict) or data.get("format") not in CORRECTION_FORMATS:
         raise CalibrationFileError(
             f"{path}: not a {' or '.join(CORRECTION_FORMATS)} file "
