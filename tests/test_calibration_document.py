@@ -1,6 +1,7 @@
 """Reading calibration documents once: the freeze/thaw shortcuts and ``from_document``."""
 
 import json
+from collections import OrderedDict
 from types import MappingProxyType
 
 import numpy as np
@@ -50,7 +51,8 @@ def _random(rng, depth=0):
         return [float(v) for v in rng.normal(size=int(rng.integers(0, 4)))]
     if kind == 4:
         return [_random(rng, depth + 1) for _ in range(int(rng.integers(0, 4)))]
-    return {f"k{i}": _random(rng, depth + 1) for i in range(int(rng.integers(0, 4)))}
+    items = {f"k{i}": _random(rng, depth + 1) for i in range(int(rng.integers(0, 4)))}
+    return OrderedDict(items) if rng.random() < 0.1 else items  # a dict subclass freezes too
 
 
 def test_freeze_and_thaw_are_the_plain_recursions():

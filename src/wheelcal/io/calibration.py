@@ -39,14 +39,18 @@ def _array(values) -> np.ndarray:
     return out
 
 
+#: JSON's scalar types: a list of only these has nothing inside to freeze or thaw.
+_SCALARS = frozenset({float, int, str, bool, type(None)})
+
+
 def _frozen(value):
     """A read-only view of nested JSON data."""
     if isinstance(value, dict):
         return MappingProxyType({k: _frozen(v) for k, v in value.items()})
     if isinstance(value, list):
-        if any(isinstance(v, (dict, list)) for v in value):
-            return tuple(_frozen(v) for v in value)
-        return tuple(value)  # numbers and strings (most lists): nothing to freeze inside
+        if _SCALARS.issuperset(map(type, value)):  # numbers and strings (most lists)
+            return tuple(value)
+        return tuple(_frozen(v) for v in value)
     return value
 
 
@@ -54,9 +58,9 @@ def _thawed(value):
     if isinstance(value, Mapping):
         return {k: _thawed(v) for k, v in value.items()}
     if isinstance(value, tuple):
-        if any(isinstance(v, (Mapping, tuple)) for v in value):
-            return [_thawed(v) for v in value]
-        return list(value)
+        if _SCALARS.issuperset(map(type, value)):
+            return list(value)
+        return [_thawed(v) for v in value]
     return value
 
 
