@@ -9,6 +9,7 @@ work for that session.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 from pathlib import Path
@@ -30,11 +31,24 @@ def run_key(input_sha256: str, options: SessionOptions, produces: dict) -> str:
     """Hash of everything that determines a session's outputs."""
     payload = {
         "input": input_sha256,
-        "options": dataclasses.asdict(options),
+        "options": _options_dict(options),
         "produces": produces,
         "version": __version__,
     }
     return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _options_dict(options: SessionOptions) -> dict:
+    """``dataclasses.asdict(options)``, once per options of a batch (~70 µs each time)."""
+    try:
+        return _options_dict_cached(options)
+    except TypeError:  # an unhashable value among the options
+        return dataclasses.asdict(options)
+
+
+@functools.lru_cache(maxsize=8)
+def _options_dict_cached(options: SessionOptions) -> dict:
+    return dataclasses.asdict(options)  # only read (json.dumps): shared safely
 
 
 def stored_run_key(calibration_path: Path) -> str | None:
