@@ -46,7 +46,9 @@ _SCALARS = frozenset({float, int, str, bool, type(None)})
 def _frozen(value):
     """A read-only view of nested JSON data."""
     if isinstance(value, dict):
-        return MappingProxyType({k: _frozen(v) for k, v in value.items()})
+        return MappingProxyType(
+            {k: v if type(v) in _SCALARS else _frozen(v) for k, v in value.items()}
+        )
     if isinstance(value, list):
         if _SCALARS.issuperset(map(type, value)):  # numbers and strings (most lists)
             return tuple(value)
@@ -56,7 +58,7 @@ def _frozen(value):
 
 def _thawed(value):
     if isinstance(value, Mapping):
-        return {k: _thawed(v) for k, v in value.items()}
+        return {k: v if type(v) in _SCALARS else _thawed(v) for k, v in value.items()}
     if isinstance(value, tuple):
         if _SCALARS.issuperset(map(type, value)):
             return list(value)
