@@ -49,8 +49,7 @@ _SHORTEST = len(_PREFIX) + 1 + len(_MIDDLE) + 5 + len(_SUFFIX)
 _COMMA, _CLOSE, _ZERO_BYTE = ord(","), ord("]"), ord("0")
 _GAP, _FIXED, _STAMP, _NUMBER = range(4)  # what each byte of the stretch is
 _MAX_STAMP_DIGITS = 19  # below 2**64: exact in uint64 (int64's limit is checked apart)
-_BLANK_BYTES = b" "  # fills what lies between two messages' numbers, then is deleted
-_BLANK = _BLANK_BYTES[0]
+_BLANK = ord(" ")  # fills what lies between two messages' numbers, then is dropped
 
 
 def decode_single_samples(block: MessageBlock) -> tuple[np.ndarray, np.ndarray] | None:
@@ -111,8 +110,8 @@ def _decode_uniform(
     everything from one message's numbers to the next's — the suffix, the
     record gap, the prefix, the stamp and the middle — has then one length,
     so it is blanked in one strided write (its first byte made the ``,``
-    between the messages' numbers) and deleted with :meth:`bytes.translate`.
-    That no number byte was a blank is checked by counting the blanks.
+    between the messages' numbers) and dropped in one masked copy.  That no
+    number byte was a blank is checked by counting what is left.
     """
     n = begin.size
     if (
