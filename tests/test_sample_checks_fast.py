@@ -96,3 +96,43 @@ def test_clipping_and_outliers_find_what_the_row_reductions_find(monkeypatch):
     assert any("NaN" in note for note in fast.notes)
     assert any("sensor range" in note for note in ranged.notes)
     assert fast.clip_limits_mps2[0, 1] == 25.0  # the rail, found on the contiguous copy
+
+
+def test_the_small_steps_shortcut_never_changes_the_outlier_search(monkeypatch):
+    """When the largest step is below the floor, the full search finds nothing either."""
+    rng = np.random.default_rng(19)
+    policy = InputPolicy()
+    floor = policy.outlier_floor_g * 9.80665
+    taken = {True: 0, False: 0}
+    for trial in range(300):
+        n = int(rng.integers(5, 3000))
+        step = floor * rng.choice([0.1, 0.45, 0.9, 0.999, 1.001, 1.5])  # near the bound too
+        a = np.cumsum(rng.uniform(-step, step, (n, 3)), axis=0)
+        if trial % 4 == 0:  # a spike: just beyond the floor (its own step), or far
+            a[rng.integers(n), rng.integers(3)] += (
+                rng.choice([-1, 1]) * floor * rng.choice([1.2, 1.9, 30])
+            )
+        if trial % 17 == 0:
+            a[rng.integers(n), 0] = 2e4  # beyond any accelerometer
+        t = np.arange(n, dtype=np.int64) * 5_000_000
+        shortcut = sample_checks._steps_too_small_for_outliers(a, floor, 1000 * 9.80665)
+        taken[shortcut] += 1
+        got = _outcome(sample_checks._drop_gross_outliers, t, a, policy)
+        with monkeypatch.context() as m:
+            m.setattr(sample_checks, "_steps_too_small_for_outliers", lambda *args: False)
+            want = _outcome(sample_checks._drop_gross_outliers, t, a, policy)
+        assert got[0] == want[0]
+        if got[0] == "ok":
+            np.testing.assert_array_equal(got[1], want[1])
+            np.testing.assert_array_equal(got[2], want[2])
+            assert got[3] == want[3]
+    assert min(taken.values()) > 50
+
+
+def _outcome(drop, t, a, policy):
+    notes = []
+    try:
+        t2, a2 = drop("f", t, a, policy, notes)
+    except sample_checks.SampleError as exc:
+        return ("refused", str(exc))
+    return ("ok", t2, a2, notes)

@@ -400,6 +400,8 @@ def _drop_gross_outliers(path, t, a, policy, notes):
     g = STANDARD_GRAVITY_MPS2
     floor = policy.outlier_floor_g * g
     wild_limit = policy.max_physical_g * g
+    if _steps_too_small_for_outliers(a, floor, wild_limit):
+        return t, a
     with np.errstate(all="ignore"):
         # One pass for candidates beyond the floor (good data has none: done) ...
         rows, residuals = [], []
@@ -443,6 +445,23 @@ def _drop_gross_outliers(path, t, a, policy, notes):
         f"t = {(t[worst] - t[0]) * 1e-9:.3f} s)"
     )
     return t[~bad], a[~bad]
+
+
+def _steps_too_small_for_outliers(a: np.ndarray, floor: float, wild_limit: float) -> bool:
+    """True when no sample can lie ``floor`` from its running median of five: none is one.
+
+    At least three of the five lie at or below their median and three at or
+    above it; a sample and its two neighbours lie within one step of the
+    sample (the largest step between neighbours, ends reflected alike), so
+    the median does too.  When that step is below the floor (with a margin
+    for rounding) and no value is beyond ``wild_limit``, the full search (a
+    dozen passes over the samples) would find nothing.
+    """
+    if not (a.max() <= wild_limit and a.min() >= -wild_limit):
+        return False
+    steps = np.diff(a, axis=0)
+    np.abs(steps, out=steps)
+    return bool(steps.max() < floor * (1.0 - 1e-9))
 
 
 def _report_gaps(t, dt_ns, policy, notes):
