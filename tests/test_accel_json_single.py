@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from wheelcal.io import accel_json
+from wheelcal.io import accel_json, accel_json_single
 from wheelcal.io.accel_json import AccelBatchError, decode_accel_batch, encode_accel_batches
 from wheelcal.io.accel_json_single import decode_single_samples
 from wheelcal.io.mcap_scan import MessageBlock
@@ -251,3 +251,81 @@ def test_random_damage_never_escapes_as_another_error_and_never_changes_a_value(
             np.testing.assert_array_equal(fast[0], general.time_ns)
             np.testing.assert_array_equal(fast[1], general.accel)
     assert 0 < taken < 300  # some damage leaves plain JSON (a digit for a digit), most does not
+
+
+def _plain_json_numbers_by_table(text: bytes) -> bool:
+    """The grammar check the straightforward way: byte classes and allowed pairs by table."""
+    single = accel_json_single
+    classes = single._CLASS[np.frombuffer(b"," + text + b",", np.uint8)].astype(np.int64)
+    if not np.all(single._PAIR_OK[8 * classes[:-1] + classes[1:]]):
+        return False
+    numbers = text.split(b",")
+    return not any(
+        len(body) > 1 and body[0] == ord("0") and chr(body[1]).isdigit()
+        for body in (number.removeprefix(b"-") for number in numbers)
+    )
+
+
+def test_the_grammar_comparisons_are_the_table_of_allowed_pairs():
+    rng = np.random.default_rng(12)
+    alphabet = np.frombuffer(b"0123456789.,-+eEx ", np.uint8)
+    pieces = [b"0", b"-0", b"01", b"-01", b"1.5", b"1e5", b"1E+5", b"-2.5e-3", b"00", b"10"]
+    agree = {True: 0, False: 0}
+    for _ in range(3000):
+        if rng.random() < 0.5:  # numbers, mostly plain
+            text = b",".join(pieces[i] for i in rng.integers(len(pieces), size=rng.integers(1, 6)))
+        else:  # anything
+            text = rng.choice(alphabet, int(rng.integers(1, 12))).tobytes()
+        want = _plain_json_numbers_by_table(text)
+        assert accel_json_single._plain_json_numbers(np.frombuffer(text, np.uint8)) == want, text
+        agree[want] += 1
+    assert min(agree.values()) > 300  # both answers well exercised
+
+
+def test_uniform_stamps_are_pythons_integers():
+    rng = np.random.default_rng(13)
+    for width in (1, 2, 18, 19):
+        texts = [
+            "".join(map(str, rng.integers(0, 10, width))).lstrip("0").rjust(width, "1")
+            for _ in range(200)
+        ]
+        digits = np.frombuffer("".join(texts).encode(), np.uint8).reshape(-1, width)
+        got = accel_json_single._uniform_stamps(digits)
+        if width == 19 and any(int(t) >= 2**63 for t in texts):
+            assert got is None  # beyond int64: the general path words it
+        else:
+            assert got.dtype == np.int64
+            assert got.tolist() == [int(t) for t in texts]
+    top = np.frombuffer(str(2**63 - 1).encode(), np.uint8).reshape(1, 19)
+    assert accel_json_single._uniform_stamps(top).tolist() == [2**63 - 1]
+    over = np.frombuffer(str(2**63).encode(), np.uint8).reshape(1, 19)
+    assert accel_json_single._uniform_stamps(over) is None
+    leading_zero = np.frombuffer(b"1005", np.uint8).reshape(2, 2)  # "05" is no JSON integer
+    assert accel_json_single._uniform_stamps(leading_zero) is None
+    zeros = np.frombuffer(b"00", np.uint8).reshape(2, 1)  # but "0" is
+    assert accel_json_single._uniform_stamps(zeros).tolist() == [0, 0]
+
+
+def test_blocks_of_one_stamp_width_read_as_by_the_labelled_path(monkeypatch):
+    """The uniform-width path (windows, blanks) and the labelled one agree, also on damage."""
+    rng = np.random.default_rng(14)
+    alphabet = np.frombuffer(b'0123456789.,-+eE[]{}":x \n\xff', np.uint8)
+    uniform = 0
+    for trial in range(300):
+        payloads = _payloads(rng, 12)
+        for _ in range(rng.integers(0, 3) if trial % 3 else 0):
+            i = int(rng.integers(len(payloads)))
+            data = bytearray(payloads[i])
+            data[int(rng.integers(len(data)))] = int(rng.choice(alphabet))
+            payloads[i] = bytes(data)
+        block = _block(payloads, rng)
+        fast = decode_single_samples(block)
+        with monkeypatch.context() as m:
+            m.setattr(accel_json_single, "_MAX_STAMP_DIGITS", 0)  # always the labelled path
+            labelled = decode_single_samples(block)
+        assert (fast is None) == (labelled is None)
+        if fast is not None:
+            uniform += 1
+            np.testing.assert_array_equal(fast[0], labelled[0])
+            np.testing.assert_array_equal(fast[1], labelled[1])
+    assert uniform > 100

@@ -35,7 +35,13 @@ from threadpoolctl import ThreadpoolController
 
 from wheelcal.batch.locking import report_lock, session_lock
 from wheelcal.batch.pipeline import Pipeline, PipelineError
-from wheelcal.batch.provenance import file_sha256, run_key, stored_run_key
+from wheelcal.batch.provenance import (
+    file_sha256,
+    read_document,
+    run_key,
+    run_key_of,
+    stored_run_key,
+)
 from wheelcal.batch.session import (
     SessionOptions,
     calibrate_session,
@@ -440,8 +446,12 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
 
     out = pipeline.output
     json_path, md_path, csv_path = out / "report.json", out / "report.md", out / "sessions.csv"
+    # each calibration JSON read once: its run key now, its Calibration below
+    documents = {
+        r.calibration_path: read_document(Path(r.calibration_path)) for r in records if r.ok
+    }
     keys = sorted(
-        (r.source, r.stem, stored_run_key(Path(r.calibration_path)) if r.ok else r.error)
+        (r.source, r.stem, run_key_of(documents[r.calibration_path]) if r.ok else r.error)
         for r in records
     )
     report_key = hashlib.sha256(json.dumps(keys).encode()).hexdigest()
@@ -452,7 +462,9 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
         and all(Path(p).exists() for p in stored_outputs)
     ):
         return tuple(stored_outputs), False
-    calibrations = [Calibration.from_json(r.calibration_path) for r in records if r.ok]
+    calibrations = [
+        _calibration(r.calibration_path, documents.pop(r.calibration_path)) for r in records if r.ok
+    ]
     diagnoses = []
     if pipeline.diagnose:
         for r in records:
@@ -512,6 +524,13 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     # report.json last: its key marks the whole report as complete.
     atomic_write_text(json_path, json.dumps(report, indent=2, allow_nan=False) + "\n")
     return tuple(map(str, paths)), True
+
+
+def _calibration(path: str, document: dict | None) -> Calibration:
+    """The Calibration of a document read from ``path``; unreadable: read again, to say why."""
+    if document is None:
+        return Calibration.from_json(path)
+    return Calibration.from_document(document, path)
 
 
 def _failure(record: SessionRecord) -> dict:

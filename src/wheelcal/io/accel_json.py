@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from itertools import chain
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 from wheelcal.io.accel_json_single import decode_single_samples
 from wheelcal.io.growing import GrowingColumns
@@ -271,13 +272,13 @@ def _payload_list(blocks: tuple[MessageBlock, ...]) -> list:
 _RECORD_GAP = 9 + 22  # a Message record's opcode and length, then its header
 
 
-def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytes | None:
+def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytearray | None:
     """The payloads of one block as lines, without a Python object per message, or None.
 
     When a chunk holds only this channel's messages back to back, the payloads
     are separated by exactly the 31 header bytes of each next record: a copy of
-    the stretch without those bytes, a newline in their place, is the
-    newline-delimited text.  Otherwise None.
+    the stretch with those bytes made a newline and 30 blanks (JSON white space
+    before the next line's value) is the newline-delimited text.  Otherwise None.
     """
     if len(blocks) != 1 or blocks[0].count < 2:
         return None
@@ -287,12 +288,12 @@ def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytes | None:
     if not np.all(starts[1:] - gap_starts == _RECORD_GAP):
         return None
     first, last = int(starts[0]), int(starts[-1] + lengths[-1])
-    stretch = np.frombuffer(block.buffer, np.uint8, count=last - first, offset=first)
-    keep = np.ones(stretch.size, bool)
-    keep[(gap_starts - first)[:, None] + np.arange(1, _RECORD_GAP)] = False
-    text = stretch[keep]
-    text[gap_starts - first - np.arange(gap_starts.size) * (_RECORD_GAP - 1)] = ord("\n")
-    return text.tobytes()
+    lines = bytearray(memoryview(block.buffer)[first:last])  # one copy, written in place
+    text = np.frombuffer(lines, np.uint8)
+    at = gap_starts - first
+    sliding_window_view(text, _RECORD_GAP, writeable=True)[at] = ord(" ")
+    text[at] = ord("\n")
+    return lines
 
 
 def _decode_with_arrow(

@@ -13,13 +13,18 @@ one buffer (one channel's records in a chunk):
 
 1. the ``]`` after each stamp is found (the only layout-dependent position),
    the fixed text around the numbers is checked byte for byte against the
-   layout above, and stamps and numbers are cut out in vectorised passes;
+   layout above, and stamps and numbers are cut out in vectorised passes —
+   when every stamp has the same number of digits (the common case) with
+   fixed-width windows per message, the stamps' digits summed exactly in
+   uint64, and what lies between two messages' numbers (one length then)
+   blanked in one strided write and dropped; otherwise by labelling every
+   byte of the block and three masked copies;
 2. every number byte is checked to follow JSON's number grammar
    (``-?(0|[1-9][0-9]*)(\.[0-9]+)?([eE][+-]?[0-9]+)?``) with neighbour tests
    — Arrow also takes ``.5``, ``5.``, ``+5``, ``01``, ``inf``, ``nan`` and
    blanks, which JSON does not, so those are refused here; what neighbour
    tests cannot see (two dots or exponents in one number) Arrow refuses;
-3. Arrow casts the stamps to int64 and the numbers to float64.
+3. Arrow casts the numbers to float64 (and stamps of differing widths to int64).
 
 Any deviation — another layout, a key order, white space, a ``gyro`` or
 ``temperature_c``, a number that is not plain JSON, a message Arrow refuses —
@@ -31,6 +36,7 @@ exactly as before.  This path never raises for bad input.
 from __future__ import annotations
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 from wheelcal.io.mcap_scan import MESSAGE_HEADER_BYTES, MessageBlock
 
@@ -42,6 +48,8 @@ _RECORD_GAP = 9 + MESSAGE_HEADER_BYTES  # a Message record's opcode and length, 
 _SHORTEST = len(_PREFIX) + 1 + len(_MIDDLE) + 5 + len(_SUFFIX)
 _COMMA, _CLOSE, _ZERO_BYTE = ord(","), ord("]"), ord("0")
 _GAP, _FIXED, _STAMP, _NUMBER = range(4)  # what each byte of the stretch is
+_MAX_STAMP_DIGITS = 19  # below 2**64: exact in uint64 (int64's limit is checked apart)
+_BLANK = ord(" ")  # fills what lies between two messages' numbers, then is dropped
 
 
 def decode_single_samples(block: MessageBlock) -> tuple[np.ndarray, np.ndarray] | None:
@@ -77,6 +85,90 @@ def decode_single_samples(block: MessageBlock) -> tuple[np.ndarray, np.ndarray] 
     number_bytes = end - len(_SUFFIX) - middle - len(_MIDDLE)
     if stamp_digits.min() < 1 or number_bytes.min() < 5:
         return None
+    width = int(stamp_digits[0])
+    if width <= _MAX_STAMP_DIGITS and np.all(stamp_digits == width):
+        return _decode_uniform(stretch, begin, end, middle, width, number_bytes)
+    return _decode_labelled(stretch, begin, end, middle, stamp_digits, number_bytes)
+
+
+def _windows(stretch: np.ndarray, at: np.ndarray, width: int) -> np.ndarray:
+    """``stretch[at[i] : at[i] + width]`` for every i, as one (n, width) array."""
+    return sliding_window_view(stretch, width)[at]
+
+
+def _decode_uniform(
+    stretch: np.ndarray,
+    begin: np.ndarray,
+    end: np.ndarray,
+    middle: np.ndarray,
+    width: int,
+    number_bytes: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The block whose stamps all have ``width`` digits (the common case), or None.
+
+    The fixed text is gathered message by message in fixed-width windows;
+    everything from one message's numbers to the next's — the suffix, the
+    record gap, the prefix, the stamp and the middle — has then one length,
+    so it is blanked in one strided write (its first byte made the ``,``
+    between the messages' numbers) and dropped in one masked copy.  That no
+    number byte was a blank is checked by counting what is left.
+    """
+    n = begin.size
+    if (
+        _windows(stretch, begin, len(_PREFIX)).tobytes() != _PREFIX * n
+        or _windows(stretch, middle, len(_MIDDLE)).tobytes() != _MIDDLE * n
+        or _windows(stretch, end - len(_SUFFIX), len(_SUFFIX)).tobytes() != _SUFFIX * n
+    ):
+        return None
+    time_ns = _uniform_stamps(_windows(stretch, begin + len(_PREFIX), width))
+    if time_ns is None:
+        return None
+    first = middle + len(_MIDDLE)  # each message's first number byte
+    stop = end - len(_SUFFIX)  # and the byte after its last
+    text = stretch[first[0] : stop[-1]].copy()
+    between = len(_SUFFIX) + _RECORD_GAP + len(_PREFIX) + width + len(_MIDDLE)
+    if n > 1:
+        at = stop[:-1] - first[0]
+        sliding_window_view(text, between, writeable=True)[at] = _BLANK
+        text[at] = _COMMA
+    kept = text != _BLANK
+    numbers = text[kept]
+    if numbers.size != text.size - (n - 1) * (between - 1):
+        return None  # a blank among the numbers: not this layout
+    ours = np.cumsum(number_bytes + 1)[:-1] - 1  # where each message's "," landed
+    accel = _samples(numbers, ours, n)
+    if accel is None:
+        return None
+    return time_ns, accel
+
+
+def _uniform_stamps(digits: np.ndarray) -> np.ndarray | None:
+    """Stamps of (n, width) ASCII digits (plain JSON integers) as exact int64, or None."""
+    values = digits - np.uint8(_ZERO_BYTE)
+    if np.any(values > 9):
+        return None
+    if digits.shape[1] > 1 and np.any(values[:, 0] == 0):  # "05": not JSON
+        return None
+    out = values[:, 0].astype(np.uint64)
+    ten = np.uint64(10)
+    for k in range(1, digits.shape[1]):  # at most 19 digits: below 2**64, exact
+        out *= ten
+        out += values[:, k]
+    if np.any(out > np.uint64(np.iinfo(np.int64).max)):
+        return None
+    return out.astype(np.int64)
+
+
+def _decode_labelled(
+    stretch: np.ndarray,
+    begin: np.ndarray,
+    end: np.ndarray,
+    middle: np.ndarray,
+    stamp_digits: np.ndarray,
+    number_bytes: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The block whose stamps differ in width: every byte labelled, the parts cut by masks."""
+    n = begin.size
     # per message: prefix | stamp | middle | numbers and the suffix's "]" | rest of the suffix
     # | record gap (none after the last); the "]" becomes the "," before the next message's
     counts = np.empty((n, 6), np.int64)
@@ -131,7 +223,8 @@ def _stamp_ends(stretch: np.ndarray, begin: np.ndarray, end: np.ndarray) -> np.n
     return by_message[:, 0]
 
 
-# Byte classes for the number check, and which class may follow which.
+# Byte classes of the number check, and which class may follow which: the grammar as a
+# table (the tests' oracle for the comparisons of _plain_json_numbers).
 _OTHER, _SEP, _ZERO, _DIGIT, _DOT, _EXP, _PLUS, _MINUS = range(8)
 _CLASS = np.full(256, _OTHER, np.uint8)
 _CLASS[_COMMA] = _SEP
@@ -156,26 +249,58 @@ for _first, _nexts in _FOLLOWS.items():
 
 
 def _plain_json_numbers(text: np.ndarray) -> bool:
-    """Whether ``text`` is numbers in JSON's grammar, separated by single ",".
+    r"""Whether ``text`` (uint8) is numbers in JSON's grammar, separated by single ",".
 
-    Every pair of neighbouring bytes must be allowed by ``_FOLLOWS``; that
-    leaves a number's leading zero ("01", "-01"), checked apart, and two dots
-    or exponents in one number, which Arrow's CSV reader refuses.
+    Every pair of neighbouring bytes must be allowed by JSON's number grammar
+    (``-?(0|[1-9][0-9]*)(\.[0-9]+)?([eE][+-]?[0-9]+)?``, byte to next byte,
+    ``_FOLLOWS``); that leaves a number's leading zero ("01", "-01"), checked
+    apart, and two dots or exponents in one number, which Arrow refuses.
+
+    Whole-array comparisons, no table look-ups (numpy's gathers cost ~1 ns
+    per byte, its comparisons a few hundredths), mostly written in place: a
+    fresh large array costs a page fault per 4 KiB, more than the comparison.
     """
-    classes = np.empty(text.size + 2, np.uint8)
-    classes[0] = classes[-1] = _SEP
-    _CLASS.take(text, out=classes[1:-1])
-    pairs = classes[:-1] * np.uint8(8)
-    pairs += classes[1:]
-    if not np.all(_PAIR_OK.take(pairs)):
+    padded = np.empty(text.size + 2, np.uint8)
+    padded[0] = padded[-1] = _COMMA
+    padded[1:-1] = text
+    sep = padded == _COMMA
+    zero = padded == _ZERO_BYTE
+    shifted = padded - np.uint8(_ZERO_BYTE + 1)
+    digit = shifted <= 8
+    digit |= zero
+    sign = padded == ord("-")
+    plus = padded == ord("+")
+    dot = padded == ord(".")
+    lower = np.bitwise_or(padded, 0x20, out=shifted)
+    exp = lower == ord("e")
+    here, after = slice(None, -1), slice(1, None)
+    # SEP -> digit or "-"
+    ok = np.bitwise_or(digit[after], sign[after])
+    ok &= sep[here]
+    # digit -> SEP, digit, "." or exponent
+    term = np.bitwise_or(sep[after], digit[after])
+    term |= dot[after]
+    term |= exp[after]
+    term &= digit[here]
+    ok |= term
+    # "." "+" "-" -> digit
+    np.bitwise_or(dot[here], plus[here], out=term)
+    term |= sign[here]
+    term &= digit[after]
+    ok |= term
+    # exponent -> digit, "+" or "-"
+    np.bitwise_or(digit[after], plus[after], out=term)
+    term |= sign[after]
+    term &= exp[here]
+    ok |= term
+    if not ok.all():
         return False
-    digits = (_ZERO, _DIGIT)
-    at = np.flatnonzero(pairs == 8 * _SEP + _ZERO) + 2  # the byte after a leading "0"
-    if np.any(np.isin(classes[at], digits)):
+    # "0" then a digit at a number's start: after a separator, or after a leading "-"
+    lead = np.bitwise_and(zero[1:-1], digit[2:])
+    if np.any(lead & sep[:-2]):  # (the results here are all but empty: no reuse check)
         return False
-    at = np.flatnonzero(pairs == 8 * _SEP + _MINUS) + 2  # the byte after a leading "-"
-    at = at[classes[at] == _ZERO] + 1
-    return not np.any(np.isin(classes[at], digits))
+    lead[1:] &= sign[1:-2]
+    return not np.any(lead[1:] & sep[:-3])
 
 
 def _stamps(text: np.ndarray, digits: np.ndarray) -> np.ndarray | None:

@@ -39,19 +39,29 @@ def _array(values) -> np.ndarray:
     return out
 
 
+#: JSON's scalar types: a list of only these has nothing inside to freeze or thaw.
+_SCALARS = frozenset({float, int, str, bool, type(None)})
+
+
 def _frozen(value):
     """A read-only view of nested JSON data."""
     if isinstance(value, dict):
-        return MappingProxyType({k: _frozen(v) for k, v in value.items()})
+        return MappingProxyType(
+            {k: v if type(v) in _SCALARS else _frozen(v) for k, v in value.items()}
+        )
     if isinstance(value, list):
+        if _SCALARS.issuperset(map(type, value)):  # numbers and strings (most lists)
+            return tuple(value)
         return tuple(_frozen(v) for v in value)
     return value
 
 
 def _thawed(value):
     if isinstance(value, Mapping):
-        return {k: _thawed(v) for k, v in value.items()}
+        return {k: v if type(v) in _SCALARS else _thawed(v) for k, v in value.items()}
     if isinstance(value, tuple):
+        if _SCALARS.issuperset(map(type, value)):
+            return list(value)
         return [_thawed(v) for v in value]
     return value
 
@@ -130,6 +140,15 @@ class Calibration(Mapping):
         from wheelcal.io.calibration_json import load_calibration
 
         return cls(load_calibration(path, allow_partial=allow_partial))
+
+    @classmethod
+    def from_document(
+        cls, document: dict, path: str | os.PathLike, allow_partial: bool = True
+    ) -> Calibration:
+        """As :meth:`from_json`, for the document already read from ``path`` (same checks)."""
+        from wheelcal.io.calibration_json import check_calibration
+
+        return cls(check_calibration(document, path, allow_partial=allow_partial))
 
     def to_dict(self) -> dict:
         """The contract dictionary (a mutable copy)."""

@@ -18,6 +18,7 @@ from wheelcal import __version__
 from wheelcal.estimate.residual_profile import residual_by_wheel_angle
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.io.atomic import atomic_write_text
+from wheelcal.io.json_text import dumps_indented
 from wheelcal.model import EULER_CONVENTION
 from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.parameters import AXES
@@ -292,7 +293,7 @@ def write_calibration(
 ) -> Path:
     """Write the calibration JSON atomically; returns the path (``durable``: see atomic)."""
     doc = calibration_dict(result, geometry, provenance, window_reason)
-    text = json.dumps(doc, indent=2, allow_nan=False)
+    text = dumps_indented(doc)  # json.dumps(doc, indent=2, allow_nan=False), faster
     atomic_write_text(path, text + "\n", durable=durable)
     return Path(path)
 
@@ -311,6 +312,11 @@ def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> di
         raise CalibrationFileError(f"{path}: no such calibration file") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationFileError(f"{path}: not a calibration JSON ({exc})") from None
+    return check_calibration(data, path, allow_partial)
+
+
+def check_calibration(data, path: str | os.PathLike, allow_partial: bool = False) -> dict:
+    """The checks of :func:`load_calibration` on a document already read from ``path``."""
     if not isinstance(data, dict) or data.get("format") not in CORRECTION_FORMATS:
         raise CalibrationFileError(
             f"{path}: not a {' or '.join(CORRECTION_FORMATS)} file "

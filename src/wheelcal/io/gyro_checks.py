@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.io.errors import SampleError
+from wheelcal.io.sample_checks import rows_all, rows_any
 
 RADPS_PER_DPS = np.pi / 180.0
 
@@ -97,12 +98,12 @@ def align_to_samples(
     gyro = np.asarray(raw_gyro, dtype=float)
     if t.size == kept.size and np.array_equal(t, kept):
         return gyro.copy()  # nothing was repaired: the common case
-    usable = np.all(np.isfinite(np.asarray(raw_accel)), axis=1)
+    usable = rows_all(np.isfinite(np.asarray(raw_accel)))
     t, gyro = t[usable], gyro[usable]
     order = np.argsort(t, kind="stable")
     t, gyro = t[order], gyro[order]
     unique_t, first = np.unique(t, return_index=True)
-    finite = np.all(np.isfinite(gyro), axis=1)
+    finite = rows_all(np.isfinite(gyro))
     sums = np.add.reduceat(np.where(finite[:, None], gyro, 0.0), first, axis=0)
     counts = np.add.reduceat(finite.astype(np.int64), first)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -155,7 +156,7 @@ def check_gyro(
     w = np.array(gyro_radps, dtype=float)
     n = w.shape[0]
     notes: list[str] = []
-    bad = ~np.all(np.isfinite(w), axis=1)
+    bad = ~rows_all(np.isfinite(w))
     w[bad] = np.nan
     valid = ~bad
     if not np.any(valid):
@@ -209,7 +210,7 @@ def _clipped_rows(w, valid, full_scale_dps, policy) -> tuple[np.ndarray, str]:
     if full_scale_dps is not None:
         limit = policy.clip_margin * full_scale_dps * RADPS_PER_DPS
         with np.errstate(invalid="ignore"):
-            clipped = np.any(np.abs(w) >= limit, axis=1) & valid
+            clipped = rows_any(np.abs(w) >= limit) & valid
         return clipped, f"at the gyro range ±{full_scale_dps:g} °/s"
     clipped = np.zeros(w.shape[0], dtype=bool)
     rows = np.flatnonzero(valid)

@@ -197,8 +197,25 @@ class _Cursor:
 
 def _gather_u64(arr: np.ndarray, positions: np.ndarray) -> np.ndarray:
     """Little-endian u64 values starting at each of ``positions`` in a uint8 array."""
-    raw = arr[positions[:, None] + np.arange(8)]
-    return raw.view("<u8").reshape(-1)
+    return _gather_le(arr, positions, "<u8")
+
+
+def _gather_le(arr: np.ndarray, positions: np.ndarray, dtype: str) -> np.ndarray:
+    """Values of ``dtype`` starting at each of ``positions`` in a uint8 array (a copy).
+
+    Fixed-size messages sit at one stride (the common case): then one strided
+    view, copied, instead of a gather through an (N, itemsize) index.
+    """
+    size = np.dtype(dtype).itemsize
+    if positions.size > 1 and positions[0] >= 0 and positions[-1] + size <= arr.size:
+        step = int(positions[1] - positions[0])
+        if step > 0 and np.all(np.diff(positions) == step):
+            view = np.ndarray(
+                (positions.size,), dtype, buffer=arr, offset=int(positions[0]), strides=(step,)
+            )
+            return view.copy()
+    raw = arr[positions[:, None] + np.arange(size)]
+    return raw.view(dtype).reshape(-1)
 
 
 def _walk_records(buf: bytes, start: int, end: int, fail) -> tuple[np.ndarray, ...]:
@@ -467,7 +484,7 @@ class _Collector:
             raise CorruptFileError(self.path, f"{where}: a message record is too short")
         arr = np.frombuffer(buf, dtype=np.uint8)
         content = m_starts + 9
-        channel = arr[content[:, None] + np.arange(2)].view("<u2").reshape(-1)
+        channel = _gather_le(arr, content, "<u2")
         log_time = _gather_u64(arr, content + 6).astype(np.int64)
         payload_offsets = content + MESSAGE_HEADER_BYTES
         payload_lengths = m_lengths - MESSAGE_HEADER_BYTES

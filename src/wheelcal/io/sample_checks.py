@@ -159,11 +159,36 @@ def clean_samples(
     return CleanSamples(t, a, tuple(notes), rails)
 
 
+def rows_all(mask: np.ndarray) -> np.ndarray:
+    """``mask.all(axis=1)`` of an (N, k) boolean array, the same values, faster.
+
+    numpy reduces an (N, 3) array along its rows in steps of three elements
+    (~8 ns per element); the columns combined with ``&`` take a tenth of that.
+    """
+    if mask.ndim != 2 or mask.shape[1] == 0:
+        return np.all(mask, axis=1)
+    out = mask[:, 0].copy()
+    for k in range(1, mask.shape[1]):
+        out &= mask[:, k]
+    return out
+
+
+def rows_any(mask: np.ndarray) -> np.ndarray:
+    """``mask.any(axis=1)`` of an (N, k) boolean array, as :func:`rows_all`."""
+    if mask.ndim != 2 or mask.shape[1] == 0:
+        return np.any(mask, axis=1)
+    out = mask[:, 0].copy()
+    for k in range(1, mask.shape[1]):
+        out |= mask[:, k]
+    return out
+
+
 def _drop_nonfinite(path, t, a, policy, notes):
-    bad = ~np.all(np.isfinite(a), axis=1)
-    count = int(bad.sum())
-    if count == 0:
+    finite = np.isfinite(a)
+    if finite.all():
         return t, a
+    bad = ~rows_all(finite)
+    count = int(bad.sum())
     if count > policy.max_nonfinite_fraction * t.size:
         raise SampleError(
             path,
@@ -375,6 +400,8 @@ def _drop_gross_outliers(path, t, a, policy, notes):
     g = STANDARD_GRAVITY_MPS2
     floor = policy.outlier_floor_g * g
     wild_limit = policy.max_physical_g * g
+    if _steps_too_small_for_outliers(a, floor, wild_limit):
+        return t, a
     with np.errstate(all="ignore"):
         # One pass for candidates beyond the floor (good data has none: done) ...
         rows, residuals = [], []
@@ -384,8 +411,9 @@ def _drop_gross_outliers(path, t, a, policy, notes):
             piece = a[start:stop]
             if piece.max() > wild_limit or piece.min() < -wild_limit:
                 r[np.any(np.abs(piece) > wild_limit, axis=1)] = np.inf
-            hit = np.flatnonzero((r > floor).any(axis=1))
-            if hit.size:
+            beyond = r > floor
+            if beyond.any():  # good data: never
+                hit = np.flatnonzero(rows_any(beyond))
                 rows.append(hit + start)
                 residuals.append(r[hit])
         if not rows:
@@ -419,6 +447,23 @@ def _drop_gross_outliers(path, t, a, policy, notes):
     return t[~bad], a[~bad]
 
 
+def _steps_too_small_for_outliers(a: np.ndarray, floor: float, wild_limit: float) -> bool:
+    """True when no sample can lie ``floor`` from its running median of five: none is one.
+
+    At least three of the five lie at or below their median and three at or
+    above it; a sample and its two neighbours lie within one step of the
+    sample (the largest step between neighbours, ends reflected alike), so
+    the median does too.  When that step is below the floor (with a margin
+    for rounding) and no value is beyond ``wild_limit``, the full search (a
+    dozen passes over the samples) would find nothing.
+    """
+    if not (a.max() <= wild_limit and a.min() >= -wild_limit):
+        return False
+    steps = np.diff(a, axis=0)
+    np.abs(steps, out=steps)
+    return bool(steps.max() < floor * (1.0 - 1e-9))
+
+
 def _report_gaps(t, dt_ns, policy, notes):
     d = np.diff(t)
     if d.size == 0:
@@ -446,16 +491,18 @@ def _drop_clipped(path, t, a, full_scale_g, policy, notes):
     limits = np.full((3, 2), np.nan)
     if full_scale_g is not None:
         limit = policy.clip_margin * full_scale_g * STANDARD_GRAVITY_MPS2
-        clipped = np.any(np.abs(a) >= limit, axis=1)
+        clipped = rows_any(np.abs(a) >= limit)
         how = f"at the sensor range ±{full_scale_g:g} g"
         limits[:] = [-limit, limit]
     else:
         clipped = np.zeros(t.size, dtype=bool)
         rails = []
-        extremes = np.stack([a.min(axis=0), a.max(axis=0)], axis=1)  # (3 axes, min/max)
+        # Per axis, contiguous (numpy's reductions along an (N, 3) array's rows are slow).
+        axes = np.ascontiguousarray(a.T)
+        extremes = np.stack([axes.min(axis=1), axes.max(axis=1)], axis=1)  # (3 axes, min/max)
         for k, side in np.argwhere(np.abs(extremes) >= 1.5 * STANDARD_GRAVITY_MPS2):
             value = float(extremes[k, side])
-            at = _at_rail(a[:, k], value, policy)
+            at = _at_rail(axes[k], value, policy)
             if at is not None:
                 clipped |= at
                 limits[k, side] = value
@@ -519,12 +566,29 @@ def rest_level(accel: np.ndarray, block: int = 50) -> float | None:
     for first in range(0, n, per_piece):
         last = min(first + per_piece, n)
         blocks = accel[first * block : last * block].reshape(last - first, block, 3)
-        level[first:last] = np.linalg.norm(blocks.mean(axis=1), axis=1)
-        spread[first:last] = blocks.std(axis=1).max(axis=1)
+        mean, std = _block_mean_std(blocks)
+        level[first:last] = np.linalg.norm(mean, axis=1)
+        spread[first:last] = std.max(axis=1)
     quiet = (level > 0) & (spread < 0.02 * level)
     if quiet.sum() < 2:
         return None
     return float(np.median(level[quiet]))
+
+
+def _block_mean_std(blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``blocks.mean(axis=1)`` and ``blocks.std(axis=1)`` of (m, block, 3), bit for bit.
+
+    numpy sums along axis 1 one block row after the other (no pairwise
+    summation across it) — as it does along axis 0 of the contiguous
+    (block, m, 3) copy, which is several times faster; the steps are those of
+    ``numpy.std``: mean, deviations, their squares' mean, square root.
+    """
+    n = blocks.shape[1]
+    rows = np.ascontiguousarray(blocks.transpose(1, 0, 2))
+    mean = np.add.reduce(rows, axis=0) / n
+    deviation = np.subtract(rows, mean, out=rows)
+    np.multiply(deviation, deviation, out=deviation)
+    return mean, np.sqrt(np.add.reduce(deviation, axis=0) / n)
 
 
 def _check_rate(path, samples, step_ns, policy):

@@ -166,6 +166,7 @@ def sensor_calibration_dict(
     calibration JSON.
     """
     paths = calibration_paths or {}
+    calibrations = [read_only_document(c) for c in calibrations]  # read only: no copies
     correction = pooled.correction()
     sources = [c.get("source", {}) for c in calibrations]
     topics = {s.get("topic") for s in sources if s.get("topic")}
