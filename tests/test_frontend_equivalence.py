@@ -283,3 +283,12 @@ def test_start_of_a_short_window_skips_the_full_rate_spectrum(monkeypatch):
         JointFit().start(short)  # 8000 samples could be thinned 2×: the rate decides
     guess = JointFit().start(shorter).params
     assert abs(guess.bench.tilt_rad - np.deg2rad(45.0)) < 0.05  # a usable start
+
+
+def test_column_rms_equals_numpys():
+    from wheelcal.estimate.columns import column_rms
+
+    x = np.random.default_rng(4).normal(0.3, 2.0, size=(5001, 3)) * [1.0, 1e-3, 1e3]
+    expected = np.sqrt(np.mean(x**2, axis=0))
+    assert np.allclose(column_rms(x), expected, rtol=1e-13, atol=0)
+    assert np.allclose(column_rms(x[::-2]), np.sqrt(np.mean(x[::-2] ** 2, axis=0)), rtol=1e-13)

@@ -28,6 +28,12 @@ def difference_stds(x: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ij,ij->i", steps, steps) / max(steps.shape[1], 1))
 
 
+def column_rms(x: np.ndarray) -> np.ndarray:
+    """RMS of each column of ``x`` (N, k): ``np.sqrt(np.mean(x**2, axis=0))``."""
+    rows = np.ascontiguousarray(x.T, dtype=float)
+    return np.sqrt(np.einsum("ij,ij->i", rows, rows) / max(rows.shape[1], 1))
+
+
 def centred_rows(x: np.ndarray, mean: np.ndarray) -> np.ndarray:
     """(x − mean)ᵀ as a C-ordered (k, N) array: one contiguous row per column of ``x``."""
     out = np.empty((x.shape[1], x.shape[0]))

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from wheelcal.estimate.columns import column_rms
 from wheelcal.estimate.identifiability import Identifiability
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.systematic import SystematicBudget
@@ -87,7 +88,7 @@ class CalibrationResult:
     @property
     def residual_rms_mps2(self) -> np.ndarray:
         """RMS of data − model per axis."""
-        return np.sqrt(np.mean(self.residual_mps2**2, axis=0))
+        return column_rms(self.residual_mps2)
 
     @property
     def t0_unix_ns(self) -> int:
