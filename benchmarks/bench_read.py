@@ -18,7 +18,11 @@ inflated by other load on the machine); ``--wall`` uses the wall clock.
 ``wheelcal_ref``, see ``bench_versus.py``) and times its ``read_recording``
 against this tree's, interleaved round by round in this process, printing
 both rates and the median of the per-round ratios.
-Run: ``python benchmarks/bench_read.py [--compression zstd|lz4|none] [--ref main]``.
+The allocator is tuned as the CLI and the batch workers tune it
+(``wheelcal.runtime.tune_allocator``: large temporaries stay in the heap
+instead of being mapped and faulted in afresh); ``--untuned`` times glibc's
+defaults (the setting is process-wide, so one run measures one of the two).
+Run: ``python benchmarks/bench_read.py [--compression zstd|lz4|none] [--ref main] [--untuned]``.
 """
 
 from __future__ import annotations
@@ -26,7 +30,6 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -34,8 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from _timing import interleaved_times
-from bench_versus import extract
+from bench_versus import reference_code
 from wheelcal.io import read_recording, write_recording
+from wheelcal.runtime import tune_allocator
 from wheelcal.simulate import Scenario, simulate, table2
 
 SAMPLES = 18_000
@@ -91,7 +95,12 @@ def main() -> None:
     parser.add_argument(
         "--ref", help="git revision whose reader to time against this tree's, e.g. main"
     )
+    parser.add_argument(
+        "--untuned", action="store_true", help="glibc's allocator defaults (the CLI tunes them)"
+    )
     args = parser.parse_args()
+    if not args.untuned:
+        tune_allocator()
     clock = time.perf_counter if args.wall else time.process_time
 
     base = table2(rng=np.random.default_rng(1))
@@ -107,7 +116,9 @@ def main() -> None:
         ("JSON, 50 samples/msg", "json", 50, plain_json),
     ]
     what = "wall-clock" if args.wall else "CPU (one core: all readers are single-threaded)"
+    allocator = "glibc's defaults" if args.untuned else "allocator tuned as the CLI tunes it"
     print(f"{SAMPLES} samples per file, {args.compression} chunks, best of {args.repeat}, {what}")
+    print(allocator)
     print(f"{'file':26s} {'wheelcal':>14s} {'plain decoder':>14s} {'ratio':>7s}")
     with tempfile.TemporaryDirectory() as tmp:
         for label, encoding, batch, plain in variants:
@@ -126,14 +137,12 @@ def main() -> None:
                 f"{t_plain / t_ours:6.1f}x"
             )
         if args.ref:
-            versus_ref(args.ref, Path(tmp), variants, args.repeat, clock)
+            with reference_code(args.ref):
+                versus_ref(args.ref, Path(tmp), variants, args.repeat, clock)
 
 
 def versus_ref(ref: str, tmp: Path, variants, repeat: int, clock) -> None:
     """This tree's reader against ``ref``'s on the same files, interleaved round by round."""
-    (tmp / "ref").mkdir()
-    extract(ref, tmp / "ref")
-    sys.path.insert(0, str(tmp / "ref"))
     from wheelcal_ref.io import read_recording as read_ref
 
     print(f"\nversus {ref}, interleaved, median of {repeat} rounds (ratio: per-round median)")
