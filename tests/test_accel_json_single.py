@@ -11,26 +11,16 @@ import json
 import numpy as np
 import pytest
 
+from message_blocks import message_block
 from wheelcal.io import accel_json, accel_json_single
 from wheelcal.io.accel_json import AccelBatchError, decode_accel_batch, encode_accel_batches
 from wheelcal.io.accel_json_single import decode_single_samples
 from wheelcal.io.mcap_scan import MessageBlock
 
-GAP = 31  # a Message record's opcode, length and header between two payloads
-
 
 def _block(payloads, rng):
-    """The payloads back to back as in a chunk, 31 random bytes (often "," or "]") between."""
-    pieces, offsets, at = [], [], 0
-    for payload in payloads:
-        gap = rng.choice(np.frombuffer(b",]\n[0-.e", np.uint8), GAP).tobytes()
-        pieces += [gap, payload]
-        offsets.append(at + GAP)
-        at += GAP + len(payload)
-    lengths = np.array([len(p) for p in payloads], np.int64)
-    return MessageBlock(
-        b"".join(pieces), np.array(offsets, np.int64), lengths, np.arange(len(payloads))
-    )
+    """The payloads as in a chunk, random bytes (often "," or "]") between."""
+    return message_block(payloads, rng, b",]\n[0-.e")
 
 
 def _payloads(rng, n=40):
