@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solveh_banded
 
+from wheelcal.model.effects import cubic_bspline_slots
+
 MIN_SPACING_S = 0.5
 MAX_SPACING_S = 16.0
 #: At most this many gyro samples enter the choice (evenly thinned; ω(t) is slow,
@@ -69,14 +71,8 @@ def _spline_rss(t: np.ndarray, s: np.ndarray, start_s: float, step_s: float, cou
     values per sample and solved banded — no (count, N) basis matrix, no dense
     solve (a 0.5 s spacing over 5 min has 600 functions).
     """
-    position = (t - start_s) / step_s
-    interval = np.floor(position)
-    x = position - interval
-    x2, x3 = x * x, x * x * x
-    values = np.array(
-        [(1 - x) ** 3 / 6, (3 * x3 - 6 * x2 + 4) / 6, (-3 * x3 + 3 * x2 + 3 * x + 1) / 6, x3 / 6]
-    )
-    rows = interval.astype(np.int64)[None, :] + np.arange(4)[:, None]  # (4, N)
+    interval, values, _, _ = cubic_bspline_slots(t, start_s, step_s)
+    rows = interval[None, :] + np.arange(4)[:, None]  # (4, N)
     values[(rows < 0) | (rows >= count)] = 0.0  # functions outside 0 … count − 1
     rows = np.clip(rows, 0, count - 1)
     # Upper band storage of solveh_banded: band[3 − d, k + d] = G[k, k + d].
