@@ -162,11 +162,6 @@ def _time_ns(time_s: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
 
 
-def _time_column(time_s: np.ndarray) -> rr.TimeColumn:
-    """A ``time`` duration column from seconds, rounded (not truncated) to whole ns."""
-    return rr.TimeColumn(TIME_TIMELINE, duration=_time_ns(time_s).view("timedelta64[ns]"))
-
-
 @functools.lru_cache(maxsize=64)
 def _series_style(
     names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None
@@ -340,7 +335,7 @@ def log_window(
         states.append(_WINDOW_STATES[2])
     lane = Chunk.from_columns(
         "window",
-        indexes=[_time_column(np.array(times))],
+        indexes=[duration_index(TIME_TIMELINE, _time_ns(np.array(times)))],
         columns=rr.StateChange.columns(state=states),
     )
     stream.send_chunks([static_chunk("window", _window_configuration()), lane])
@@ -508,11 +503,11 @@ def _layout_chunks(residual_sets: tuple[str, ...]) -> tuple:
 
 
 @functools.lru_cache(maxsize=1)
-def _time_panel_rows() -> tuple[str, bool, tuple[ArrowColumn, ...], rr.ComponentDescriptor]:
-    """The time panel's entity, its columns and the descriptor of the one that varies."""
+def _time_panel_rows() -> tuple[str, bool, tuple[ArrowColumn, ...], ArrowColumn]:
+    """The time panel's entity, its columns and the one of them that varies (the selection)."""
     ((path, static, columns),) = blueprint_rows(session_time_panel(0.0, 0.0))
     (selection,) = [c for c in columns if c.component_descriptor().component.endswith("selection")]
-    return path, static, columns, selection.component_descriptor()
+    return path, static, columns, selection
 
 
 def _time_panel_chunk(start_s: float, end_s: float) -> Chunk:
@@ -520,9 +515,8 @@ def _time_panel_chunk(start_s: float, end_s: float) -> Chunk:
     path, static, columns, selection = _time_panel_rows()
     # ``rrb.components.AbsoluteTimeRange``: whole ns, as the panel rounds them.
     ns = {"min": round(start_s * 1e9), "max": round(end_s * 1e9)}
-    template = next(c for c in columns if c.component_descriptor() == selection)
-    value = pa.array([ns], type=template.as_arrow_array().type.value_type)
-    varying = [column(selection, value) if c is template else c for c in columns]
+    value = pa.array([ns], type=selection.as_arrow_array().type.value_type)
+    varying = [column(c.component_descriptor(), value) if c is selection else c for c in columns]
     return blueprint_chunk(path, static, varying)
 
 
