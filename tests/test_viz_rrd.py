@@ -50,6 +50,16 @@ from wheelcal.viz.session_rrd import (
 # ---------------------------------------------------------------- reading back
 
 
+def written(path, recording_id, send):
+    """What ``send(stream)`` logs into a fresh stream, as an .rrd file at ``path``."""
+    stream = rr.RecordingStream("wheelcal", recording_id=recording_id)
+    sink = stream.binary_stream()
+    send(stream)
+    path.write_bytes(sink.read(flush=True))
+    stream.disconnect()
+    return path
+
+
 def read_store(path, blueprint=False):
     """{entity path: [chunks]} of the recording (or blueprint) store."""
     reader = RrdReader(path)
@@ -328,12 +338,7 @@ def test_blueprint_chunks_send_what_send_blueprint_sends(tmp_path):
         ("rerun", lambda s: s.send_blueprint(blueprint)),
         ("chunks", lambda s: send_blueprint_chunks(s, blueprint_chunks(blueprint))),
     ):
-        stream = rr.RecordingStream("wheelcal", recording_id=f"bp-{name}")
-        sink = stream.binary_stream()
-        send(stream)
-        paths.append(tmp_path / f"{name}.rrd")
-        paths[-1].write_bytes(sink.read(flush=True))
-        stream.disconnect()
+        paths.append(written(tmp_path / f"{name}.rrd", f"bp-{name}", send))
     expected, got = (blueprint_contents(p) for p in paths)
     kinds = {component for _, component, _ in expected}
     assert {
@@ -383,12 +388,7 @@ def test_static_chunks_store_what_log_stores(tmp_path):
         ("log", lambda s: [s.log(p, *parts, static=True) for p, parts in entities.items()]),
         ("chunks", lambda s: s.send_chunks(list(fast.values()))),
     ):
-        stream = rr.RecordingStream("wheelcal", recording_id=f"static-{name}")
-        sink = stream.binary_stream()
-        send(stream)
-        paths.append(tmp_path / f"{name}.rrd")
-        paths[-1].write_bytes(sink.read(flush=True))
-        stream.disconnect()
+        paths.append(written(tmp_path / f"{name}.rrd", f"static-{name}", send))
     expected, got = (
         {k: v for k, v in store_contents(p).items() if k[0] != "/__properties"} for p in paths
     )
@@ -429,12 +429,7 @@ def test_direct_columns_store_what_send_columns_stores(tmp_path, width):
             lambda s: s.send_chunks([Chunk.from_columns("e", direct_index, [direct_column])]),
         ),
     ):
-        stream = rr.RecordingStream("wheelcal", recording_id=f"columns-{name}")
-        sink = stream.binary_stream()
-        send(stream)
-        path = tmp_path / f"{name}.rrd"
-        path.write_bytes(sink.read(flush=True))
-        stream.disconnect()
+        path = written(tmp_path / f"{name}.rrd", f"columns-{name}", send)
         (chunk,) = read_store(path)["/e"]
         batches.append(chunk.to_record_batch().drop_columns(["rerun.controls.RowId"]))
     assert batches[1].schema == batches[0].schema
@@ -474,12 +469,9 @@ def test_session_file_blueprint_is_what_send_blueprint_sends(session, tmp_path, 
         for name in extra_sets:
             rrd.log_residuals(name, result.time_s, result.residual_mps2, wheel_angle_rad(result))
     blueprint = session_blueprint(window.start_s, window.end_s, ("fit", *extra_sets))
-    stream = rr.RecordingStream("wheelcal", recording_id="bp-reference")
-    sink = stream.binary_stream()
-    stream.send_blueprint(blueprint)
-    reference = tmp_path / "reference.rrd"
-    reference.write_bytes(sink.read(flush=True))
-    stream.disconnect()
+    reference = written(
+        tmp_path / "reference.rrd", "bp-reference", lambda s: s.send_blueprint(blueprint)
+    )
     got, expected = (without_ids(blueprint_contents(p)) for p in (path, reference))
     assert len(expected) > 80  # ≈ 50 entities, every component
     assert got == expected
