@@ -213,6 +213,16 @@ def _fingerprint(path: Path) -> str | OSError | RecordingError:
         return exc
 
 
+def _import_for_workers() -> None:
+    """Import the window search's ``scipy.signal`` (≈ 0.6 s) once, before the pool forks.
+
+    Forked workers inherit the parent's modules; without this each worker imports
+    it on its first session.  (Not Rerun: it starts threads when imported, and a
+    process should not fork with threads it does not control.)
+    """
+    import scipy.signal  # noqa: F401
+
+
 def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
     try:
         stems = unique_stems(files)
@@ -221,9 +231,13 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
     out = pipeline.output
     produces = {"rrd": pipeline.rerun}
     tasks, up_to_date = [], []
-    # hashlib and file reads release the GIL: a few threads hash several inputs at once
+    # hashlib and file reads release the GIL: a few threads hash several inputs at once,
+    # while this thread imports what each forked worker would otherwise import itself
     with ThreadPoolExecutor(min(_HASH_THREADS, len(files) or 1)) as pool:
-        fingerprints = list(pool.map(_fingerprint, files))
+        pending = pool.map(_fingerprint, files)
+        if pipeline.executor.kind == "processes":
+            _import_for_workers()
+        fingerprints = list(pending)
     for f, sha in zip(files, fingerprints, strict=True):
         stem = stems[str(f)]
         if not isinstance(sha, str):

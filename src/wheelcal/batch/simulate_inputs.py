@@ -19,13 +19,13 @@ def simulate_inputs(
     Recording i uses the random stream ``default_rng([seed, i])``: the same
     pipeline always produces the same files, and each has its own hand spin.
     """
+    spec = pipeline.simulate
+    if spec is None:  # before the imports: the simulator costs ~1 s to import (scipy.signal)
+        return []
     from wheelcal.io import write_recording
     from wheelcal.simulate import NoiseSpec, Quantiser, preset, simulate
     from wheelcal.simulate.session import simulate_session
 
-    spec = pipeline.simulate
-    if spec is None:
-        return []
     made = []
     for i, path in enumerate(pipeline.simulated_paths()):
         if path.exists():
