@@ -3,7 +3,8 @@
 Extracts ``src/wheelcal`` at ``--ref`` (a git revision) into a temporary folder
 as the package ``wheelcal_ref`` (its imports renamed), then times, one BLAS
 thread, alternating round by round on the same 90 s / 200 Hz Table I
-recording:
+recording (``--scenario table2``: bench_batch.py's recording number
+``--session``, a Table II bench; the default, 1, has AR(1) noise):
 
 * the joint fit (``JointFit().fit``) of both;
 * the whole calibration (``SessionFit().run``: window search, fit, noise
@@ -17,7 +18,7 @@ that of every reported value and of every σ.
 ``--stages`` also times each stage of the calibration (those of ``bench_fit.py
 --profile``), rounds alternating, with each stage's median ratio per round.
 
-Run:  python benchmarks/bench_versus.py --ref 7870c1d [--repeats 30] [--stages]
+Run:  python benchmarks/bench_versus.py --ref 7870c1d [--repeats 30] [--stages] [--scenario table2 [--session 1]]
 """
 
 from __future__ import annotations
@@ -154,22 +155,29 @@ def main() -> None:
     ap.add_argument("--ref", required=True, help="git revision to compare with, e.g. 7870c1d")
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--stages", action="store_true", help="also time each stage of the calibration")
+    ap.add_argument("--scenario", choices=("table1", "table2"), default="table1")
+    ap.add_argument("--session", type=int, default=1, help="table2: bench_batch.py's recording")
     args = ap.parse_args()
     with reference_code(args.ref):
+        import wheelcal_ref.simulate as ref_sim
         from wheelcal_ref.estimate.joint import JointFit as RefJoint
         from wheelcal_ref.estimate.session_fit import SessionFit as RefSession
-        from wheelcal_ref.simulate import simulate as ref_simulate
-        from wheelcal_ref.simulate import table1 as ref_table1
 
+        import wheelcal.simulate as sim
         from wheelcal.estimate.joint import JointFit
         from wheelcal.estimate.session_fit import SessionFit
         from wheelcal.runtime import tune_allocator
-        from wheelcal.simulate import simulate, table1
+
+        def recording(package):
+            if args.scenario == "table1":
+                return package.simulate(package.table1(), np.random.default_rng(0)).recording
+            rng = np.random.default_rng([99, args.session])  # as bench_batch.py makes it
+            return package.simulate(package.table2(rng=rng), rng).recording
 
         with threadpool_limits(1):
             tune_allocator()
-            rec = simulate(table1(), np.random.default_rng(0)).recording
-            ref_rec = ref_simulate(ref_table1(), np.random.default_rng(0)).recording
+            rec = recording(sim)
+            ref_rec = recording(ref_sim)
             same = np.array_equal(rec.accel_mps2, ref_rec.accel_mps2)
             ts = interleaved_times(
                 {
@@ -182,7 +190,9 @@ def main() -> None:
             )
             new = SessionFit().run(rec).result
             old = RefSession().run(ref_rec).result
-        print(f"reference {args.ref}; same simulated samples in both: {same}; one BLAS thread")
+        print(
+            f"reference {args.ref}; {args.scenario}; same simulated samples in both: {same}; one BLAS thread"
+        )
         for name, values in ts.items():
             print(f"{name:18s}: {fmt(values)}")
         for what in ("joint fit", "calibration"):
