@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.simulate import NoiseSpec
@@ -43,3 +44,24 @@ def test_whitening_a_jacobian_matches_whitening_its_columns():
     for k in range(4):
         col, _ = nm.whiten(jac[k].T)
         assert np.allclose(jw[k], col)
+
+
+@pytest.mark.parametrize("orders", [(1, 1, 1), (2, 0, 1), (3, 3, 3), (1, 6, 2), (9, 4, 0)])
+def test_whitening_a_jacobian_equals_lfilter_then_the_inverse_cholesky_factor(orders):
+    # Independent of noise_model's code paths (one 3 × 3 product per tap for short
+    # filters, the per-axis FIR then L⁻¹ for long ones): scipy's lfilter per column and
+    # axis, the first p outputs dropped, then L⁻¹ of the innovations' covariance.
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(sum(orders))
+    polys = tuple(np.r_[1.0, rng.normal(0.0, 0.3, k)] for k in orders)
+    mixing = rng.normal(size=(3, 3))
+    cov = mixing @ mixing.T + np.eye(3)
+    nm = NoiseModel(polys, cov)
+    jac = rng.standard_normal((5, 3, 400))
+    _, jw = nm.whiten(np.zeros((400, 3)), jac)
+    p = max(orders)
+    filtered = np.stack([lfilter(a, [1.0], jac[:, i, :], axis=-1) for i, a in enumerate(polys)], 1)
+    expected = np.linalg.inv(np.linalg.cholesky(cov)) @ filtered[:, :, p:]
+    assert jw.shape == (5, 3, 400 - p)
+    np.testing.assert_allclose(jw, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
