@@ -31,3 +31,21 @@ def test_strided_reads_of_every_width_are_the_indexed_gather(dtype):
     for positions in (np.arange(1, 2900, 29), np.array([0, 3, 4, 2990]), np.array([3000 - size])):
         want = arr[positions[:, None] + np.arange(size)].view(dtype).reshape(-1)
         np.testing.assert_array_equal(_gather_le(arr, positions, dtype), want)
+
+
+def test_the_scans_crc32_is_zlibs_on_whole_and_pieced_buffers(tmp_path):
+    # mcap_scan takes zlib-ng's SIMD CRC-32: the checksums MCAP writers store are zlib's.
+    import mmap
+    import zlib
+
+    from wheelcal.io.mcap_scan import _crc32, crc32
+
+    rng = np.random.default_rng(5)
+    data = rng.integers(0, 256, 3_000_001, dtype=np.uint8).tobytes()
+    assert crc32(data) == zlib.crc32(data)
+    assert crc32(data[1000:], crc32(data[:1000])) == zlib.crc32(data)
+    assert crc32(b"") == 0
+    path = tmp_path / "bytes"
+    path.write_bytes(data)
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        assert _crc32(buf, 17, len(data) - 5) == zlib.crc32(data[17:-5])

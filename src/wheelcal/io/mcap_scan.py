@@ -41,7 +41,6 @@ import mmap
 import os
 import stat
 import struct
-import zlib
 from dataclasses import dataclass, field
 from enum import IntEnum
 from types import MappingProxyType
@@ -51,6 +50,11 @@ import numpy as np
 
 from wheelcal.io.errors import CorruptFileError, NotMcapError
 from wheelcal.io.file_kind import special_kind
+
+try:  # zlib-ng's CRC-32 (SIMD: ≈ 14× zlib's here, ≈ 1.5 ms per 90 s ROS 2 recording)
+    from zlib_ng.zlib_ng import crc32
+except ImportError:  # pragma: no cover - a dependency; zlib computes the same CRC
+    from zlib import crc32
 
 MAGIC = b"\x89MCAP0\r\n"
 MESSAGE_HEADER_BYTES = 22  # channel u16, sequence u32, log_time u64, publish_time u64
@@ -592,11 +596,11 @@ def scan_mcap(path: str | os.PathLike, sink_for=None) -> McapScan:
         data = _decompress(name, compression, records, size, where)
         if crc == 0:
             chunks_without_crc += 1  # the writer chose not to compute it (spec: 0 = absent)
-        elif zlib.crc32(data) != crc:
+        elif crc32(data) != crc:
             raise CorruptFileError(
                 name,
                 f"{where}: CRC mismatch, the chunk's data is damaged (stored {crc:#010x}, "
-                f"computed {zlib.crc32(data):#010x})",
+                f"computed {crc32(data):#010x})",
             )
         table = None
         if index_offsets.size:
@@ -701,7 +705,7 @@ def _crc32(buf, start: int, stop: int) -> int:
     view = memoryview(buf)
     for at in range(start, stop, _PIECE_BYTES):
         end = min(at + _PIECE_BYTES, stop)
-        crc = zlib.crc32(view[at:end], crc)
+        crc = crc32(view[at:end], crc)
         _release(buf, at, end)
     view.release()
     return crc
