@@ -8,7 +8,7 @@ correlated innovation covariance), in this tree and at ``--ref``; prints both
 medians, the median per-round ratio, and the largest difference between the two
 results relative to the largest whitened entry (round-off: ~1e-16).
 
-Run:  python benchmarks/bench_whiten.py --ref 4c9b56f [--repeats 30]
+Run:  python benchmarks/bench_whiten.py --ref 4c9b56f [--repeats 30] [--samples 18000] [--columns 22]
 """
 
 from __future__ import annotations
@@ -29,6 +29,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ref", required=True, help="git revision to compare with, e.g. 4c9b56f")
     ap.add_argument("--repeats", type=int, default=30)
+    ap.add_argument("--samples", type=int, default=18000, help="per column (a chunk: 32768)")
+    ap.add_argument("--columns", type=int, default=22)
     args = ap.parse_args()
     with reference_code(args.ref):
         from wheelcal_ref.estimate.noise_model import NoiseModel as RefNoiseModel
@@ -37,8 +39,8 @@ def main() -> None:
         from wheelcal.runtime import tune_allocator
 
         rng = np.random.default_rng(0)
-        jacobian = rng.normal(size=(22, 3, 18000))
-        residual = rng.normal(size=(18000, 3))
+        jacobian = rng.normal(size=(args.columns, 3, args.samples))
+        residual = rng.normal(size=(args.samples, 3))
         mixing = rng.normal(size=(3, 3))
         cov = mixing @ mixing.T + 3 * np.eye(3)
         print(f"reference {args.ref}; Jacobian {jacobian.shape}, one BLAS thread")
