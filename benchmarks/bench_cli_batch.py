@@ -1,16 +1,17 @@
 """The batch as a user runs it: ``wheelcal batch`` in a fresh process, this tree against a revision.
 
-``bench_batch.py`` runs its batches inside one Python process, after the
-1-worker runs have already calibrated every session in that process; its
-2-worker pools then fork from a parent that has Rerun's threads and a heap
-of a thousand sessions.  A user's ``wheelcal batch`` starts fresh: imports,
-planning, worker start-up, the sessions, the report and the final sync all
-count.  This script times exactly that, wall clock from launch to exit, for
-this tree and for ``--ref`` (its ``src`` extracted to a temporary folder and
-put first on ``PYTHONPATH``), alternating round by round (the machine's load
-drifts), on the recordings of ``bench_batch.py --keep DIR`` (made there if
-missing), each run into an empty output folder.  Prints every run's sessions/s
-and the median per-round ratio, with and without Rerun.
+``bench_batch.py`` runs its batches inside one Python process (after its
+1-worker runs have calibrated every session in that process).  A user's
+``wheelcal batch`` starts fresh: imports, planning, worker start-up, the
+sessions, the report and the final sync all count, and so does what the
+parent imports before its workers fork.  This script times exactly that, wall
+clock from launch to exit, for this tree and for ``--ref`` (its ``src``
+extracted to a temporary folder and put first on ``PYTHONPATH``), alternating
+round by round (the machine's load drifts: on the shared development machine
+the CPU time of one and the same batch varied by a quarter within an hour), on
+the recordings of ``bench_batch.py --keep DIR`` (made there if missing), each
+run into an empty output folder.  Prints every run's sessions/s and the median
+per-round ratio, with and without Rerun.
 
 Targets (issue 15): 1,000 recordings on 2 workers ≥ 40 sessions/s without
 Rerun, ≥ 25 with it.
