@@ -223,6 +223,14 @@ def _import_for_workers() -> None:
     import scipy.signal  # noqa: F401
 
 
+def _some_session_new(out: Path, stems) -> bool:
+    """Whether some session has no calibration yet: then workers will certainly run.
+
+    (A re-run with every session up to date forks no worker and skips the import.)
+    """
+    return any(not (out / f"{stem}.calibration.json").exists() for stem in stems)
+
+
 def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
     try:
         stems = unique_stems(files)
@@ -235,7 +243,7 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
     # while this thread imports what each forked worker would otherwise import itself
     with ThreadPoolExecutor(min(_HASH_THREADS, len(files) or 1)) as pool:
         pending = pool.map(_fingerprint, files)
-        if pipeline.executor.kind == "processes":
+        if pipeline.executor.kind == "processes" and _some_session_new(out, stems.values()):
             _import_for_workers()
         fingerprints = list(pending)
     for f, sha in zip(files, fingerprints, strict=True):
