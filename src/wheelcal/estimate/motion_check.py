@@ -110,7 +110,7 @@ def _normal_with_spline(
     interval's functions, :func:`~wheelcal.model.forward.spin_columns`) are
     computed once and whitened with the base columns.  Whitening a slot row
     treats its history as the same functions' when it lies in the interval
-    before; :func:`_slot_corrections` adds what the FIR history truly holds
+    before; :func:`_add_slot_corrections` adds what the FIR history truly holds
     there (the next slot's column: that interval numbers its functions from
     one lower), and the function before the interval (B_{j−1}), which only
     that history reaches.  Their Gram blocks with the base columns and with

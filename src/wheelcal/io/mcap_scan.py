@@ -596,11 +596,11 @@ def scan_mcap(path: str | os.PathLike, sink_for=None) -> McapScan:
         data = _decompress(name, compression, records, size, where)
         if crc == 0:
             chunks_without_crc += 1  # the writer chose not to compute it (spec: 0 = absent)
-        elif crc32(data) != crc:
+        elif (computed := crc32(data)) != crc:
             raise CorruptFileError(
                 name,
                 f"{where}: CRC mismatch, the chunk's data is damaged (stored {crc:#010x}, "
-                f"computed {crc32(data):#010x})",
+                f"computed {computed:#010x})",
             )
         table = None
         if index_offsets.size:
