@@ -182,19 +182,24 @@ def _blas_threads() -> ThreadpoolController:
     return ThreadpoolController()
 
 
+def _calibration_file(out: Path, stem: str) -> Path:
+    """A session's calibration JSON, which marks it complete (written last)."""
+    return out / f"{stem}.calibration.json"
+
+
 def _up_to_date(out: Path, stem: str, key: str, options: SessionOptions) -> bool:
     """The session's outputs exist and carry this run key."""
     rrd = out / f"{stem}.rrd"
     diag = out / f"{stem}.diagnosis.json"
     complete = (not options.rrd or rrd.exists()) and (not options.diagnose or diag.exists())
-    return complete and stored_run_key(out / f"{stem}.calibration.json") == key
+    return complete and stored_run_key(_calibration_file(out, stem)) == key
 
 
 def _up_to_date_record(source: str, out: Path, stem: str, rrd: bool) -> SessionRecord:
     return SessionRecord(
         source=source,
         stem=stem,
-        calibration_path=str(out / f"{stem}.calibration.json"),
+        calibration_path=str(_calibration_file(out, stem)),
         rrd_path=str(out / f"{stem}.rrd") if rrd else None,
         skipped=True,
     )
@@ -228,7 +233,7 @@ def _some_session_new(out: Path, stems) -> bool:
 
     (A re-run with every session up to date forks no worker and skips the import.)
     """
-    return any(not (out / f"{stem}.calibration.json").exists() for stem in stems)
+    return any(not _calibration_file(out, stem).exists() for stem in stems)
 
 
 def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
