@@ -32,17 +32,9 @@ import time
 from pathlib import Path
 
 from bench_batch import _make_recordings
+from bench_versus import extract_source
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _extract(ref: str, into: Path) -> Path:
-    """``src/wheelcal`` at ``ref`` under ``into/src`` (importable as ``wheelcal``)."""
-    archive = subprocess.run(
-        ["git", "-C", str(ROOT), "archive", ref, "src/wheelcal"], check=True, capture_output=True
-    ).stdout
-    subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
-    return into / "src"
 
 
 def _pipeline(root: Path, inputs: Path, out: Path, rerun: bool) -> Path:
@@ -82,7 +74,7 @@ def main() -> None:
         raise SystemExit(f"{inputs} must hold exactly {args.sessions} recordings")
     out = root / "cli_out"
     with tempfile.TemporaryDirectory() as tmp:
-        trees = {"ref": _extract(args.ref, Path(tmp)), "now": ROOT / "src"}
+        trees = {"ref": extract_source(args.ref, Path(tmp)), "now": ROOT / "src"}
         for rerun in (False, True):
             toml = _pipeline(root, inputs, out, rerun)
             walls: dict[str, list[float]] = {"ref": [], "now": []}

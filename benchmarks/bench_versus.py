@@ -42,16 +42,21 @@ from _timing import fmt, interleaved_times
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def extract(ref: str, into: Path) -> None:
-    """``src/wheelcal`` at ``ref`` as the package ``into/wheelcal_ref``."""
+def extract_source(ref: str, into: Path) -> Path:
+    """``src/wheelcal`` at ``ref`` under ``into/src``; returns that ``src`` folder."""
     archive = subprocess.run(
         ["git", "-C", str(ROOT), "archive", ref, "src/wheelcal"],
         check=True,
         capture_output=True,
     ).stdout
     subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
+    return into / "src"
+
+
+def extract(ref: str, into: Path) -> None:
+    """``src/wheelcal`` at ``ref`` as the package ``into/wheelcal_ref``."""
     package = into / "wheelcal_ref"
-    (into / "src" / "wheelcal").rename(package)
+    (extract_source(ref, into) / "wheelcal").rename(package)
     pattern = re.compile(r"\bwheelcal(?=[.\s])")
     for path in package.rglob("*.py"):
         text = path.read_text(encoding="utf-8")
