@@ -1,10 +1,13 @@
-"""The motion check's spline alternative: exact sums by parts, and its degrees of freedom.
+"""The motion check's spline alternative: exact sums, and its degrees of freedom.
 
 check_motion accumulates the normal equations in one pass, the spline
 coefficients' blocks a knot interval at a time with only the functions alive
-there; the sums must equal one dense accumulation over every sample (FIR
-history carried across the intervals, even when it spans several), and the
-check's numbers those computed from the dense sums.  Its
+there.  By parts over every sample (a fast spin, long AR filters, effects,
+windows of several chunks), the sums must equal one dense accumulation (FIR
+history carried across the intervals, even when it spans several).  By
+quadrature (estimate/fisher_quadrature.py), H must equal the same rows of the
+dense whitened columns and g the dense gradient; the check's numbers then
+stay within the quadrature's error of those computed from the dense sums.  Its
 score test has as many degrees of freedom as the spline has directions
 beyond the cubic's own: a cubic B-spline of ϑ spans 1, t, t², t³ — the
 directions of ϑ₀, ω₀, ω₁, ω₂ — so dof = coefficients − 4.
@@ -17,9 +20,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+from wheelcal.estimate import motion_check
+from wheelcal.estimate.fisher_quadrature import quadrature_rows
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.motion_check import KNOT_SPACING_S, _normal_with_spline, check_motion
-from wheelcal.estimate.normal_equations import accumulate
+from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, _filled_buffer, accumulate
 from wheelcal.model.effects import SpinSpline
 from wheelcal.model.forward import candidate_columns
 from wheelcal.simulate import NoiseSpec, simulate, table1
@@ -36,7 +41,13 @@ def fitted(request):
     return JointFit().fit(recording), recording
 
 
-def test_sums_by_parts_equal_one_dense_accumulation(fitted):
+@pytest.fixture
+def by_parts(monkeypatch):
+    """Every row: the quadrature's stride forced to 1."""
+    monkeypatch.setattr(motion_check, "quadrature_stride", lambda *args: 1)
+
+
+def test_sums_by_parts_equal_one_dense_accumulation(fitted, by_parts):
     result, recording = fitted
     tc = result.centred_time_s
     spline = SpinSpline(float(tc[0]), float(tc[-1]), KNOT_SPACING_S)
@@ -57,6 +68,44 @@ def test_sums_by_parts_equal_one_dense_accumulation(fitted):
     )
 
 
+@pytest.fixture(scope="module", params=["white", "lowpass"])
+def one_chunk(request):
+    """200 Hz, 90 s: one chunk, as the quadrature path takes it (AR(2) for the lowpass)."""
+    noise = NoiseSpec(std_mps2=0.08, bandwidth_hz=20.0) if request.param == "lowpass" else None
+    scenario = table1(noise) if noise else table1()
+    recording = simulate(scenario, np.random.default_rng(5)).recording
+    return JointFit().fit(recording), recording
+
+
+@pytest.mark.parametrize("stride", [5, 9])
+def test_sums_by_quadrature_equal_the_dense_rows_and_gradient(one_chunk, monkeypatch, stride):
+    # The stride forced: the rule's own choice would be 7 here.
+    result, recording = one_chunk
+    noise = result.noise
+    assert noise.order < 4 and result.time_s.size <= CHUNK_SAMPLES
+    monkeypatch.setattr(motion_check, "quadrature_stride", lambda *args: stride)
+    tc = result.centred_time_s
+    spline = SpinSpline(float(tc[0]), float(tc[-1]), KNOT_SPACING_S)
+    layout = result.layout
+
+    def extra(params, output, t_s):
+        return candidate_columns(params, t_s, layout, spline, output)
+
+    accel = recording.accel_mps2
+    dense = accumulate(result.params, tc, accel, layout, noise, extra=extra)
+    buf, residual, _ = _filled_buffer(result.params, tc, accel, layout, extra, None)
+    _, white = noise.whiten(residual, buf)
+    rows = quadrature_rows(tc.size, noise.order, stride)
+    kept = white[:-1, :, rows.last - noise.order] * np.sqrt(rows.weights)
+    flat = kept.reshape(kept.shape[0], -1)
+    expected = flat @ flat.T
+    hess, grad = _normal_with_spline(result, accel, noise, spline)
+    d = np.sqrt(np.diag(expected))
+    np.testing.assert_allclose(hess / np.outer(d, d), expected / np.outer(d, d), atol=1e-10)
+    d = np.sqrt(np.diag(dense.hessian))
+    np.testing.assert_allclose(grad / d, dense.gradient / d, rtol=0, atol=1e-9)
+
+
 def test_dof_are_the_spline_directions_beyond_the_cubic(fitted):
     result, recording = fitted
     check = check_motion(result, recording.accel_mps2, result.noise)
@@ -67,7 +116,7 @@ def test_dof_are_the_spline_directions_beyond_the_cubic(fitted):
 
 @pytest.mark.parametrize("samples_per_interval", [3, 12])
 def test_sums_by_interval_when_the_fir_history_spans_several_intervals(
-    fitted, samples_per_interval
+    fitted, samples_per_interval, by_parts
 ):
     # Knot intervals shorter than the AR order (white: one interval per slot block).
     result, recording = fitted
@@ -118,9 +167,9 @@ def _sessions():
 def test_check_motion_equals_the_dense_computation(monkeypatch, name, recording):
     # As SessionFit runs it: the free-spin window, the broadband noise of its residual.
     # The Schur complement is near-singular (the spline spans the cubic's directions):
-    # round-off moves the statistic by ~1e-6 of itself, as the sums by parts that came
-    # before did too (measured: 2e-6 on table1, 5e-6 on the wandering motor).
-    from wheelcal.estimate import motion_check
+    # round-off moves the statistic by ~1e-6 of itself (measured: 2e-6 on table1, 5e-6
+    # on the wandering motor).  H by quadrature moves it by ≤ 2.4e-4 of itself and a
+    # shift by ≤ 2.2e-4 σ (measured on table1, the lowpass and three Table II sessions).
     from wheelcal.estimate import session_fit as sf
 
     choice = sf.choose_window(recording, max_window_s=sf.Gates().max_window_s)
@@ -131,11 +180,13 @@ def test_check_motion_equals_the_dense_computation(monkeypatch, name, recording)
     monkeypatch.setattr(motion_check, "_normal_with_spline", _dense_normal)
     dense, _ = sf._motion(result, choice.recording, rests)
     assert fast.dof == dense.dof, name
-    assert fast.statistic == pytest.approx(dense.statistic, rel=2e-5, abs=1e-4), name
-    # shift_z divides by √(σ²_flexible − σ²_cubic), a difference of near-equal numbers.
-    for field, rel in (("shift_sigma", 1e-4), ("shift_z", 1e-3)):
-        a, b = getattr(fast, field), getattr(dense, field)
-        for key in b:
-            assert a[key] == pytest.approx(b[key], rel=rel, abs=1e-5), (name, field, key)
+    assert fast.statistic == pytest.approx(dense.statistic, rel=1e-3, abs=1e-4), name
+    for key, shift in dense.shift_sigma.items():
+        assert abs(fast.shift_sigma[key] - shift) < 1e-3, (name, key)
+        # shift_z divides by √(σ²_flexible − σ²_cubic), a difference of near-equal
+        # numbers: it is only compared where the shift is not negligible.
+        if shift > 0.1:
+            assert fast.shift_z[key] == pytest.approx(dense.shift_z[key], rel=1e-2), (name, key)
     if name == "wandering":  # the check has something to find here
         assert dense.inadequate(sf.Gates().motion_z, sf.Gates().motion_shift_sigma)
+        assert fast.inadequate(sf.Gates().motion_z, sf.Gates().motion_shift_sigma)

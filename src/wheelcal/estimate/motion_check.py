@@ -33,13 +33,19 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
+from wheelcal.estimate.fisher_quadrature import (
+    QuadratureRows,
+    quadrature_rows,
+    quadrature_stride,
+    whitened_rows,
+)
 from wheelcal.estimate.information import scaled_pinv
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import CHUNK_SAMPLES
+from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, whitened_back
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import evaluate
 from wheelcal.model.effects import SpinSpline, cubic_bspline_slots
-from wheelcal.model.forward import EvaluatedModel, spin_columns
+from wheelcal.model.forward import EvaluatedModel, jacobian_transpose_times, spin_columns
 from wheelcal.model.parameters import AXES
 
 #: Knots of the alternative motion, and the fewest turns between two of them.
@@ -126,6 +132,13 @@ def _normal_with_spline(
     params = result.params
     size = layout.size
     p = noise.order
+    if not layout.effects and tc.size <= CHUNK_SAMPLES:
+        omega = float(np.max(np.abs(params.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
+        rate = (tc.size - 1) / max(float(tc[-1] - tc[0]), 1e-12)
+        stride = quadrature_stride(rate, omega, p, spline.spacing_s)
+        if stride > 1:
+            rows = quadrature_rows(tc.size, p, stride)
+            return _normal_by_quadrature(result, accel_mps2, noise, spline, rows, evaluated)
     # Three rows past the last function: the last sample's slot 3 (exactly zero there).
     total = size + spline.size + 3
     hess = np.zeros((total, total))
@@ -176,6 +189,75 @@ def _normal_with_spline(
             else:
                 flat = sw.reshape(sw.shape[0], -1)
                 hess[rows_here, rows_here] += flat @ flat.T
+    keep = size + spline.size
+    hess[:size, size:] = hess[size:, :size].T
+    return hess[:keep, :keep], grad[:keep]
+
+
+def _normal_by_quadrature(
+    result: CalibrationResult,
+    accel_mps2: np.ndarray,
+    noise: NoiseModel,
+    spline: SpinSpline,
+    rows: QuadratureRows,
+    evaluated: EvaluatedModel | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """H by quadrature on ``rows`` (:mod:`~wheelcal.estimate.fisher_quadrature`), g on every row.
+
+    g: the residual at the result whitened back (u = Wᵀ W r, three rows), then
+    Jᵀu through the model's reverse mode and each spline function's Σ B u from
+    the four slot columns (no Jacobian).  H: the model, its Jacobian and the
+    slots at the kept rows' FIR clusters only.  A cluster's samples may lie in
+    two knot intervals, so its columns cover every function alive over it
+    (its first sample's interval j … the last's + 3); the clusters that start in
+    interval j then add their Gram block with the base columns and each other
+    in one product.  The paper's model, one chunk.
+    """
+    tc = result.centred_time_s
+    layout = result.layout
+    params = result.params
+    size = layout.size
+    total = size + spline.size + 3  # three rows past the last function, as above
+    hess = np.zeros((total, total))
+    grad = np.zeros(total)
+    output = evaluated.output_at(params, tc) if evaluated is not None else None
+    if output is None:
+        output = evaluate(params, tc, layout)
+    _, u = whitened_back(output.predicted_mps2 - accel_mps2, noise)
+    grad[:size] = jacobian_transpose_times(params, tc, layout, u, output)
+    interval, *slot_rows = cubic_bspline_slots(tc, spline.start_s, spline.spacing_s)
+    slots = spin_columns(params, tc, layout, tuple(slot_rows), output)
+    along = np.einsum("qxn,xn->qn", slots, u)
+    first = interval.astype(np.intp)
+    for q in range(4):
+        grad[size:] += np.bincount(first + q, weights=along[q], minlength=total - size)
+
+    samples = rows.samples  # (p + 1, n): the clusters, lag p first
+    t = tc[samples.reshape(-1)]
+    interval, *slot_rows = cubic_bspline_slots(t, spline.start_s, spline.spacing_s)
+    interval = interval.astype(np.intp).reshape(samples.shape)
+    shift = interval - interval[0]  # a sample's interval from its cluster's first
+    width = int(shift[-1].max()) + 4
+    buf = np.zeros((size + width, 3, t.size))
+    out = evaluate(params, t, layout, jacobian=True, out=buf[:size])
+    slots = spin_columns(params, t, layout, tuple(slot_rows), out).reshape(4, 3, *samples.shape)
+    columns = buf.reshape(size + width, 3, *samples.shape)
+    lag, cluster = np.indices(samples.shape)
+    for q in range(4):  # function interval + q is the cluster's column shift + q
+        columns[size + shift + q, :, lag, cluster] = slots[q].transpose(1, 2, 0)
+    white = whitened_rows(noise, columns)
+    white *= np.sqrt(rows.weights)
+    white = np.ascontiguousarray(white.transpose(0, 2, 1))  # (rows, n, 3): runs as views
+    base = white[:size].reshape(size, -1)
+    hess[:size, :size] = base @ base.T
+    starts = interval[0]
+    cuts = np.flatnonzero(np.diff(starts)) + 1
+    for a, b in itertools.pairwise([0, *cuts.tolist(), starts.size]):
+        block = white[:, a:b, :].reshape(size + width, -1)
+        cross = block[size:] @ block.T
+        here = slice(size + int(starts[a]), size + int(starts[a]) + width)
+        hess[here, :size] += cross[:, :size]
+        hess[here, here] += cross[:, size:]
     keep = size + spline.size
     hess[:size, size:] = hess[size:, :size].T
     return hess[:keep, :keep], grad[:keep]

@@ -139,7 +139,7 @@ class NoiseModel:
         if p <= _TAP_PRODUCTS_UP_TO:
             # Σ_k C_k x(t − k) with C_k = L⁻¹ diag(a_k) (a_k of each axis): one batched 3 × 3
             # product per tap, the FIR and L⁻¹ together.
-            taps = self._tap_matrices
+            taps = self.tap_matrices
             # (A product into a preallocated ``out`` measured ~2× slower than into its own.)
             j = np.matmul(taps[0], jacobian[:, :, p:])
             for k in range(1, p + 1):
@@ -158,7 +158,7 @@ class NoiseModel:
         return r, np.matmul(inv_chol, filtered)
 
     @functools.cached_property
-    def _tap_matrices(self) -> np.ndarray:
+    def tap_matrices(self) -> np.ndarray:
         """(p + 1, 3, 3): C_k = L⁻¹ diag(a_k over the axes), a_k = 0 past an axis's order."""
         taps = np.zeros((self.order + 1, 3))
         for i, a in enumerate(self.ar_polynomials):

@@ -18,11 +18,18 @@ a candidate effect): H and g then cover [free | extra].
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.fisher_quadrature import (
+    QuadratureRows,
+    quadrature_rows,
+    quadrature_stride,
+    whitened_rows,
+)
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
 from wheelcal.model.forward import jacobian_transpose_times
@@ -83,8 +90,6 @@ def local_view(
     params: CalibrationParams, layout: ParameterLayout, t_lo: float, t_hi: float
 ) -> LocalView:
     """The view of ``layout`` on [t_lo, t_hi] (see :class:`LocalView`)."""
-    import dataclasses
-
     spline = _spline_of(layout)
     active = spline.active(t_lo, t_hi)
     sub = spline.restricted(active)
@@ -159,16 +164,18 @@ def _filled_buffer(
     layout: ParameterLayout,
     extra: ExtraColumns | None,
     extra_size: int | None,
+    output: ModelOutput | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int | None]:
     """[J | extra columns | residual] (P + k + 1, 3, n), the residual (model − data), k.
 
     One buffer for the free parameters' columns, the extra ones and the residual:
     one whitening, and one Gram product gives H, g and the cost together (a second
     pass over J̃ for g costs more than the Gram's extra row).  ``extra_size`` None:
-    learnt from the callback's first columns (then one copy).
+    learnt from the callback's first columns (then one copy).  ``output``: the
+    model already evaluated there (the paper's model), whose Jacobian alone is formed.
     """
     buf = np.empty((layout.size + (extra_size or 0) + 1, 3, t_s.size))
-    out = evaluate(params, t_s, layout, jacobian=True, out=buf[: layout.size])
+    out = evaluate(params, t_s, layout, jacobian=True, out=buf[: layout.size], output=output)
     residual = out.predicted_mps2 - accel_mps2
     if extra is not None:
         cols = extra(params, out, t_s)
@@ -199,25 +206,84 @@ def accumulate_fitting_noise(
     noise_of: Callable[[np.ndarray], NoiseModel],
     extra: ExtraColumns | None = None,
 ) -> tuple[NormalEquations, NoiseModel]:
-    """The noise model of the residual at ``params``, and :func:`accumulate` whitened by it.
+    """The noise model of the residual at ``params``, and its whitened normal equations.
 
     ``noise_of`` takes the residual (data − model, (N, 3)).  The joint fit's
-    stage 2 needs both at its start: for a window of one chunk they come from
-    one evaluation of the model (its Jacobian kept until the noise is known).
+    stage 2 needs both at its start, for a window of one chunk.  For the paper's
+    model the residual comes first (the model without its Jacobian), then the
+    cost and g over every sample by :func:`gradient_pass` (g of the free
+    parameters only: no extra rows), and H by quadrature on a fraction of the
+    rows (:mod:`wheelcal.estimate.fisher_quadrature`) when the wheel turns
+    slowly enough for it; otherwise H and g are :func:`accumulate`'s, from one
+    evaluation of the model (its Jacobian kept until the noise is known).
     """
     if t_s.size > CHUNK_SAMPLES or chunking(layout, t_s, None)[1]:
         raise ValueError("accumulate_fitting_noise takes one chunk of a dense layout")
     extra_size = getattr(extra, "size", None) if extra is not None else None
-    buf, residual, extra_size = _filled_buffer(params, t_s, accel_mps2, layout, extra, extra_size)
-    noise = noise_of(np.negative(residual))
+    if layout.effects:  # J̃ᵀr̃ without J (gradient_pass) covers the paper's model only
+        buf, residual, extra_size = _filled_buffer(
+            params, t_s, accel_mps2, layout, extra, extra_size
+        )
+        noise = noise_of(np.negative(residual))
+        return _whitened_normal(buf, residual, noise), noise
+    output = evaluate(params, t_s, layout)
+    noise = noise_of(np.subtract(accel_mps2, output.predicted_mps2))
+    stride = quadrature_stride(_rate_hz(t_s), _fastest_radps(params, t_s), noise.order)
+    if stride == 1:
+        buf, residual, extra_size = _filled_buffer(
+            params, t_s, accel_mps2, layout, extra, extra_size, output=output
+        )
+        return _whitened_normal(buf, residual, noise), noise
+    normal = gradient_pass(params, t_s, accel_mps2, layout, noise, output=output)
+    rows = quadrature_rows(t_s.size, noise.order, stride)
+    hessian = quadrature_hessian(params, t_s, layout, noise, rows, extra)
+    return dataclasses.replace(normal, hessian=hessian), noise
+
+
+def _whitened_normal(buf: np.ndarray, residual: np.ndarray, noise: NoiseModel) -> NormalEquations:
     gram, rows = _whitened_gram(buf, residual, noise)
-    normal = NormalEquations(
+    return NormalEquations(
         cost=float(gram[-1, -1]),
         hessian=gram[:-1, :-1].copy(),
         gradient=gram[:-1, -1].copy(),
         entries=rows,
     )
-    return normal, noise
+
+
+def _rate_hz(t_s: np.ndarray) -> float:
+    span = float(t_s[-1] - t_s[0]) if t_s.size > 1 else 0.0
+    return (t_s.size - 1) / span if span > 0 else float("nan")
+
+
+def _fastest_radps(params: CalibrationParams, t_s: np.ndarray) -> float:
+    """|ω| at the window's ends and middle (a spin-down's fastest is at an end)."""
+    return float(np.max(np.abs(params.spin.omega_at(t_s[[0, t_s.size // 2, -1]]))))
+
+
+def quadrature_hessian(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    layout: ParameterLayout,
+    noise: NoiseModel,
+    rows: QuadratureRows,
+    extra: ExtraColumns | None = None,
+) -> np.ndarray:
+    """J̃ᵀJ̃ over [free | extra] by the quadrature ``rows`` (the model at their clusters only)."""
+    samples = rows.samples  # (p + 1, n)
+    t = t_s[samples.reshape(-1)]
+    extra_size = getattr(extra, "size", None) if extra is not None else 0
+    buf = np.empty((layout.size + (extra_size or 0), 3, t.size))
+    out = evaluate(params, t, layout, jacobian=True, out=buf[: layout.size])
+    if extra is not None:
+        cols = extra(params, out, t)
+        if extra_size is None:
+            buf = np.concatenate([buf[: layout.size], cols])
+        else:
+            buf[layout.size :] = cols
+    white = whitened_rows(noise, buf.reshape(buf.shape[0], 3, *samples.shape))
+    white *= np.sqrt(rows.weights)
+    flat = white.reshape(white.shape[0], -1)
+    return flat @ flat.T
 
 
 def gradient_pass(
@@ -267,24 +333,39 @@ def gradient_pass(
         residual = out.predicted_mps2 - accel_mps2[lo:stop]
         if residual_out is not None:
             np.negative(residual[start - lo :], out=residual_out[start:stop])
-        rw, _ = noise.whiten(residual)
+        rw, u = whitened_back(residual, noise, inv_chol_t)
         cost += float(np.sum(rw * rw))
         entries += rw.size
-        # Fᵀ L⁻ᵀ r̃: output m of the FIR sums input m + p − k with weight a_k (zero history),
-        # so input j receives Σ_k a_k y[j − p + k]; y is padded with p zeros each side.
-        m = stop - lo
-        padded = np.zeros((3, m + p))
-        np.matmul(inv_chol_t, rw, out=padded[:, p:m])
-        u = np.empty((3, m))
-        for i, a in enumerate(noise.ar_polynomials):
-            np.multiply(padded[i, :m], a[0], out=u[i])
-            for k in range(1, a.size):
-                u[i] += a[k] * padded[i, k : k + m]
         if reverse:
             grad += jacobian_transpose_times(params, t_s[lo:stop], layout, u, out)
         else:
             grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
     return NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
+
+
+def whitened_back(
+    residual: np.ndarray, noise: NoiseModel, inv_chol_t: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """r̃ = W r (3, N − p) and u = Wᵀ r̃ (3, N) of a residual (N, 3): g = Jᵀu for any J.
+
+    W = L⁻¹ F (the per-axis FIR F, then L⁻¹), so Wᵀ r̃ = Fᵀ L⁻ᵀ r̃.
+    ``inv_chol_t``: L⁻ᵀ, when the caller has it already.
+    """
+    p = noise.order
+    if inv_chol_t is None:
+        inv_chol_t = np.linalg.inv(np.linalg.cholesky(noise.innovation_cov)).T
+    rw, _ = noise.whiten(residual)
+    # Fᵀ L⁻ᵀ r̃: output m of the FIR sums input m + p − k with weight a_k (zero history),
+    # so input j receives Σ_k a_k y[j − p + k]; y is padded with p zeros each side.
+    m = residual.shape[0]
+    padded = np.zeros((3, m + p))
+    np.matmul(inv_chol_t, rw, out=padded[:, p:m])
+    u = np.empty((3, m))
+    for i, a in enumerate(noise.ar_polynomials):
+        np.multiply(padded[i, :m], a[0], out=u[i])
+        for k in range(1, a.size):
+            u[i] += a[k] * padded[i, k : k + m]
+    return rw, u
 
 
 def whitened_cost(residual: np.ndarray, noise: NoiseModel, chunk: int = CHUNK_SAMPLES) -> float:
