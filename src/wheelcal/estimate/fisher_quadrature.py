@@ -87,13 +87,14 @@ def whitened_rows(noise: NoiseModel, columns: np.ndarray) -> np.ndarray:
     """The whitened output at each cluster's last sample, √weight not applied.
 
     ``columns`` (k, 3, p + 1, n): each cluster's samples in time order, as
-    :attr:`QuadratureRows.samples` lays them out; returns (k, 3, n).
+    :attr:`QuadratureRows.samples` lays them out; returns (k, n, 3), a row of
+    three axes per cluster (a run of clusters is then a view of k rows).
     """
     p = noise.order
     if columns.shape[2] != p + 1:
         raise ValueError(f"clusters of {columns.shape[2]} samples, the noise model needs {p + 1}")
     taps = noise.tap_matrices  # C_k = L⁻¹ diag(a_k): output(t) = Σ_k C_k x(t − k)
-    out = np.matmul(taps[0], columns[:, :, p, :])
+    out = np.matmul(columns[:, :, p, :].transpose(0, 2, 1), taps[0].T)
     for k in range(1, p + 1):
-        out += np.matmul(taps[k], columns[:, :, p - k, :])
+        out += np.matmul(columns[:, :, p - k, :].transpose(0, 2, 1), taps[k].T)
     return out

@@ -45,7 +45,12 @@ from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, whitened_back
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import evaluate
 from wheelcal.model.effects import SpinSpline, cubic_bspline_slots
-from wheelcal.model.forward import EvaluatedModel, jacobian_transpose_times, spin_columns
+from wheelcal.model.forward import (
+    EvaluatedModel,
+    jacobian_transpose_times,
+    spin_adjoint,
+    spin_columns,
+)
 from wheelcal.model.parameters import AXES
 
 #: Knots of the alternative motion, and the fewest turns between two of them.
@@ -205,8 +210,9 @@ def _normal_by_quadrature(
     """H by quadrature on ``rows`` (:mod:`~wheelcal.estimate.fisher_quadrature`), g on every row.
 
     g: the residual at the result whitened back (u = Wᵀ W r, three rows), then
-    Jᵀu through the model's reverse mode and each spline function's Σ B u from
-    the four slot columns (no Jacobian).  H: the model, its Jacobian and the
+    Jᵀu through the model's reverse mode, and each spline function's sum from
+    the reverse mode's wheel-angle rows (:func:`~wheelcal.model.forward.spin_adjoint`)
+    times its B, B′, B″ (no Jacobian).  H: the model, its Jacobian and the
     slots at the kept rows' FIR clusters only.  A cluster's samples may lie in
     two knot intervals, so its columns cover every function alive over it
     (its first sample's interval j … the last's + 3); the clusters that start in
@@ -225,12 +231,19 @@ def _normal_by_quadrature(
         output = evaluate(params, tc, layout)
     _, u = whitened_back(output.predicted_mps2 - accel_mps2, noise)
     grad[:size] = jacobian_transpose_times(params, tc, layout, u, output)
+    # Function j + q of sample n (slot q): Σ_n (B, B′, B″)_{j+q}(t_n) · spin_adjoint_n,
+    # summed per knot interval (a run of samples), then placed q functions on.
     interval, *slot_rows = cubic_bspline_slots(tc, spline.start_s, spline.spacing_s)
-    slots = spin_columns(params, tc, layout, tuple(slot_rows), output)
-    along = np.einsum("qxn,xn->qn", slots, u)
-    first = interval.astype(np.intp)
+    adjoint = spin_adjoint(params, u, output)
+    along = slot_rows[0] * adjoint[0]
+    along += slot_rows[1] * adjoint[1]
+    along += slot_rows[2] * adjoint[2]
+    runs = np.flatnonzero(np.diff(interval)) + 1
+    runs = np.concatenate([[0], runs])
+    sums = np.add.reduceat(along, runs, axis=1)
+    function = size + interval[runs].astype(np.intp)
     for q in range(4):
-        grad[size:] += np.bincount(first + q, weights=along[q], minlength=total - size)
+        grad[function + q] += sums[q]
 
     samples = rows.samples  # (p + 1, n): the clusters, lag p first
     t = tc[samples.reshape(-1)]
@@ -240,14 +253,18 @@ def _normal_by_quadrature(
     width = int(shift[-1].max()) + 4
     buf = np.zeros((size + width, 3, t.size))
     out = evaluate(params, t, layout, jacobian=True, out=buf[:size])
-    slots = spin_columns(params, t, layout, tuple(slot_rows), out).reshape(4, 3, *samples.shape)
+    # Function interval + q is the cluster's column shift + q: written at shift 0, then
+    # the samples past a knot (shift > 0, in the few clusters that straddle one) moved.
+    spin_columns(params, t, layout, tuple(slot_rows), out, buf[size : size + 4])
     columns = buf.reshape(size + width, 3, *samples.shape)
-    lag, cluster = np.indices(samples.shape)
-    for q in range(4):  # function interval + q is the cluster's column shift + q
-        columns[size + shift + q, :, lag, cluster] = slots[q].transpose(1, 2, 0)
-    white = whitened_rows(noise, columns)
-    white *= np.sqrt(rows.weights)
-    white = np.ascontiguousarray(white.transpose(0, 2, 1))  # (rows, n, 3): runs as views
+    lag, cluster = np.nonzero(shift)
+    if lag.size:
+        moved = columns[size : size + 4, :, lag, cluster]  # (4, 3, m): a copy
+        columns[size:, :, lag, cluster] = 0.0
+        for q in range(4):
+            columns[size + shift[lag, cluster] + q, :, lag, cluster] = moved[q].T
+    white = whitened_rows(noise, columns)  # (rows, n, 3): a run of clusters is a view
+    white *= np.sqrt(rows.weights)[:, None]
     base = white[:size].reshape(size, -1)
     hess[:size, :size] = base @ base.T
     starts = interval[0]

@@ -281,7 +281,7 @@ def quadrature_hessian(
         else:
             buf[layout.size :] = cols
     white = whitened_rows(noise, buf.reshape(buf.shape[0], 3, *samples.shape))
-    white *= np.sqrt(rows.weights)
+    white *= np.sqrt(rows.weights)[:, None]
     flat = white.reshape(white.shape[0], -1)
     return flat @ flat.T
 

@@ -443,12 +443,11 @@ def jacobian_transpose_times(
     t = np.asarray(t_s, dtype=float)
     kin = output.kinematics
     force = output.force
-    w_mat = params.sensor.gain[:, None] * params.bench.misalignment.matrix
-    u = w_mat.T @ weights  # (3, N)
+    u = _bench_weights(params, weights)
     r = params.bench.radius_m
     blocks = layout.blocks
     out = np.empty(layout.size)
-    by_theta = force.g_sin_tilt * (force.cos_theta * u[1] - force.sin_theta * u[0])
+    by_theta = _by_theta(force, u)
     # The spin rows through the powers t^j, without forming ∂ϑ/∂p, ∂ω/∂p, ∂ω̇/∂p
     # (see kinematics: ∂ϑ/∂ω_k = t^(k+1)/(k+1), ∂ω/∂ω_k = t^k, ∂ω̇/∂ω_k = k t^(k−1)).
     degree = params.spin.degree
@@ -479,6 +478,35 @@ def jacobian_transpose_times(
         out[blocks["gain"].start + i] = sensed[:, i] @ weights[i]
         out[blocks["offset"].start + i] = np.sum(weights[i])
     return out
+
+
+def _bench_weights(params: CalibrationParams, weights: np.ndarray) -> np.ndarray:
+    """u_n = Wᵀ w_n (3, N): weights on the three axes seen in the bench frame (W = Γ R)."""
+    w_mat = params.sensor.gain[:, None] * params.bench.misalignment.matrix
+    return w_mat.T @ weights
+
+
+def _by_theta(force: BenchForce, u: np.ndarray) -> np.ndarray:
+    """∂a/∂ϑ · u per sample: g sinα (cosϑ u_Y − sinϑ u_X)."""
+    return force.g_sin_tilt * (force.cos_theta * u[1] - force.sin_theta * u[0])
+
+
+def spin_adjoint(params: CalibrationParams, weights: np.ndarray, output: ModelOutput) -> np.ndarray:
+    """(3, N): ∂v_n/∂ϑ · w_n, ∂v_n/∂ω · w_n, ∂v_n/∂ω̇ · w_n — the reverse of :func:`spin_columns`.
+
+    A quantity q acting on the wheel angle alone then has
+    Σ_n ∂v_n/∂q · w_n = Σ_n (row₀ ∂ϑ/∂q + row₁ ∂ω/∂q + row₂ ∂ω̇/∂q) at sample n
+    (∂a_X = −g sinα sinϑ ∂ϑ + 2rω ∂ω, ∂a_Y = g sinα cosϑ ∂ϑ + r ∂ω̇).  The
+    paper's model (no effects); ``output`` an :func:`evaluate` result there.
+    """
+    u = _bench_weights(params, weights)
+    r = params.bench.radius_m
+    rows = np.empty((3, u.shape[1]))
+    rows[0] = _by_theta(output.force, u)
+    np.multiply(output.kinematics.omega_radps, u[0], out=rows[1])
+    rows[1] *= 2 * r
+    np.multiply(u[1], r, out=rows[2])
+    return rows
 
 
 def predict(
