@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import inspect
 import itertools
 import re
 import statistics
@@ -106,6 +107,8 @@ def stage_times(session_fit_module, recording):
     # The fit's last evaluation serves the motion check, as SessionFit runs it (not
     # in revisions before JointFit.fit_evaluated).
     keeps = hasattr(session.fitter, "fit_evaluated")
+    # ... and the window search's fastest |ω| the start (not before JointFit.start took it).
+    hints = "fastest_radps" in inspect.signature(session.fitter.start).parameters
 
     def run() -> list[float]:
         marks = [time.perf_counter()]
@@ -113,7 +116,12 @@ def stage_times(session_fit_module, recording):
         marks.append(time.perf_counter())
         rests = sf.find_rests(recording, (choice.found.start_s, choice.found.end_s))
         marks.append(time.perf_counter())
-        guess = session.fitter.start(choice.recording)
+        if hints:  # the window search's fastest |ω| sets the start's thinning
+            found = choice.found
+            fastest = max(abs(found.omega_start_radps), abs(found.omega_end_radps))
+            guess = session.fitter.start(choice.recording, fastest)
+        else:
+            guess = session.fitter.start(choice.recording)
         marks.append(time.perf_counter())
         if keeps:
             result, evaluated = session.fitter.fit_evaluated(choice.recording, guess=guess)

@@ -63,6 +63,7 @@ def initial_guess(
     spin_degree: int = 3,
     spline=None,
     omega_radps: np.ndarray | None = None,
+    fastest_radps: float | None = None,
 ) -> InitialGuess:
     """Starting parameters from samples ``accel_mps2`` at centred times ``t_s``.
 
@@ -73,6 +74,9 @@ def initial_guess(
     ``omega_radps`` (|ω| per sample, e.g. from a gyroscope) replaces the
     phase's derivative in the regression of step 3: differentiating a noisy
     phase over short knots would attenuate the centripetal term.
+    ``fastest_radps``: the wheel's fastest |ω| in the window when it is known
+    (the window search measures it); it sets the thinning instead of a
+    spectrum of every sample (without a spline).
     """
     if (radius_m is None) == (tilt_rad is None):
         raise ValueError("give exactly one of radius_m and tilt_rad")
@@ -85,8 +89,11 @@ def initial_guess(
         stride = 1  # too few samples to thin: the turn rate would not change that
     else:
         rate_all = 1.0 / np.median(np.diff(t_all))
-        turn_hz_all = _dominant_frequency(_plane_signal(v_all), rate_all)
-        omega_max = 2 * 2 * np.pi * turn_hz_all
+        if spline is None and fastest_radps is not None:
+            omega_max = 2 * abs(fastest_radps)  # the same margin as the dominant line's below
+        else:
+            turn_hz_all = _dominant_frequency(_plane_signal(v_all), rate_all)
+            omega_max = 2 * 2 * np.pi * turn_hz_all
         stride = thinning_stride(t_all.size, _MAX_SAMPLES, rate_all, omega_max)
     t = t_all[::stride]
     v = v_all[::stride]

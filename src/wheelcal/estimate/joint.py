@@ -196,8 +196,12 @@ class JointFit:
             )
         return info
 
-    def start(self, recording: Recording) -> InitialGuess:
-        """The closed-form starting point (:mod:`wheelcal.estimate.initial`) for a window."""
+    def start(self, recording: Recording, fastest_radps: float | None = None) -> InitialGuess:
+        """The closed-form starting point (:mod:`wheelcal.estimate.initial`) for a window.
+
+        ``fastest_radps``: the wheel's fastest |ω| in the window, when the window
+        search has measured it (it spares the start a spectrum of every sample).
+        """
         info = self._checked_info(recording)
         t = recording.time_s
         tc = t - 0.5 * (t[0] + t[-1])
@@ -215,6 +219,7 @@ class JointFit:
             spin_degree=self.spin_degree,
             spline=self._spline(tc),
             omega_radps=rate,
+            fastest_radps=fastest_radps,
         )
         if self.geometry == "rolling":  # r is known: the vertical guess only fitted it
             bench = dataclasses.replace(guess.params.bench, radius_m=info.radius_m)

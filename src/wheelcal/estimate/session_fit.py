@@ -215,6 +215,7 @@ class SessionFit:
         """The accelerometer-only fit of the free spin (the paper's cubic)."""
         gates = self.gates
         choice = choose_window(recording, self.start_s, self.end_s, gates.max_window_s)
+        fastest = None
         if choice.found is not None:
             fastest = max(abs(choice.found.omega_start_radps), abs(choice.found.omega_end_radps))
             refuse_undersampled(recording.source, recording.rate_hz, fastest, gates)
@@ -224,7 +225,7 @@ class SessionFit:
         window = choice.recording
         note = ""
         while True:
-            guess = self.fitter.start(window)
+            guess = self.fitter.start(window, fastest)  # a shortened window: no faster
             _check_implied_radius(guess, window, gates)
             result, evaluated = self.fitter.fit_evaluated(window, guess=guess)
             motion, reference = _motion(result, window, rests, evaluated)
