@@ -72,6 +72,17 @@ class QuadratureRows:
         """(p + 1, n) sample indices: row j holds each cluster's sample at lag p − j."""
         return self.last[None, :] - np.arange(self.order, -1, -1)[:, None]
 
+    def weigh(self, white: np.ndarray) -> float:
+        """Weigh whitened rows (k, n, 3) in place, up to the returned factor of their Gram.
+
+        The cells' rows all weigh s: only the rows past them (weight 1) are scaled,
+        by √(1/s), and the Gram of the rows is then multiplied by s.
+        """
+        top = float(self.weights.max()) if self.weights.size else 1.0
+        odd = np.flatnonzero(self.weights != top)
+        white[:, odd, :] *= np.sqrt(self.weights[odd] / top)[:, None]
+        return top
+
 
 def quadrature_rows(samples: int, order: int, stride: int) -> QuadratureRows:
     """Centres of the whole cells of ``stride`` outputs, then every output past them."""

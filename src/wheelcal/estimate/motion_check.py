@@ -264,17 +264,24 @@ def _normal_by_quadrature(
         for q in range(4):
             columns[size + shift[lag, cluster] + q, :, lag, cluster] = moved[q].T
     white = whitened_rows(noise, columns)  # (rows, n, 3): a run of clusters is a view
-    white *= np.sqrt(rows.weights)[:, None]
+    factor = rows.weigh(white)
     base = white[:size].reshape(size, -1)
     hess[:size, :size] = base @ base.T
+    # One product per run of clusters starting in the same interval j (functions j …
+    # j + width − 1), then each of the width rows added for every run at once.
     starts = interval[0]
     cuts = np.flatnonzero(np.diff(starts)) + 1
-    for a, b in itertools.pairwise([0, *cuts.tolist(), starts.size]):
+    bounds = [0, *cuts.tolist(), starts.size]
+    first = starts[bounds[:-1]]  # distinct, increasing
+    cross = np.empty((first.size, width, size + width))
+    for r, (a, b) in enumerate(itertools.pairwise(bounds)):
         block = white[:, a:b, :].reshape(size + width, -1)
-        cross = block[size:] @ block.T
-        here = slice(size + int(starts[a]), size + int(starts[a]) + width)
-        hess[here, :size] += cross[:, :size]
-        hess[here, here] += cross[:, size:]
+        np.matmul(block[size:], block.T, out=cross[r])
+    own = size + first[:, None] + np.arange(width)  # (runs, width) rows of H
+    for w in range(width):
+        hess[own[:, w], :size] += cross[:, w, :size]
+        hess[own[:, w : w + 1], own] += cross[:, w, size:]
+    hess *= factor
     keep = size + spline.size
     hess[:size, size:] = hess[size:, :size].T
     return hess[:keep, :keep], grad[:keep]

@@ -281,9 +281,11 @@ def quadrature_hessian(
         else:
             buf[layout.size :] = cols
     white = whitened_rows(noise, buf.reshape(buf.shape[0], 3, *samples.shape))
-    white *= np.sqrt(rows.weights)[:, None]
+    factor = rows.weigh(white)
     flat = white.reshape(white.shape[0], -1)
-    return flat @ flat.T
+    gram = flat @ flat.T
+    gram *= factor
+    return gram
 
 
 def gradient_pass(
