@@ -20,7 +20,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wheelcal.estimate import motion_check
+from wheelcal.estimate import motion_check, motion_quadrature
 from wheelcal.estimate.fisher_quadrature import quadrature_rows
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.motion_check import KNOT_SPACING_S, _normal_with_spline, check_motion
@@ -77,13 +77,10 @@ def one_chunk(request):
     return JointFit().fit(recording), recording
 
 
-@pytest.mark.parametrize("stride", [5, 9])
-def test_sums_by_quadrature_equal_the_dense_rows_and_gradient(one_chunk, monkeypatch, stride):
-    # The stride forced: the rule's own choice would be 7 here.
-    result, recording = one_chunk
-    noise = result.noise
-    assert noise.order < 4 and result.time_s.size <= CHUNK_SAMPLES
+def _quadrature_against_dense(result, recording, monkeypatch, stride):
+    """H against the same rows of the dense whitened columns, g against the dense sums."""
     monkeypatch.setattr(motion_check, "quadrature_stride", lambda *args: stride)
+    noise = result.noise
     tc = result.centred_time_s
     spline = SpinSpline(float(tc[0]), float(tc[-1]), KNOT_SPACING_S)
     layout = result.layout
@@ -104,6 +101,24 @@ def test_sums_by_quadrature_equal_the_dense_rows_and_gradient(one_chunk, monkeyp
     np.testing.assert_allclose(hess / np.outer(d, d), expected / np.outer(d, d), atol=1e-10)
     d = np.sqrt(np.diag(dense.hessian))
     np.testing.assert_allclose(grad / d, dense.gradient / d, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("stride", [5, 9])
+def test_sums_by_quadrature_equal_the_dense_rows_and_gradient(one_chunk, monkeypatch, stride):
+    # The stride forced: the rule's own choice would be 7 here.
+    result, recording = one_chunk
+    assert result.noise.order < 4 and result.time_s.size <= CHUNK_SAMPLES
+    _quadrature_against_dense(result, recording, monkeypatch, stride)
+
+
+def test_sums_by_quadrature_over_several_chunks(fitted, monkeypatch):
+    # 1 kHz: g a chunk at a time with FIR history, H's clusters in batches (forced small).
+    result, recording = fitted
+    if result.time_s.size <= CHUNK_SAMPLES:
+        pytest.skip("one chunk (the white fixture)")
+    assert result.noise.order > 0
+    monkeypatch.setattr(motion_quadrature, "CHUNK_SAMPLES", 3000)
+    _quadrature_against_dense(result, recording, monkeypatch, 41)
 
 
 def test_dof_are_the_spline_directions_beyond_the_cubic(fitted):

@@ -72,6 +72,13 @@ class QuadratureRows:
         """(p + 1, n) sample indices: row j holds each cluster's sample at lag p − j."""
         return self.last[None, :] - np.arange(self.order, -1, -1)[:, None]
 
+    def batches(self, max_samples: int):
+        """The rows in parts of at most ``max_samples`` evaluated samples (bounded memory)."""
+        per = max(1, max_samples // (self.order + 1))
+        for start in range(0, self.last.size, per):
+            part = slice(start, start + per)
+            yield QuadratureRows(self.last[part], self.weights[part], self.order)
+
     def weigh(self, white: np.ndarray) -> float:
         """Weigh whitened rows (k, n, 3) in place, up to the returned factor of their Gram.
 

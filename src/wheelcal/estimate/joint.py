@@ -338,7 +338,7 @@ class JointFit:
             # The gyro's reading and the spline mirror with the twin (twins.py).
             start = choose_twin(start).chosen
         normal0 = None
-        if gyro is None and tc.size <= CHUNK_SAMPLES:  # one evaluation for both
+        if gyro is None and (tc.size <= CHUNK_SAMPLES or not self.effects):
             normal0, noise = accumulate_fitting_noise(
                 start, tc, v, layout, self._noise_model, nuisance_extra(nuisance_columns(layout))
             )

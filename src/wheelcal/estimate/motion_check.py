@@ -33,24 +33,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from wheelcal.estimate.fisher_quadrature import (
-    QuadratureRows,
-    quadrature_rows,
-    quadrature_stride,
-    whitened_rows,
-)
+from wheelcal.estimate.fisher_quadrature import quadrature_rows, quadrature_stride
 from wheelcal.estimate.information import scaled_pinv
+from wheelcal.estimate.motion_quadrature import normal_by_quadrature
 from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, whitened_back
+from wheelcal.estimate.normal_equations import CHUNK_SAMPLES
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import evaluate
 from wheelcal.model.effects import SpinSpline, cubic_bspline_slots
-from wheelcal.model.forward import (
-    EvaluatedModel,
-    jacobian_transpose_times,
-    spin_adjoint,
-    spin_columns,
-)
+from wheelcal.model.forward import EvaluatedModel, spin_columns
 from wheelcal.model.parameters import AXES
 
 #: Knots of the alternative motion, and the fewest turns between two of them.
@@ -137,13 +128,13 @@ def _normal_with_spline(
     params = result.params
     size = layout.size
     p = noise.order
-    if not layout.effects and tc.size <= CHUNK_SAMPLES:
+    if not layout.effects:  # J̃ᵀr̃ without J: the paper's model
         omega = float(np.max(np.abs(params.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
         rate = (tc.size - 1) / max(float(tc[-1] - tc[0]), 1e-12)
         stride = quadrature_stride(rate, omega, p, spline.spacing_s)
         if stride > 1:
             rows = quadrature_rows(tc.size, p, stride)
-            return _normal_by_quadrature(result, accel_mps2, noise, spline, rows, evaluated)
+            return normal_by_quadrature(result, accel_mps2, noise, spline, rows, evaluated)
     # Three rows past the last function: the last sample's slot 3 (exactly zero there).
     total = size + spline.size + 3
     hess = np.zeros((total, total))
@@ -194,94 +185,6 @@ def _normal_with_spline(
             else:
                 flat = sw.reshape(sw.shape[0], -1)
                 hess[rows_here, rows_here] += flat @ flat.T
-    keep = size + spline.size
-    hess[:size, size:] = hess[size:, :size].T
-    return hess[:keep, :keep], grad[:keep]
-
-
-def _normal_by_quadrature(
-    result: CalibrationResult,
-    accel_mps2: np.ndarray,
-    noise: NoiseModel,
-    spline: SpinSpline,
-    rows: QuadratureRows,
-    evaluated: EvaluatedModel | None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """H by quadrature on ``rows`` (:mod:`~wheelcal.estimate.fisher_quadrature`), g on every row.
-
-    g: the residual at the result whitened back (u = Wᵀ W r, three rows), then
-    Jᵀu through the model's reverse mode, and each spline function's sum from
-    the reverse mode's wheel-angle rows (:func:`~wheelcal.model.forward.spin_adjoint`)
-    times its B, B′, B″ (no Jacobian).  H: the model, its Jacobian and the
-    slots at the kept rows' FIR clusters only.  A cluster's samples may lie in
-    two knot intervals, so its columns cover every function alive over it
-    (its first sample's interval j … the last's + 3); the clusters that start in
-    interval j then add their Gram block with the base columns and each other
-    in one product.  The paper's model, one chunk.
-    """
-    tc = result.centred_time_s
-    layout = result.layout
-    params = result.params
-    size = layout.size
-    total = size + spline.size + 3  # three rows past the last function, as above
-    hess = np.zeros((total, total))
-    grad = np.zeros(total)
-    output = evaluated.output_at(params, tc) if evaluated is not None else None
-    if output is None:
-        output = evaluate(params, tc, layout)
-    _, u = whitened_back(output.predicted_mps2 - accel_mps2, noise)
-    grad[:size] = jacobian_transpose_times(params, tc, layout, u, output)
-    # Function j + q of sample n (slot q): Σ_n (B, B′, B″)_{j+q}(t_n) · spin_adjoint_n,
-    # summed per knot interval (a run of samples), then placed q functions on.
-    interval, *slot_rows = cubic_bspline_slots(tc, spline.start_s, spline.spacing_s)
-    adjoint = spin_adjoint(params, u, output)
-    along = slot_rows[0] * adjoint[0]
-    along += slot_rows[1] * adjoint[1]
-    along += slot_rows[2] * adjoint[2]
-    runs = np.flatnonzero(np.diff(interval)) + 1
-    runs = np.concatenate([[0], runs])
-    sums = np.add.reduceat(along, runs, axis=1)
-    function = size + interval[runs].astype(np.intp)
-    for q in range(4):
-        grad[function + q] += sums[q]
-
-    samples = rows.samples  # (p + 1, n): the clusters, lag p first
-    t = tc[samples.reshape(-1)]
-    interval, *slot_rows = cubic_bspline_slots(t, spline.start_s, spline.spacing_s)
-    interval = interval.astype(np.intp).reshape(samples.shape)
-    shift = interval - interval[0]  # a sample's interval from its cluster's first
-    width = int(shift[-1].max()) + 4
-    buf = np.zeros((size + width, 3, t.size))
-    out = evaluate(params, t, layout, jacobian=True, out=buf[:size])
-    # Function interval + q is the cluster's column shift + q: written at shift 0, then
-    # the samples past a knot (shift > 0, in the few clusters that straddle one) moved.
-    spin_columns(params, t, layout, tuple(slot_rows), out, buf[size : size + 4])
-    columns = buf.reshape(size + width, 3, *samples.shape)
-    lag, cluster = np.nonzero(shift)
-    if lag.size:
-        moved = columns[size : size + 4, :, lag, cluster]  # (4, 3, m): a copy
-        columns[size:, :, lag, cluster] = 0.0
-        for q in range(4):
-            columns[size + shift[lag, cluster] + q, :, lag, cluster] = moved[q].T
-    white = whitened_rows(noise, columns)  # (rows, n, 3): a run of clusters is a view
-    factor = rows.weigh(white)
-    base = white[:size].reshape(size, -1)
-    hess[:size, :size] = base @ base.T
-    # One product per run of clusters starting in the same interval j (functions j …
-    # j + width − 1), then each of the width rows added for every run at once.
-    starts = interval[0]
-    cuts = np.flatnonzero(np.diff(starts)) + 1
-    bounds = [0, *cuts.tolist(), starts.size]
-    first = starts[bounds[:-1]]  # distinct, increasing
-    cross = np.empty((first.size, width, size + width))
-    for r, (a, b) in enumerate(itertools.pairwise(bounds)):
-        block = white[:, a:b, :].reshape(size + width, -1)
-        np.matmul(block[size:], block.T, out=cross[r])
-    own = size + first[:, None] + np.arange(width)  # (runs, width) rows of H
-    for w in range(width):
-        hess[own[:, w], :size] += cross[:, w, :size]
-        hess[own[:, w : w + 1], own] += cross[:, w, size:]
-    hess *= factor
     keep = size + spline.size
     hess[:size, size:] = hess[size:, :size].T
     return hess[:keep, :keep], grad[:keep]

@@ -209,16 +209,18 @@ def accumulate_fitting_noise(
     """The noise model of the residual at ``params``, and its whitened normal equations.
 
     ``noise_of`` takes the residual (data − model, (N, 3)).  The joint fit's
-    stage 2 needs both at its start, for a window of one chunk.  For the paper's
-    model the residual comes first (the model without its Jacobian), then the
-    cost and g over every sample by :func:`gradient_pass` (g of the free
-    parameters only: no extra rows), and H by quadrature on a fraction of the
-    rows (:mod:`wheelcal.estimate.fisher_quadrature`) when the wheel turns
-    slowly enough for it; otherwise H and g are :func:`accumulate`'s, from one
-    evaluation of the model (its Jacobian kept until the noise is known).
+    stage 2 needs both at its start.  For the paper's model the residual comes
+    first (the model without its Jacobian), then the cost and g over every
+    sample by :func:`gradient_pass` (g of the free parameters only: no extra
+    rows), and H by quadrature on a fraction of the rows
+    (:mod:`wheelcal.estimate.fisher_quadrature`) when the wheel turns slowly
+    enough for it; otherwise H and g are :func:`accumulate`'s (for a window of
+    one chunk from one evaluation of the model, its Jacobian kept until the
+    noise is known).  With effects: one chunk only.
     """
-    if t_s.size > CHUNK_SAMPLES or chunking(layout, t_s, None)[1]:
-        raise ValueError("accumulate_fitting_noise takes one chunk of a dense layout")
+    one_chunk = t_s.size <= CHUNK_SAMPLES
+    if chunking(layout, t_s, None)[1] or (layout.effects and not one_chunk):
+        raise ValueError("accumulate_fitting_noise takes a dense layout (with effects: one chunk)")
     extra_size = getattr(extra, "size", None) if extra is not None else None
     if layout.effects:  # J̃ᵀr̃ without J (gradient_pass) covers the paper's model only
         buf, residual, extra_size = _filled_buffer(
@@ -226,10 +228,16 @@ def accumulate_fitting_noise(
         )
         noise = noise_of(np.negative(residual))
         return _whitened_normal(buf, residual, noise), noise
-    output = evaluate(params, t_s, layout)
-    noise = noise_of(np.subtract(accel_mps2, output.predicted_mps2))
+    output = None
+    if one_chunk:
+        output = evaluate(params, t_s, layout)
+        noise = noise_of(np.subtract(accel_mps2, output.predicted_mps2))
+    else:
+        noise = noise_of(_residual_in_chunks(params, t_s, accel_mps2, layout))
     stride = quadrature_stride(_rate_hz(t_s), _fastest_radps(params, t_s), noise.order)
     if stride == 1:
+        if not one_chunk:
+            return accumulate(params, t_s, accel_mps2, layout, noise, extra=extra), noise
         buf, residual, extra_size = _filled_buffer(
             params, t_s, accel_mps2, layout, extra, extra_size, output=output
         )
@@ -238,6 +246,18 @@ def accumulate_fitting_noise(
     rows = quadrature_rows(t_s.size, noise.order, stride)
     hessian = quadrature_hessian(params, t_s, layout, noise, rows, extra)
     return dataclasses.replace(normal, hessian=hessian), noise
+
+
+def _residual_in_chunks(
+    params: CalibrationParams, t_s: np.ndarray, accel_mps2: np.ndarray, layout: ParameterLayout
+) -> np.ndarray:
+    """Data − model (N, 3), the model evaluated a chunk at a time (bounded temporaries)."""
+    residual = np.empty_like(accel_mps2, dtype=float)
+    for start in range(0, t_s.size, CHUNK_SAMPLES):
+        stop = min(t_s.size, start + CHUNK_SAMPLES)
+        predicted = evaluate(params, t_s[start:stop], layout).predicted_mps2
+        np.subtract(accel_mps2[start:stop], predicted, out=residual[start:stop])
+    return residual
 
 
 def _whitened_normal(buf: np.ndarray, residual: np.ndarray, noise: NoiseModel) -> NormalEquations:
@@ -268,23 +288,29 @@ def quadrature_hessian(
     rows: QuadratureRows,
     extra: ExtraColumns | None = None,
 ) -> np.ndarray:
-    """J̃ᵀJ̃ over [free | extra] by the quadrature ``rows`` (the model at their clusters only)."""
-    samples = rows.samples  # (p + 1, n)
-    t = t_s[samples.reshape(-1)]
+    """J̃ᵀJ̃ over [free | extra] by the quadrature ``rows`` (the model at their clusters only).
+
+    The clusters are evaluated at most :data:`CHUNK_SAMPLES` samples at a time.
+    """
     extra_size = getattr(extra, "size", None) if extra is not None else 0
-    buf = np.empty((layout.size + (extra_size or 0), 3, t.size))
-    out = evaluate(params, t, layout, jacobian=True, out=buf[: layout.size])
-    if extra is not None:
-        cols = extra(params, out, t)
-        if extra_size is None:
-            buf = np.concatenate([buf[: layout.size], cols])
-        else:
-            buf[layout.size :] = cols
-    white = whitened_rows(noise, buf.reshape(buf.shape[0], 3, *samples.shape))
-    factor = rows.weigh(white)
-    flat = white.reshape(white.shape[0], -1)
-    gram = flat @ flat.T
-    gram *= factor
+    gram = None
+    for part in rows.batches(CHUNK_SAMPLES):
+        samples = part.samples  # (p + 1, n)
+        t = t_s[samples.reshape(-1)]
+        buf = np.empty((layout.size + (extra_size or 0), 3, t.size))
+        out = evaluate(params, t, layout, jacobian=True, out=buf[: layout.size])
+        if extra is not None:
+            cols = extra(params, out, t)
+            if extra_size is None:
+                buf = np.concatenate([buf[: layout.size], cols])
+            else:
+                buf[layout.size :] = cols
+        white = whitened_rows(noise, buf.reshape(buf.shape[0], 3, *samples.shape))
+        factor = part.weigh(white)
+        flat = white.reshape(white.shape[0], -1)
+        here = flat @ flat.T
+        here *= factor
+        gram = here if gram is None else gram + here
     return gram
 
 
