@@ -286,12 +286,13 @@ class JointFit:
         omega_max = float(np.max(np.abs(initial.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
         stride = thinning_stride(t.size, _STAGE1_SAMPLES, recording.rate_hz, omega_max)
         std0 = np.maximum(difference_stds(v) / np.sqrt(2), 1e-6)
+        white0 = NoiseModel.white(std0)
         gyro1 = None
         if gyro is not None:
             gyro_std0 = np.maximum(np.std(np.diff(gyro, axis=0), axis=0) / np.sqrt(2), 1e-9)
             gyro1 = (gyro_t[::stride], gyro[::stride], NoiseModel.white(gyro_std0))
         out = levenberg_marquardt(
-            _residual_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0), gyro=gyro1),
+            _residual_fn(tc[::stride], v[::stride], layout, white0, gyro=gyro1),
             initial,
             layout,
             self.max_iterations,
@@ -306,7 +307,7 @@ class JointFit:
             # is not the end's (a warm-up's τ has no column while its amplitude is 0).
             gradient_fn=None
             if gyro is not None or self.effects
-            else _gradient_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
+            else _gradient_fn(tc[::stride], v[::stride], layout, white0),
         )
         if gyro is None:  # a ladder of decimations toward all samples (a long, fast recording)
             for target in _ladder(t.size):
@@ -315,7 +316,7 @@ class JointFit:
                     continue
                 stride = finer
                 out = levenberg_marquardt(
-                    _residual_fn(tc[::stride], v[::stride], layout, NoiseModel.white(std0)),
+                    _residual_fn(tc[::stride], v[::stride], layout, white0),
                     out.params,
                     layout,
                     self.max_iterations,
@@ -323,9 +324,7 @@ class JointFit:
                     initial_damping=1e-9,  # warm start: Gauss–Newton steps
                     jacobian_on_trial=True,
                     final_step_tol=_STAGE1_FINAL_STEP_TOL,
-                    gradient_fn=_gradient_fn(
-                        tc[::stride], v[::stride], layout, NoiseModel.white(std0)
-                    ),
+                    gradient_fn=_gradient_fn(tc[::stride], v[::stride], layout, white0),
                 )
         # Stage 2: noise model from the full residual, whitened refit on all samples.
         # The accumulations carry the sensitivities to the fixed quantities as
