@@ -24,13 +24,13 @@ from wheelcal.estimate.fisher_quadrature import (
     MIN_ROWS_PER_TURN,
     quadrature_rows,
     quadrature_stride,
+    stride_for,
 )
 from wheelcal.estimate.joint import JointFit, residual_of
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.normal_equations import (
     CHUNK_SAMPLES,
     _filled_buffer,
-    _rate_hz,
     accumulate,
     accumulate_fitting_noise,
     quadrature_hessian,
@@ -104,8 +104,7 @@ def _sigma_error(result, window, noise, stride=None) -> float:
     """Largest relative difference of the fit's σ: quadrature H against the full sum."""
     layout, tc, v = result.layout, result.centred_time_s, window.accel_mps2
     if stride is None:
-        omega = float(np.max(np.abs(result.params.spin.omega_at(tc[[0, -1]]))))
-        stride = quadrature_stride(_rate_hz(tc), omega, noise.order)
+        stride = stride_for(tc, result.params.spin, noise.order)
     assert stride > 1
     rows = quadrature_rows(tc.size, noise.order, stride)
     quad = quadrature_hessian(result.params, tc, layout, noise, rows)

@@ -44,7 +44,7 @@ def fitted(request):
 @pytest.fixture
 def by_parts(monkeypatch):
     """Every row: the quadrature's stride forced to 1."""
-    monkeypatch.setattr(motion_check, "quadrature_stride", lambda *args: 1)
+    monkeypatch.setattr(motion_check, "stride_for", lambda *args: 1)
 
 
 def test_sums_by_parts_equal_one_dense_accumulation(fitted, by_parts):
@@ -79,7 +79,7 @@ def one_chunk(request):
 
 def _quadrature_against_dense(result, recording, monkeypatch, stride):
     """H against the same rows of the dense whitened columns, g against the dense sums."""
-    monkeypatch.setattr(motion_check, "quadrature_stride", lambda *args: stride)
+    monkeypatch.setattr(motion_check, "stride_for", lambda *args: stride)
     noise = result.noise
     tc = result.centred_time_s
     spline = SpinSpline(float(tc[0]), float(tc[-1]), KNOT_SPACING_S)

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.model import SpinParams
 
 #: Whitened outputs per wheel turn (at its fastest) that one kept row may stand for at most
 #: 1/this of: s ≤ samples per turn / this.
@@ -53,6 +54,20 @@ def quadrature_stride(
     s = int(np.floor(rows / MIN_ROWS_PER_TURN))
     s -= 1 - s % 2  # odd
     return s if s > order + 1 else 1
+
+
+def stride_for(
+    t_s: np.ndarray, spin: SpinParams, order: int, shortest_s: float | None = None
+) -> int:
+    """:func:`quadrature_stride` for samples at times ``t_s`` of the spin law ``spin``.
+
+    The rate is the samples' mean; |ω| is taken at the ends and the middle (a
+    spin-down is fastest at an end).
+    """
+    span = float(t_s[-1] - t_s[0]) if t_s.size > 1 else 0.0
+    rate = (t_s.size - 1) / span if span > 0 else float("nan")
+    fastest = float(np.max(np.abs(spin.omega_at(t_s[[0, t_s.size // 2, -1]]))))
+    return quadrature_stride(rate, fastest, order, shortest_s)
 
 
 @dataclass(frozen=True, eq=False)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from wheelcal.estimate.fisher_quadrature import quadrature_rows, quadrature_stride
+from wheelcal.estimate.fisher_quadrature import quadrature_rows, stride_for
 from wheelcal.estimate.information import scaled_pinv
 from wheelcal.estimate.motion_quadrature import normal_by_quadrature
 from wheelcal.estimate.noise_model import NoiseModel
@@ -104,19 +104,20 @@ def _normal_with_spline(
 ) -> tuple[np.ndarray, np.ndarray]:
     """H = J̃ᵀJ̃ and g = J̃ᵀr̃ over [the fit's parameters | the spline's coefficients].
 
-    One pass over the samples in chunks (:data:`CHUNK_SAMPLES`, FIR history
-    carried as in :func:`~wheelcal.estimate.normal_equations.accumulate`)
-    evaluates the model and its Jacobian once.  A coefficient c_k acts on the
-    wheel angle alone (Δϑ = B_k, Δω = B_k′, Δω̇ = B_k″), and in knot interval j
-    only B_j … B_{j+3} are not zero: each sample's four *slot* columns (its
-    interval's functions, :func:`~wheelcal.model.forward.spin_columns`) are
-    computed once and whitened with the base columns.  Whitening a slot row
-    treats its history as the same functions' when it lies in the interval
-    before; :func:`_add_slot_corrections` adds what the FIR history truly holds
-    there (the next slot's column: that interval numbers its functions from
-    one lower), and the function before the interval (B_{j−1}), which only
-    that history reaches.  Their Gram blocks with the base columns and with
-    each other are then added per interval by small products.  The sums are
+    For the paper's model, H by quadrature and g without a Jacobian
+    (:mod:`~wheelcal.estimate.motion_quadrature`) when the wheel turns slowly enough for the
+    rule (:func:`~wheelcal.estimate.fisher_quadrature.stride_for`); otherwise the sums by parts
+    over every sample below.  One pass over the samples in chunks (:data:`CHUNK_SAMPLES`, FIR
+    history carried as in :func:`~wheelcal.estimate.normal_equations.accumulate`) evaluates the
+    model and its Jacobian once.  A coefficient c_k acts on the wheel angle alone (Δϑ = B_k, Δω
+    = B_k′, Δω̇ = B_k″), and in knot interval j only B_j … B_{j+3} are not zero: each sample's
+    four *slot* columns (its interval's functions, :func:`~wheelcal.model.forward.spin_columns`)
+    are computed once and whitened with the base columns.  Whitening a slot row treats its
+    history as the same functions' when it lies in the interval before;
+    :func:`_add_slot_corrections` adds what the FIR history truly holds there (the next slot's
+    column: that interval numbers its functions from one lower), and the function before the
+    interval (B_{j−1}), which only that history reaches.  Their Gram blocks with the base
+    columns and with each other are then added per interval by small products.  The sums are
     those of one dense accumulation over every coefficient, to round-off.
     ``evaluated``: the model at the result without a Jacobian (the fit's last
     pass); a chunk it covers forms only the Jacobian from it.
@@ -129,9 +130,7 @@ def _normal_with_spline(
     size = layout.size
     p = noise.order
     if not layout.effects:  # J̃ᵀr̃ without J: the paper's model
-        omega = float(np.max(np.abs(params.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
-        rate = (tc.size - 1) / max(float(tc[-1] - tc[0]), 1e-12)
-        stride = quadrature_stride(rate, omega, p, spline.spacing_s)
+        stride = stride_for(tc, params.spin, p, spline.spacing_s)
         if stride > 1:
             rows = quadrature_rows(tc.size, p, stride)
             return normal_by_quadrature(result, accel_mps2, noise, spline, rows, evaluated)

@@ -27,7 +27,7 @@ import numpy as np
 from wheelcal.estimate.fisher_quadrature import (
     QuadratureRows,
     quadrature_rows,
-    quadrature_stride,
+    stride_for,
     whitened_rows,
 )
 from wheelcal.estimate.noise_model import NoiseModel
@@ -234,7 +234,7 @@ def accumulate_fitting_noise(
         noise = noise_of(np.subtract(accel_mps2, output.predicted_mps2))
     else:
         noise = noise_of(_residual_in_chunks(params, t_s, accel_mps2, layout))
-    stride = quadrature_stride(_rate_hz(t_s), _fastest_radps(params, t_s), noise.order)
+    stride = stride_for(t_s, params.spin, noise.order)
     if stride == 1:
         if not one_chunk:
             return accumulate(params, t_s, accel_mps2, layout, noise, extra=extra), noise
@@ -268,16 +268,6 @@ def _whitened_normal(buf: np.ndarray, residual: np.ndarray, noise: NoiseModel) -
         gradient=gram[:-1, -1].copy(),
         entries=rows,
     )
-
-
-def _rate_hz(t_s: np.ndarray) -> float:
-    span = float(t_s[-1] - t_s[0]) if t_s.size > 1 else 0.0
-    return (t_s.size - 1) / span if span > 0 else float("nan")
-
-
-def _fastest_radps(params: CalibrationParams, t_s: np.ndarray) -> float:
-    """|ω| at the window's ends and middle (a spin-down's fastest is at an end)."""
-    return float(np.max(np.abs(params.spin.omega_at(t_s[[0, t_s.size // 2, -1]]))))
 
 
 def quadrature_hessian(

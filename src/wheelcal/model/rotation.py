@@ -108,7 +108,7 @@ class Rotation:
 
     @classmethod
     def composed(cls, matrix: np.ndarray) -> Rotation:
-        """R from a product of rotations this code built (``R @ exp_so3(δ)``, ``R @ flip``).
+        """R from a product of rotations this code built (``R @ exp_so3(δ)``, ``R @ flip``, U Vᵀ).
 
         Re-orthonormalised as the constructor does (the same matrix, bit for bit),
         but not validated: a product of rotations is one.  The optimiser builds
@@ -136,7 +136,7 @@ class Rotation:
         """The proper rotation closest (Frobenius) to an arbitrary 3×3 matrix."""
         u, _, vt = np.linalg.svd(np.asarray(matrix, dtype=float))
         d = np.sign(np.linalg.det(u @ vt))
-        return cls(u @ np.diag([1.0, 1.0, d]) @ vt)
+        return cls.composed(u @ np.diag([1.0, 1.0, d]) @ vt)  # a rotation by construction
 
     def euler_deg(self) -> np.ndarray:
         """Euler angles (deg) in :data:`EULER_CONVENTION`; unique for |euler_2| < 90°."""
