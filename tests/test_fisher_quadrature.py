@@ -9,7 +9,8 @@ Two separate claims:
   AR colour of mixed per-axis orders;
 * the rule: with the stride ``quadrature_stride`` picks, the σ from the
   quadrature's H are those of the full sum within 1e-4 of themselves (measured:
-  9e-6 on Table I at 200 Hz, 6e-5 on the fast "rising" spin) — and a stride far
+  2.2e-5 on Table I at 200 Hz with s = 11, 2.5e-5 at 1 kHz with s = 59, 5.9e-5 on
+  the fast "rising" spin with s = 3) — and a stride far
   past the rule (2 rows per turn) misses by more, so the check can fail.
 """
 
@@ -56,13 +57,14 @@ def test_rows_cover_every_output_once(samples, order, stride):
 
 
 def test_stride_is_odd_keeps_the_rows_per_turn_and_saves_evaluations():
-    omega = 2 * np.pi * 1.4  # 142 samples per turn at 200 Hz
+    omega = 2 * np.pi * 1.4  # 143 samples per turn at 200 Hz
     s = quadrature_stride(200.0, omega, 0)
-    assert s == 7 and 200.0 / (s * 1.4) >= MIN_ROWS_PER_TURN
-    assert quadrature_stride(200.0, omega, 5) == 7  # 6 samples per cluster < 7
-    assert quadrature_stride(200.0, omega, 6) == 1  # clusters as long as the cells
+    assert s == 11 and 200.0 / (s * 1.4) >= MIN_ROWS_PER_TURN
+    assert quadrature_stride(200.0, omega, 9) == 11  # 10 samples per cluster < 11
+    assert quadrature_stride(200.0, omega, 10) == 1  # clusters as long as the cells
     assert quadrature_stride(200.0, 2 * np.pi * 8.0, 0) == 1  # 25 samples per turn
-    assert quadrature_stride(1000.0, omega, 3) == 43
+    assert quadrature_stride(1000.0, omega, 3) == 59
+    assert quadrature_stride(200.0, omega, 0, shortest_s=0.5) == 7  # 100 samples per knot
     assert quadrature_stride(200.0, 0.0, 0) == 1
 
 

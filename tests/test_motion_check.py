@@ -183,8 +183,8 @@ def test_check_motion_equals_the_dense_computation(monkeypatch, name, recording)
     # As SessionFit runs it: the free-spin window, the broadband noise of its residual.
     # The Schur complement is near-singular (the spline spans the cubic's directions):
     # round-off moves the statistic by ~1e-6 of itself (measured: 2e-6 on table1, 5e-6
-    # on the wandering motor).  H by quadrature moves it by ≤ 2.4e-4 of itself and a
-    # shift by ≤ 2.2e-4 σ (measured on table1, the lowpass and three Table II sessions).
+    # on the wandering motor).  H by quadrature moves it by ≤ 4e-4 of itself and a
+    # shift by ≤ 4e-4 σ (measured at s = 11 on table1, the lowpass and three Table II sessions).
     from wheelcal.estimate import session_fit as sf
 
     choice = sf.choose_window(recording, max_window_s=sf.Gates().max_window_s)

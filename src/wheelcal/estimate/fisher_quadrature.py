@@ -6,10 +6,10 @@ slow polynomial envelopes (t^k of the spin law); the whitening filter is a
 short FIR (:mod:`wheelcal.estimate.noise_model`), which keeps a smooth signal
 smooth.  A midpoint rule over cells of ``s`` consecutive whitened outputs —
 each cell's centre row standing for all ``s`` of them — then sums the same
-products as the full sum, up to a relative error that falls as (s/n)², n the
-samples per turn: on a 90 s / 200 Hz spin (142 samples per turn) at
-s = 7, σ moves by 9e-6 of itself (by 1e-6 at 1 kHz, 6e-5 on a fast spin at 51
-samples per turn with s = 3; see ``tests/test_fisher_quadrature.py``).  The
+products as the full sum, up to a small relative error: on a 90 s / 200 Hz
+spin (143 samples per turn) at s = 11, σ moves by 2.2e-5 of itself (9e-6 at
+s = 7; 2.5e-5 at 1 kHz with s = 59; 5.9e-5 on a fast spin at 51 samples per
+turn with s = 3; 8e-3 at 2 rows per turn; see ``tests/test_fisher_quadrature.py``).  The
 outputs past the last whole cell keep their own rows (weight 1), so the
 window's ends are summed exactly.
 
@@ -31,7 +31,7 @@ from wheelcal.model import SpinParams
 
 #: Whitened outputs per wheel turn (at its fastest) that one kept row may stand for at most
 #: 1/this of: s ≤ samples per turn / this.
-MIN_ROWS_PER_TURN = 16.0
+MIN_ROWS_PER_TURN = 12.0
 
 
 def quadrature_stride(
