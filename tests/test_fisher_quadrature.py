@@ -60,8 +60,8 @@ def test_stride_is_odd_keeps_the_rows_per_turn_and_saves_evaluations():
     omega = 2 * np.pi * 1.4  # 143 samples per turn at 200 Hz
     s = quadrature_stride(200.0, omega, 0)
     assert s == 11 and 200.0 / (s * 1.4) >= MIN_ROWS_PER_TURN
-    assert quadrature_stride(200.0, omega, 9) == 11  # 10 samples per cluster < 11
-    assert quadrature_stride(200.0, omega, 10) == 1  # clusters as long as the cells
+    assert quadrature_stride(200.0, omega, 10) == 11  # clusters as long as the cells
+    assert quadrature_stride(200.0, omega, 11) == 1  # longer: more evaluations than samples
     assert quadrature_stride(200.0, 2 * np.pi * 8.0, 0) == 1  # 25 samples per turn
     assert quadrature_stride(1000.0, omega, 3) == 59
     assert quadrature_stride(200.0, omega, 0, shortest_s=0.5) == 7  # 100 samples per knot
@@ -128,7 +128,7 @@ def _sessions():
 @pytest.mark.parametrize(("name", "recording"), list(_sessions()), ids=lambda x: str(x)[:16])
 def test_the_rule_keeps_sigma_within_1e4_of_the_full_sum(name, recording):
     # The fit's noise model where the rule applies to it, and white noise (the largest
-    # stride: AR(10) on "rising" leaves clusters as long as the cells, so no quadrature).
+    # stride: AR(10) on "rising" needs clusters longer than its cells, so no quadrature).
     outcome = SessionFit().run(recording)
     result, window = outcome.result, outcome.window.recording
     white = NoiseModel.white(result.noise.marginal_std_mps2)

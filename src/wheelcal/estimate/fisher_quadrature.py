@@ -41,9 +41,10 @@ def quadrature_stride(
 
     s keeps ≥ :data:`MIN_ROWS_PER_TURN` rows per turn at ω_max, and as many per
     ``shortest_s`` (the knot spacing of a spline among the columns: its basis
-    functions live a few knot intervals).  It is 1 when the clusters would not
-    save evaluations (s ≤ p + 1: each kept row needs its own p samples of FIR
-    history) or the rate is unknown.
+    functions live a few knot intervals).  It is 1 when the clusters would take
+    more evaluations than the samples (s < p + 1: each kept row needs its own p
+    samples of FIR history; at s = p + 1 they take as many, and the Gram 1/s of
+    the rows) or the rate is unknown.
     """
     turn_hz = abs(omega_max_radps) / (2 * np.pi)
     if not (turn_hz > 0 and np.isfinite(rate_hz) and rate_hz > 0):
@@ -53,7 +54,7 @@ def quadrature_stride(
         rows = min(rows, rate_hz * shortest_s)
     s = int(np.floor(rows / MIN_ROWS_PER_TURN))
     s -= 1 - s % 2  # odd
-    return s if s > order + 1 else 1
+    return s if s > 1 and s >= order + 1 else 1
 
 
 def stride_for(
