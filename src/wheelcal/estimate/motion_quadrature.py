@@ -68,11 +68,8 @@ def _gradient(
     evaluated: EvaluatedModel | None,
     total: int,
 ) -> np.ndarray:
-    tc = result.centred_time_s
-    layout = result.layout
-    params = result.params
-    size = layout.size
-    p = noise.order
+    tc, layout, params = result.centred_time_s, result.layout, result.params
+    size, p = layout.size, noise.order
     grad = np.zeros(total)
     for start in range(0, tc.size, CHUNK_SAMPLES):
         stop = min(tc.size, start + CHUNK_SAMPLES)
@@ -105,9 +102,7 @@ def _hessian(
     rows: QuadratureRows,
     total: int,
 ) -> np.ndarray:
-    tc = result.centred_time_s
-    layout = result.layout
-    params = result.params
+    tc, layout, params = result.centred_time_s, result.layout, result.params
     size = layout.size
     hess = np.zeros((total, total))
     for part in rows.batches(CHUNK_SAMPLES):
