@@ -41,4 +41,7 @@ class SensorCorrection:
 
     def apply(self, raw_mps2: np.ndarray) -> np.ndarray:
         """Corrected samples, (N, 3)."""
-        return (np.asarray(raw_mps2, dtype=float) - self.bias_mps2) @ self.matrix.T
+        # Mᵀ C-ordered: an (N, 3) @ F-ordered (3, 3) product takes numpy's slow path.
+        return (np.asarray(raw_mps2, dtype=float) - self.bias_mps2) @ np.ascontiguousarray(
+            self.matrix.T
+        )
