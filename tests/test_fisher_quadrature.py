@@ -67,6 +67,24 @@ def test_stride_is_odd_keeps_the_rows_per_turn_and_saves_evaluations():
     assert quadrature_stride(200.0, 0.0, 0) == 1
 
 
+@pytest.mark.parametrize(
+    "omega_radps",
+    [
+        [8.0, -0.03, 1e-5, 0.0],  # a spin-down: fastest at the start
+        [5.0, 0.0, 0.006, 0.0],  # fastest at both ends
+        [13.75, 0.125, -0.003125, 0.0],  # rising and falling: 15 rad/s at t = 20 s, 13.75 at 0
+        [2.0, 0.5, 0.0, -2e-4],  # |ω| largest at an end, a turning point inside
+    ],
+)
+def test_stride_for_takes_the_fastest_turn_over_the_window(omega_radps):
+    from wheelcal.model import SpinParams
+
+    t = np.linspace(-45.0, 45.0, 18001)
+    spin = SpinParams(theta0_rad=0.0, omega_radps=np.array(omega_radps))
+    fastest = float(np.max(np.abs(spin.omega_at(t))))
+    assert stride_for(t, spin, 0) == quadrature_stride(200.0, fastest, 0)
+
+
 @pytest.fixture(scope="module")
 def session():
     recording = simulate(table1(), np.random.default_rng(0)).recording

@@ -62,12 +62,18 @@ def stride_for(
 ) -> int:
     """:func:`quadrature_stride` for samples at times ``t_s`` of the spin law ``spin``.
 
-    The rate is the samples' mean; |ω| is taken at the ends and the middle (a
-    spin-down is fastest at an end).
+    The rate is the samples' mean; the fastest |ω| is the polynomial's largest
+    over the window: at its ends or where dω/dt = 0 inside (a spin-down is
+    fastest at its start, a speed that rises and falls in between).
     """
-    span = float(t_s[-1] - t_s[0]) if t_s.size > 1 else 0.0
+    t0, t1 = float(t_s[0]), float(t_s[-1])
+    span = t1 - t0
     rate = (t_s.size - 1) / span if span > 0 else float("nan")
-    fastest = float(np.max(np.abs(spin.omega_at(t_s[[0, t_s.size // 2, -1]]))))
+    omega = np.asarray(spin.omega_radps, dtype=float)
+    slope = np.arange(1, omega.size) * omega[1:]  # dω/dt's coefficients
+    turning = np.polynomial.polynomial.polyroots(slope) if np.any(slope != 0) else []
+    inside = [r.real for r in np.atleast_1d(turning) if abs(r.imag) < 1e-12 and t0 < r.real < t1]
+    fastest = float(np.max(np.abs(spin.omega_at(np.array([t0, t1, *inside])))))
     return quadrature_stride(rate, fastest, order, shortest_s)
 
 
