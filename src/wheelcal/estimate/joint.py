@@ -53,6 +53,7 @@ from wheelcal.estimate.normal_equations import (
     accumulate,
     accumulate_fitting_noise,
     gradient_pass,
+    residual_of,
     whitened_cost,
 )
 from wheelcal.estimate.reporting import report_transform, transform_covariance
@@ -520,24 +521,6 @@ def _same_point(a: CalibrationParams, b: CalibrationParams) -> bool:
         and np.array_equal(a.sensor.offset_mps2, b.sensor.offset_mps2)
         and np.array_equal(a.spin.omega_radps, b.spin.omega_radps)
     )
-
-
-def residual_of(
-    params: CalibrationParams, tc: np.ndarray, v: np.ndarray, layout: ParameterLayout
-) -> np.ndarray:
-    """The residual (data − model, shape (N, 3)), the model evaluated in chunks.
-
-    The model's temporaries (ϑ, ω, sin ϑ, cos ϑ, a, s …: ~150 B per sample at
-    once) stay bounded; only the residual itself grows with N.
-    """
-    residual = np.empty_like(v, dtype=float)
-    for start in range(0, tc.size, CHUNK_SAMPLES):
-        stop = min(tc.size, start + CHUNK_SAMPLES)
-        part = residual[start:stop]
-        np.subtract(
-            v[start:stop], evaluate(params, tc[start:stop], layout).predicted_mps2, out=part
-        )
-    return residual
 
 
 def _residual_fn(

@@ -233,7 +233,7 @@ def accumulate_fitting_noise(
         output = evaluate(params, t_s, layout)
         noise = noise_of(np.subtract(accel_mps2, output.predicted_mps2))
     else:
-        noise = noise_of(_residual_in_chunks(params, t_s, accel_mps2, layout))
+        noise = noise_of(residual_of(params, t_s, accel_mps2, layout))
     stride = stride_for(t_s, params.spin, noise.order)
     if stride == 1:
         if not one_chunk:
@@ -248,15 +248,21 @@ def accumulate_fitting_noise(
     return dataclasses.replace(normal, hessian=hessian), noise
 
 
-def _residual_in_chunks(
-    params: CalibrationParams, t_s: np.ndarray, accel_mps2: np.ndarray, layout: ParameterLayout
+def residual_of(
+    params: CalibrationParams, tc: np.ndarray, v: np.ndarray, layout: ParameterLayout
 ) -> np.ndarray:
-    """Data − model (N, 3), the model evaluated a chunk at a time (bounded temporaries)."""
-    residual = np.empty_like(accel_mps2, dtype=float)
-    for start in range(0, t_s.size, CHUNK_SAMPLES):
-        stop = min(t_s.size, start + CHUNK_SAMPLES)
-        predicted = evaluate(params, t_s[start:stop], layout).predicted_mps2
-        np.subtract(accel_mps2[start:stop], predicted, out=residual[start:stop])
+    """The residual (data − model, shape (N, 3)), the model evaluated in chunks.
+
+    The model's temporaries (ϑ, ω, sin ϑ, cos ϑ, a, s …: ~150 B per sample at
+    once) stay bounded; only the residual itself grows with N.
+    """
+    residual = np.empty_like(v, dtype=float)
+    for start in range(0, tc.size, CHUNK_SAMPLES):
+        stop = min(tc.size, start + CHUNK_SAMPLES)
+        part = residual[start:stop]
+        np.subtract(
+            v[start:stop], evaluate(params, tc[start:stop], layout).predicted_mps2, out=part
+        )
     return residual
 
 
