@@ -71,9 +71,10 @@ def stride_for(
     rate = (t_s.size - 1) / span if span > 0 else float("nan")
     omega = np.asarray(spin.omega_radps, dtype=float)
     slope = np.arange(1, omega.size) * omega[1:]  # dω/dt's coefficients
-    turning = np.polynomial.polynomial.polyroots(slope) if np.any(slope != 0) else []
-    inside = [r.real for r in np.atleast_1d(turning) if abs(r.imag) < 1e-12 and t0 < r.real < t1]
-    fastest = float(np.max(np.abs(spin.omega_at(np.array([t0, t1, *inside])))))
+    turning = np.polynomial.polynomial.polyroots(slope) if slope.size else np.empty(0)
+    real = turning.real[np.abs(turning.imag) < 1e-12]
+    inside = real[(real > t0) & (real < t1)]
+    fastest = float(np.max(np.abs(spin.omega_at(np.concatenate([[t0, t1], inside])))))
     return quadrature_stride(rate, fastest, order, shortest_s)
 
 
