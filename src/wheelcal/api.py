@@ -111,6 +111,7 @@ def calibrate(
         geometry=opts.geometry,
         window_reason=outcome.window_reason,
         diagnosis=outcome.diagnosis,
+        model=opts.model,
     )
 
 
@@ -120,9 +121,10 @@ def diagnose(
     alpha: float = 0.01,
     **options,
 ) -> Calibration:
-    """Calibrate with the closed loop: effects the paper's model lacks are found and fitted.
+    """:func:`calibrate`, named for the closed loop's report it carries.
 
-    The returned calibration includes the effects found; its ``diagnosis``
-    holds the steps (:class:`~wheelcal.diagnose.closed_loop.Diagnosis`).
+    Every calibration runs the closed loop (unless ``model="paper"``), so this
+    returns the same numbers as :func:`calibrate`; its ``diagnosis`` holds the steps
+    (:class:`~wheelcal.diagnose.closed_loop.Diagnosis`).
     """
     return calibrate(source, radius_m=radius_m, diagnose=True, alpha=alpha, **options)

@@ -127,6 +127,7 @@ _SECTIONS: dict[str, dict[str, _Key]] = {
         "known_tilt_deg": _Key("number", "a number in [0, 90] (°)", lambda v: 0 <= v <= 90),
         "tilt_std_deg": _Key("number", "a number >= 0 (°)", lambda v: v >= 0),
         "gyro": _choice("auto", "on", "off"),
+        "model": _choice("closed_loop", "paper"),
     },
     "executor": {
         "kind": _choice("processes", "dask"),
@@ -330,6 +331,7 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
             diagnose=bool(run.get("diagnose", False)),
             alpha=float(run.get("alpha", 0.01)),
             gyro=str(run.get("gyro", "auto")),
+            model=str(run.get("model", "closed_loop")),
             defaults=tuple(sorted(data.get("defaults", {}).items())),
             gates=gates,
             **overrides,

@@ -42,6 +42,8 @@ from wheelcal.recording import (
 _OUTPUT_SUFFIXES = (".calibration.json", ".diagnosis.json", ".rrd")
 #: Local gravity on Earth lies in this range; outside it needs ``force_gravity``.
 EARTH_GRAVITY_RANGE_MPS2 = (9.7, 9.9)
+#: What a calibration fits: the closed loop's final model, or the paper's bare model.
+MODELS = ("closed_loop", "paper")
 
 
 @dataclass(frozen=True)
@@ -67,8 +69,12 @@ class SessionOptions:
     known_tilt_deg: float | None = None
     tilt_std_deg: float = 0.5
     rrd: bool = False
-    #: Run the closed loop (find and fit effects the paper's model lacks).
+    #: ``"closed_loop"`` (default): the paper's model, then every effect it lacks that the
+    #: recording shows (README "The closed loop"); ``"paper"``: the paper's model as fitted.
+    model: str = "closed_loop"
+    #: Write the closed loop's report (``<stem>.diagnosis.json``) too.
     diagnose: bool = False
+    #: Family-wise significance level of the closed loop's effect screen.
     alpha: float = 0.01
     accel_unit: str | None = None  # "m/s^2" or "g" when the file misstates its unit
     #: Pipeline defaults: (key, value) pairs used where neither the file nor the
@@ -110,6 +116,10 @@ class SessionOptions:
             raise ValueError(f"--tilt-std-deg must be >= 0, got {self.tilt_std_deg}")
         if not 0 < self.alpha < 1:
             raise ValueError(f"--alpha must lie in (0, 1), got {self.alpha}")
+        if self.model not in MODELS:
+            raise ValueError(f"--model must be one of {', '.join(MODELS)}, got {self.model!r}")
+        if self.diagnose and self.model != "closed_loop":
+            raise ValueError("diagnose runs the closed loop: it cannot use --model paper")
         if self.accel_unit not in (None, "m/s^2", "g"):
             raise ValueError(f"--accel-unit must be 'm/s^2' or 'g', got {self.accel_unit!r}")
         if self.geometry == "tilt" and self.known_tilt_deg is None:
@@ -138,13 +148,19 @@ class SessionOptions:
         )
 
     def session_fit(self) -> SessionFit:
-        """Window, joint fit and gates for these options."""
+        """Window, joint fit, closed loop (unless ``model="paper"``) and gates."""
+        loop = None
+        if self.model == "closed_loop":
+            from wheelcal.diagnose.closed_loop import ClosedLoop
+
+            loop = ClosedLoop(fit=self.fitter(), alpha=self.alpha)
         return SessionFit(
             fitter=self.fitter(),
             gates=self.gates,
             start_s=self.start_s,
             end_s=self.end_s,
             gyro=self.gyro,
+            closed_loop=loop,
         )
 
 
@@ -215,26 +231,9 @@ def compute_recording(
     """Calibrate a recording already read and checked (see :func:`compute_session`)."""
     timings = dict(timings or {})
     t1 = time.perf_counter()
-    session_fit = options.session_fit()
-    if options.diagnose:
-        # The misfit gate judges the loop's final model, not the base it starts from: an
-        # effect at the wheel's harmonics (a rolling wheel's turns) is what the loop looks for.
-        relaxed = replace(options.gates, max_harmonic_ratio=1e12)
-        session_fit = replace(session_fit, gates=relaxed)
-    fit = session_fit.run(recording)
+    fit = options.session_fit().run(recording)
     timings["fit"] = time.perf_counter() - t1
-    result, choice = fit.result, fit.window
-    diagnosis = None
-    if options.diagnose:
-        from wheelcal.diagnose.closed_loop import ClosedLoop
-        from wheelcal.estimate.session_fit import assess
-
-        t1 = time.perf_counter()
-        loop = ClosedLoop(fit=options.fitter(), alpha=options.alpha)
-        diagnosis = loop.run(choice.recording, base=result)
-        result = assess(diagnosis.final, fit.rests, options.gates)
-        timings["diagnose"] = time.perf_counter() - t1
-    return _outcome_of(recording.source, result, choice, diagnosis, recording, timings)
+    return _outcome_of(recording.source, fit.result, fit.window, fit.diagnosis, recording, timings)
 
 
 def _outcome_of(source, result, choice: WindowChoice, diagnosis, recording, timings):
@@ -295,7 +294,7 @@ def write_session(
         )
         timings["rrd"] = time.perf_counter() - t1
         t1 = time.perf_counter()
-    if outcome.diagnosis is not None:
+    if options.diagnose and outcome.diagnosis is not None:
         from wheelcal.io.diagnosis_json import write_diagnosis
 
         diagnosis_path = str(
@@ -308,6 +307,8 @@ def write_session(
         provenance,
         durable,
         window_reason=outcome.window_reason,
+        model=options.model,
+        diagnosis=outcome.diagnosis,
     )
     timings["write"] = time.perf_counter() - t1
     return replace(

@@ -13,17 +13,18 @@ def register(sub) -> None:
     """Add the ``diagnose`` parser."""
     p = sub.add_parser(
         "diagnose",
-        help="find effects the paper's model lacks, fit them, report before and after",
+        help="calibrate, showing the closed loop's steps before and after",
         description=(
-            "Calibrate, then score-test candidate effects (spin-down beyond the cubic, wheel "
-            "imbalance, sensor nonlinearity, offset warm-up and drift, gain drift, cross-axis "
-            "coupling) on the residual; add the most significant, refit, repeat until none is "
-            "significant. Writes <stem>.diagnosis.json and the final <stem>.calibration.json."
+            "The same calibration as `wheelcal calibrate` (which runs the closed loop too), "
+            "shown step by step: score tests of candidate effects (spin-down beyond the cubic, "
+            "wheel imbalance, sensor nonlinearity, offset warm-up and drift, gain drift, "
+            "cross-axis coupling) on the residual; the most significant added and everything "
+            "refitted, until none is significant. Writes <stem>.diagnosis.json (the steps, "
+            "before and after) and the same <stem>.calibration.json as calibrate."
         ),
     )
     p.add_argument("files", nargs="+", metavar="FILE.mcap")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--alpha", type=float, default=0.01, help="family-wise significance level")
     p.add_argument("--rrd", action="store_true", help="Rerun recording with residuals before/after")
     add_session_arguments(p)
     p.set_defaults(handler=run)
@@ -37,11 +38,9 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.cli.errors import UsageError
     from wheelcal.cli.summary import diagnosis_summary
 
-    if not 0 < args.alpha < 1:
-        raise UsageError("--alpha must lie in (0, 1)")
-    options = dataclasses.replace(
-        session_options(args, rrd=args.rrd), diagnose=True, alpha=args.alpha
-    )
+    if args.model != "closed_loop":
+        raise UsageError("diagnose shows the closed loop: it cannot use --model paper")
+    options = dataclasses.replace(session_options(args, rrd=args.rrd), diagnose=True)
     output_folder(args.out)  # before any session: a read-only folder is found now
     failed = 0
     for path in args.files:

@@ -60,6 +60,20 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
         "a vertical wheel rolling on level ground (a robot's or car's; needs the gyroscope and "
         "--radius, the sensor's distance from the axle; fits the rolling radius)",
     )
+    m.add_argument(
+        "--model",
+        choices=("closed_loop", "paper"),
+        default="closed_loop",
+        help="closed_loop (default): the paper's model plus every effect the recording shows "
+        "it lacks (an unbalanced wheel, a warm-up, a nonlinearity …, each tested at "
+        "family-wise --alpha); paper: the paper's bare model, labelled as such",
+    )
+    m.add_argument(
+        "--alpha",
+        type=float,
+        default=0.01,
+        help="family-wise significance level of the closed loop's effect screen (default 0.01)",
+    )
     m.add_argument("--tilt-deg", type=float, help="measured tilt for --geometry tilt")
     m.add_argument("--tilt-std-deg", type=float, default=0.5, help="uncertainty of the known tilt")
     g.add_argument(
@@ -137,6 +151,8 @@ def session_options(args: argparse.Namespace, rrd: bool = False):
             gates=gates,
             force_gravity=args.force_gravity,
             gyro=args.gyro,
+            model=args.model,
+            alpha=args.alpha,
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from None

@@ -24,6 +24,7 @@ from wheelcal.diagnose.score import ScoreTest, score_tests
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model.effects import Effect, default_candidates
+from wheelcal.model.forward import EvaluatedModel
 from wheelcal.model.temperature_offset import temperature_candidates
 from wheelcal.recording import Recording
 
@@ -60,9 +61,20 @@ class ClosedLoop:
     alpha: float = 0.01
     max_steps: int = 4
 
-    def run(self, recording: Recording, base: CalibrationResult | None = None) -> Diagnosis:
-        """Diagnose one recording (cut to its free-spin window)."""
-        base = base or self.fit.fit(recording)
+    def run(
+        self,
+        recording: Recording,
+        base: CalibrationResult | None = None,
+        evaluated: EvaluatedModel | None = None,
+    ) -> Diagnosis:
+        """Diagnose one recording (cut to its free-spin window).
+
+        ``base``: the fit of the paper's model there, when the caller has it;
+        ``evaluated``: the model at ``base`` as that fit's last pass left it (the
+        first screen then forms no model of its own).
+        """
+        if base is None:
+            base, evaluated = self.fit.fit_evaluated(recording)
         current = base
         steps: list[Step] = []
         tests: list[ScoreTest] = []
@@ -74,7 +86,9 @@ class ClosedLoop:
         candidates += rolling_candidates(base, recording)
         fit, frame = _motion_fit(self.fit, base)
         for _ in range(self.max_steps):
-            tests = score_tests(current, recording, candidates)
+            tests = score_tests(
+                current, recording, candidates, evaluated if current is base else None
+            )
             usable = [t for t in tests if t.identifiable]
             if not usable:
                 break

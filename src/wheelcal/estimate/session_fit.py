@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -98,13 +99,34 @@ def choose_window(
     return WindowChoice(recording.window(start, end), found, reason)
 
 
+class Refinement(Protocol):
+    """What :class:`SessionFit` asks of a closed loop (the layer above provides it).
+
+    ``run`` takes the window and the fit of the paper's model there (and the model
+    as the fit's last pass evaluated it, or None), and returns an object whose
+    ``final`` is the calibration to judge and whose ``steps`` are the effects added.
+    """
+
+    def run(
+        self,
+        recording: Recording,
+        base: CalibrationResult,
+        evaluated: EvaluatedModel | None = None,
+    ): ...
+
+
 @dataclass(frozen=True, eq=False)
 class SessionFitOutcome:
-    """A calibration that passed the gates, its window, and the rests it was judged by."""
+    """A calibration that passed the gates, its window, and the rests it was judged by.
+
+    ``diagnosis`` is the closed loop's report when one ran (its ``final`` is ``result``
+    before the gates' assessment).
+    """
 
     result: CalibrationResult
     window: WindowChoice
     rests: tuple[RestSegment, ...]
+    diagnosis: object | None = None
 
 
 @dataclass(frozen=True)
@@ -118,6 +140,9 @@ class SessionFit:
     #: "auto": the free spin's cubic unless only the gyro can follow the motion;
     #: "on": always fit the gyro with a flexible wheel angle; "off": ignore it.
     gyro: str = "auto"
+    #: The closed loop run on the fit before the gates judge it (None: the paper's
+    #: model as fitted).  The gates then judge the loop's final model.
+    closed_loop: Refinement | None = None
 
     def __post_init__(self) -> None:
         if self.gyro not in GYRO_MODES:
@@ -207,9 +232,24 @@ class SessionFit:
             gyro_t, gyro = gyro_samples(
                 window, window.time_s - result.centre_s, result.layout.effects
             )
+        result, diagnosis = self._refined(result, window)
         block = gyro_from_fit(result, gyro_t, gyro)
         choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
-        return SessionFitOutcome(assess(result, rests, gates, None, block), choice, rests)
+        return SessionFitOutcome(
+            assess(result, rests, gates, None, block), choice, rests, diagnosis
+        )
+
+    def _refined(
+        self,
+        result: CalibrationResult,
+        window: Recording,
+        evaluated: EvaluatedModel | None = None,
+    ) -> tuple[CalibrationResult, object | None]:
+        """The closed loop's final model (and its report), or the fit as it is."""
+        if self.closed_loop is None:
+            return result, None
+        diagnosis = self.closed_loop.run(window, base=result, evaluated=evaluated)
+        return diagnosis.final, diagnosis
 
     def _run_free_spin(self, recording: Recording) -> SessionFitOutcome:
         """The accelerometer-only fit of the free spin (the paper's cubic)."""
@@ -260,8 +300,11 @@ class SessionFit:
         omega = result.params.spin.omega_at(result.centred_time_s[[0, -1]])
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
         refuse_few_turns(result)
-        outcome = assess(result, rests, gates, motion, reference=reference)
-        return SessionFitOutcome(outcome, choice, rests)
+        final, diagnosis = self._refined(result, window, evaluated)
+        if final is not result:  # effects added: the final residual has its own reference
+            reference = None
+        outcome = assess(final, rests, gates, motion, reference=reference)
+        return SessionFitOutcome(outcome, choice, rests, diagnosis)
 
 
 #: Stretches of the motion window whose residual exceeds this × the typical are left out.

@@ -127,11 +127,14 @@ class Calibration(Mapping):
         window_reason: str = "",
         provenance: dict | None = None,
         diagnosis=None,
+        model: str = "closed_loop",
     ) -> Calibration:
         """The calibration of a gated fit result (see :mod:`wheelcal.estimate.session_fit`)."""
         from wheelcal.io.calibration_json import calibration_dict
 
-        document = calibration_dict(result, geometry, provenance, window_reason)
+        document = calibration_dict(
+            result, geometry, provenance, window_reason, model=model, diagnosis=diagnosis
+        )
         return cls(document, result=result, diagnosis=diagnosis)
 
     @classmethod

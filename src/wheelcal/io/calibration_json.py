@@ -52,11 +52,15 @@ def calibration_dict(
     geometry: str = "radius",
     provenance: dict | None = None,
     window_reason: str = "",
+    model: str = "closed_loop",
+    diagnosis=None,
 ) -> dict:
     """The contract dictionary for one calibration result.
 
     ``provenance`` (input hash, run key) lets a batch re-run skip sessions whose
-    output is up to date.
+    output is up to date.  ``model`` is what was fitted (``fit.model``: the closed
+    loop's final model, or ``"paper"``); ``diagnosis`` (the closed loop's report)
+    gives each added effect its evidence and lists what the screen could not test.
     """
     params = result.params
     undetermined = set(result.undetermined)
@@ -120,11 +124,13 @@ def calibration_dict(
         },
         "bench": bench,
         "motion": motion,
-        "effects": effects_dict(result),
+        "effects": effects_dict(result, diagnosis),
         "parameters": {
             n: {"value": _num(values[n]), "std": _num(std[n])} for n in _reported(result)
         },
         "fit": {
+            "model": model,
+            **_screen(diagnosis),
             "residual_rms_mps2": _vec(result.residual_rms_mps2),
             "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
             "converged": bool(result.converged),
@@ -254,8 +260,48 @@ def _clean(value):
     return value
 
 
-def effects_dict(result: CalibrationResult) -> dict:
-    """``effects`` block: per effect its parameters (value, std), settings and meaning."""
+def _screen(diagnosis) -> dict:
+    """``fit.effects_screen``: what the closed loop tested on the final model, and its level."""
+    if diagnosis is None:
+        return {}
+    tests = diagnosis.final_tests
+    return {
+        "effects_screen": {
+            "alpha": diagnosis.alpha,
+            "correction": "Bonferroni over the candidates tested (each τ grid point counts)",
+            "added": [s.test.effect.label() for s in diagnosis.steps],
+            "tested": [t.effect.label() for t in tests if t.identifiable],
+            "smallest_p_corrected": _num(
+                min((t.p_corrected for t in tests if t.identifiable), default=float("nan"))
+            ),
+            "not_identifiable": [t.effect.label() for t in tests if not t.identifiable],
+        }
+    }
+
+
+def _evidence(diagnosis) -> dict:
+    """Per effect name, the score test that added it (statistic, dof, p)."""
+    if diagnosis is None:
+        return {}
+    return {
+        step.test.effect.name: {
+            "statistic": _num(step.test.statistic),
+            "dof": int(step.test.dof),
+            "p_value": _num(step.test.p_value),
+            "p_corrected": _num(step.test.p_corrected),
+            "alpha": diagnosis.alpha,
+            "test": "score (Lagrange multiplier) test at the model before it was added",
+        }
+        for step in diagnosis.steps
+    }
+
+
+def effects_dict(result: CalibrationResult, diagnosis=None) -> dict:
+    """``effects`` block: per effect its parameters (value, std), settings and meaning.
+
+    With the closed loop's ``diagnosis``, each effect it added carries its ``evidence``.
+    """
+    evidence = _evidence(diagnosis)
     std = dict(zip(result.names, result.std, strict=True))
     out = {}
     for effect in result.layout.effects:
@@ -268,6 +314,8 @@ def effects_dict(result: CalibrationResult) -> dict:
         }
         entry["settings"] = effect.settings()
         entry["description"] = effect.description
+        if effect.name in evidence:
+            entry["evidence"] = evidence[effect.name]
         out[effect.name] = entry
     return out
 
@@ -290,9 +338,11 @@ def write_calibration(
     provenance: dict | None = None,
     durable: bool = True,
     window_reason: str = "",
+    model: str = "closed_loop",
+    diagnosis=None,
 ) -> Path:
     """Write the calibration JSON atomically; returns the path (``durable``: see atomic)."""
-    doc = calibration_dict(result, geometry, provenance, window_reason)
+    doc = calibration_dict(result, geometry, provenance, window_reason, model, diagnosis)
     text = dumps_indented(doc)  # json.dumps(doc, indent=2, allow_nan=False), faster
     atomic_write_text(path, text + "\n", durable=durable)
     return Path(path)

@@ -135,12 +135,36 @@ class _SpinEffect(Effect, ABC):
     @abstractmethod
     def spin_delta(self, values, t_s, kin, jacobian): ...
 
+    def own_rows(
+        self, t_s: np.ndarray, kin: Kinematics, sin_theta: np.ndarray, cos_theta: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(∂ϑ, ∂ω, ∂ω̇)/∂θ at θ = 0, each (k, N): the effect's own rows of ``spin_delta``.
+
+        ``sin_theta``/``cos_theta`` are sin ϑ, cos ϑ of ``kin`` (the bench force has
+        them), so an effect that needs them does not take them again.
+        """
+        d = self.spin_delta(np.zeros(self.size), t_s, kin, True)
+        return d.d_own_theta, d.d_own_omega, d.d_own_omega_dot
+
 
 class _SensorEffect(Effect, ABC):
     stage = "sensor"
 
     @abstractmethod
     def sensor_delta(self, values, t_s, sensed, gain, jacobian): ...
+
+    def axis_columns(
+        self, t_s: np.ndarray, sensed: np.ndarray, gain: np.ndarray
+    ) -> tuple[np.ndarray, tuple[int, ...]] | None:
+        """∂Δv/∂θ at θ = 0 when each parameter acts on one axis: (k, N) values, their axes.
+
+        The lean form of ``sensor_delta(0, …, jacobian=True).d_own`` — whose row k is
+        zero but on axis ``axes[k]`` — for the closed loop's screen, which needs these
+        columns at every sample (its score) and at the quadrature's rows (its
+        information).  ``None``: the effect has no such form (the screen then takes
+        ``d_own``).
+        """
+        return None
 
 
 class SpinPolynomialExtension(_SpinEffect):
@@ -161,6 +185,16 @@ class SpinPolynomialExtension(_SpinEffect):
 
     def settings(self) -> dict:
         return {"extra_degrees": self.extra_degrees}
+
+    def own_rows(self, t_s, kin, sin_theta, cos_theta):
+        degrees = self.extra_degrees
+        powers = np.empty((degrees + 2, np.size(t_s)))  # t^3 … t^(K+4)
+        np.multiply(t_s, t_s, out=powers[0])
+        powers[0] *= t_s
+        for j in range(1, degrees + 2):
+            np.multiply(powers[j - 1], t_s, out=powers[j])
+        k = np.arange(4, 4 + degrees)[:, None]
+        return powers[2:] / (k + 1), powers[1:-1], powers[:-2] * k
 
     def spin_delta(self, values, t_s, kin, jacobian):
         k = np.arange(4, 4 + self.extra_degrees)
@@ -193,6 +227,20 @@ class Imbalance(_SpinEffect):
     name = "imbalance"
     param_names = ("sin_radps2", "cos_radps2")
     description = "wheel imbalance: once-per-turn torque ε·sin(ϑ + φ)"
+
+    def own_rows(self, t_s, kin, sin_theta, cos_theta):
+        w = kin.omega_radps
+        inv = 1.0 / np.where(np.abs(w) < 1e-3, 1e-3, w)  # as spin_delta
+        inv2 = inv * inv
+        theta = np.empty((2, inv.size))
+        np.multiply(sin_theta, inv2, out=theta[0])
+        np.multiply(cos_theta, inv2, out=theta[1])
+        np.negative(theta, out=theta)
+        omega = np.empty((2, inv.size))
+        np.multiply(cos_theta, inv, out=omega[0])
+        np.negative(omega[0], out=omega[0])
+        np.multiply(sin_theta, inv, out=omega[1])
+        return theta, omega, np.stack([sin_theta, cos_theta])
 
     def spin_delta(self, values, t_s, kin, jacobian):
         a, b = values
@@ -545,6 +593,10 @@ class QuadraticNonlinearity(_SensorEffect):
         d_gain[i, i] = k * s_i**2
         return SensorDelta(delta, d_own, d_sensed, d_gain)
 
+    def axis_columns(self, t_s, sensed, gain):
+        s_i = sensed[:, self.axis]
+        return (gain[self.axis] * s_i * s_i)[None, :], (self.axis,)
+
 
 class OffsetWarmup(_SensorEffect):
     """Thermal warm-up of the offsets: Δo_i(t) = a_i (1 − e^{−t/τ}), zero at the centre.
@@ -590,6 +642,9 @@ class OffsetWarmup(_SensorEffect):
             d_own[i, i] = w
         return SensorDelta(delta, d_own)
 
+    def axis_columns(self, t_s, sensed, gain):
+        return np.broadcast_to(self.shape(t_s), (3, t_s.size)), (0, 1, 2)
+
 
 class OffsetWarmupFreeTau(OffsetWarmup):
     """Offset warm-up with τ fitted too (values: amplitudes, then ln τ).
@@ -613,6 +668,9 @@ class OffsetWarmupFreeTau(OffsetWarmup):
 
     def values_from(self, other_values, other) -> np.ndarray:
         return np.concatenate([np.asarray(other_values, float)[:3], [np.log(other.tau_s)]])
+
+    def axis_columns(self, t_s, sensed, gain):
+        return None  # ∂/∂lnτ acts on every axis (and is zero at zero amplitude)
 
     def sensor_delta(self, values, t_s, sensed, gain, jacobian):
         amp, tau = np.asarray(values[:3]), float(np.exp(values[3]))
@@ -646,6 +704,9 @@ class OffsetDrift(_SensorEffect):
             d_own[i, i] = t_s
         return SensorDelta(delta, d_own)
 
+    def axis_columns(self, t_s, sensed, gain):
+        return np.broadcast_to(t_s, (3, t_s.size)), (0, 1, 2)
+
 
 class GainDrift(_SensorEffect):
     """Linear gain drift: γ_i(t) = γ_i (1 + h_i t), reported at the centre."""
@@ -667,6 +728,9 @@ class GainDrift(_SensorEffect):
             d_sensed[:, i, i] = gain[i] * values[i] * t_s
             d_gain[i, i] = values[i] * t_s * sensed[:, i]
         return SensorDelta(delta, d_own, d_sensed, d_gain)
+
+    def axis_columns(self, t_s, sensed, gain):
+        return (gain * sensed).T * t_s, (0, 1, 2)
 
 
 class CrossAxis(_SensorEffect):
@@ -706,6 +770,10 @@ class CrossAxis(_SensorEffect):
         for i in range(3):
             d_gain[i, i] = coupled[:, i]
         return SensorDelta(delta, d_own, d_sensed, d_gain)
+
+    def axis_columns(self, t_s, sensed, gain):
+        rows = np.stack([gain[i] * sensed[:, j] for i, j in self._pairs])
+        return rows, tuple(i for i, _ in self._pairs)
 
 
 def warmup_grid(tau_s: tuple[float, ...] = (10.0, 20.0, 40.0, 80.0)) -> tuple[OffsetWarmup, ...]:

@@ -153,8 +153,8 @@ def candidate_columns(
         r = params.bench.radius_m
         d = candidate.force_delta(np.zeros(candidate.size), t, out.kinematics, r, True)
         return np.stack([_through_w(w3, column) for column in d.d_own])
-    d = candidate.spin_delta(np.zeros(candidate.size), t, out.kinematics, True)
-    rows = (d.d_own_theta, d.d_own_omega, d.d_own_omega_dot)
+    force = out.force
+    rows = candidate.own_rows(t, out.kinematics, force.sin_theta, force.cos_theta)
     return spin_columns(params, t, layout, rows, out)
 
 

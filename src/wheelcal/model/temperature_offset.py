@@ -62,6 +62,9 @@ class TemperatureOffset(_SensorEffect):
             d_own[i, i] = w
         return SensorDelta(delta, d_own)
 
+    def axis_columns(self, t_s, sensed, gain):
+        return np.broadcast_to(self.change_c(t_s), (3, np.size(t_s))), (0, 1, 2)
+
 
 def temperature_candidates(time_centred_s: np.ndarray, temperature_c) -> tuple:
     """The temperature effect for a window, if it has a temperature that changes."""
