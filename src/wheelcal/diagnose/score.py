@@ -161,9 +161,7 @@ def _lean_columns(candidates: tuple[Effect, ...], layout):
         for cand in candidates:
             lean = _axis_columns(cand, params, output, t_s)
             if lean is None:
-                cols[row : row + cand.size] = candidate_columns(
-                    params, t_s, layout, cand, output
-                )
+                cols[row : row + cand.size] = candidate_columns(params, t_s, layout, cand, output)
             else:
                 values, axes = lean
                 for k, axis in enumerate(axes):
@@ -227,7 +225,9 @@ def _normal_by_quadrature(
                     adjoint = spin_adjoint(params, u, output)
                 force = output.force
                 rows = cand.own_rows(t, output.kinematics, force.sin_theta, force.cos_theta)
-                grad[row : row + cand.size] += sum(r @ a for r, a in zip(rows, adjoint, strict=True))
+                grad[row : row + cand.size] += sum(
+                    r @ a for r, a in zip(rows, adjoint, strict=True)
+                )
             else:
                 cols = candidate_columns(params, t, layout, cand, output)
                 grad[row : row + cand.size] += cols.reshape(cand.size, -1) @ u.reshape(-1)

@@ -112,7 +112,9 @@ class Refinement(Protocol):
         recording: Recording,
         base: CalibrationResult,
         evaluated: EvaluatedModel | None = None,
-    ): ...
+    ):
+        """The closed loop's report on ``base`` (``final``, ``steps``)."""
+        ...
 
 
 @dataclass(frozen=True, eq=False)
