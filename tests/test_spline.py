@@ -134,11 +134,41 @@ def test_gyro_stream_jacobian_equals_finite_differences():
         columns.append((diff / (2 * h)).T.reshape(-1))
     jac = np.array(columns)
     expected = jac @ jac.T
+    # The likelihood's own JᵀJ: the reading without its prior on G (tested below).
+    free = dataclasses.replace(layout, effects=(layout.effects[0], GyroReading(True, None)))
     normal = accumulate_gyro(
-        params, t, gyro_prediction(params, t, layout), layout, NoiseModel.white(1.0)
+        params, t, gyro_prediction(params, t, layout), free, NoiseModel.white(1.0)
     )
     scale = np.sqrt(np.outer(np.diag(expected), np.diag(expected))) + 1e-30
     np.testing.assert_allclose(normal.hessian / scale, expected / scale, atol=1e-5)
+
+
+def test_the_prior_on_g_adds_its_terms_once():
+    # The sensor class's prior on G (GyroReading, σ 0.1 °/s/g by default): cost Σ G²/σ²,
+    # gradient G/σ² and information 1/σ² on the six G entries, nothing elsewhere, once
+    # whatever the chunking.
+    params, layout = _setup()
+    t = np.linspace(-20, 20, 2001)
+    rng = np.random.default_rng(4)
+    gyro = rng.normal(0, 0.002, (t.size, 3))
+    free = dataclasses.replace(layout, effects=(layout.effects[0], GyroReading(True, None)))
+    noise = NoiseModel.white(0.002)
+    with_prior = accumulate_gyro(params, t, gyro, layout, noise, chunk=500)
+    without = accumulate_gyro(params, t, gyro, free, noise, chunk=500)
+    sigma = 0.1 * np.pi / 180 / 9.80665
+    g = params.effect("gyro", 12)[6:]
+    rows = np.arange(layout.blocks["effect:gyro"].start + 6, layout.blocks["effect:gyro"].stop)
+    extra_h = with_prior.hessian - without.hessian
+    expected_h = np.zeros_like(extra_h)
+    expected_h[rows, rows] = 1 / sigma**2
+    np.testing.assert_allclose(extra_h, expected_h, atol=1e-6 / sigma**2)
+    expected_g = np.zeros(layout.size)
+    expected_g[rows] = g / sigma**2
+    np.testing.assert_allclose(with_prior.gradient - without.gradient, expected_g, atol=1e-6)
+    # (the costs hold ~1e11 of prediction against noise: compare at their round-off)
+    assert with_prior.cost - without.cost == pytest.approx(
+        np.sum(g**2) / sigma**2, abs=1e-14 * with_prior.cost
+    )
 
 
 def test_slots_equal_the_textbook_pieces_and_their_derivatives():

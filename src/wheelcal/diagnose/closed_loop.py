@@ -20,8 +20,9 @@ from dataclasses import dataclass, field
 
 from wheelcal.diagnose.harmonics import wheel_harmonics
 from wheelcal.diagnose.rolling_candidate import rolling_candidates
-from wheelcal.diagnose.score import ScoreTest, score_tests
+from wheelcal.diagnose.score import ScoreTest, gyro_stream, score_tests
 from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.rests import RestSegment
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model.effects import Effect, default_candidates
 from wheelcal.model.forward import EvaluatedModel
@@ -66,12 +67,15 @@ class ClosedLoop:
         recording: Recording,
         base: CalibrationResult | None = None,
         evaluated: EvaluatedModel | None = None,
+        rests: tuple[RestSegment, ...] = (),
     ) -> Diagnosis:
         """Diagnose one recording (cut to its free-spin window).
 
         ``base``: the fit of the paper's model there, when the caller has it;
         ``evaluated``: the model at ``base`` as that fit's last pass left it (the
-        first screen then forms no model of its own).
+        first screen then forms no model of its own); ``rests``: the recording's
+        rests around the window, static readings the screen adds as a stream of
+        their own (:mod:`~wheelcal.diagnose.rest_stream`).
         """
         if base is None:
             base, evaluated = self.fit.fit_evaluated(recording)
@@ -84,10 +88,18 @@ class ClosedLoop:
         )
         # A wheel rolling on the ground (a gyro-aided fit of a vertical wheel): yaw from the gyro.
         candidates += rolling_candidates(base, recording)
-        fit, frame = _motion_fit(self.fit, base)
+        gyro = gyro_stream(base, recording)
+        fit, frame = _motion_fit(self.fit, base, with_gyro=gyro is not None)
         for _ in range(self.max_steps):
+            if current is not base:
+                gyro = gyro_stream(current, recording)
             tests = score_tests(
-                current, recording, candidates, evaluated if current is base else None
+                current,
+                recording,
+                candidates,
+                evaluated if current is base else None,
+                gyro,
+                rests,
             )
             usable = [t for t in tests if t.identifiable]
             if not usable:
@@ -97,8 +109,11 @@ class ClosedLoop:
                 break
             effect = self._refined(best.effect, current, recording)
             effects = (*_own_effects(current), effect)
+            # With a gyro the refit fits both streams; its reading starts where the
+            # screen's regression (or the fit) left it.
+            initial = current.params if gyro is None else gyro.params
             refit = dataclasses.replace(fit, effects=effects).fit(
-                recording, initial=current.params, frame=frame
+                recording, initial=initial, frame=frame
             )
             free = effect.with_free_setting()
             if free is not None:  # e.g. τ of a warm-up: fitted once the amplitudes are there
@@ -144,19 +159,23 @@ def _own_effects(result: CalibrationResult) -> tuple[Effect, ...]:
     return tuple(e for e in result.layout.effects if e.name not in _MOTION_EFFECTS)
 
 
-def _motion_fit(fit: JointFit, base: CalibrationResult) -> tuple[JointFit, tuple | None]:
+def _motion_fit(
+    fit: JointFit, base: CalibrationResult, with_gyro: bool = False
+) -> tuple[JointFit, tuple | None]:
     """The loop's fit with the base's gyro and wheel-angle spline, and the base's frame.
 
     A gyro-aided base (its layout holds the gyro reading and a spline) is refitted
-    the same way, on the same time origin and knots.
+    the same way, on the same time origin and knots.  ``with_gyro``: the recording
+    has a gyroscope, so every refit fits it too (a free-spin base kept the
+    accelerometer alone; an effect found with the gyro's help needs its stream).
     """
     names = {e.name: e for e in base.layout.effects}
-    if not any(n in names for n in _MOTION_EFFECTS):
+    if not any(n in names for n in _MOTION_EFFECTS) and not with_gyro:
         return fit, None
     spline = names.get("spin_spline")
     fit = dataclasses.replace(
         fit,
-        use_gyro="gyro" in names,
+        use_gyro="gyro" in names or with_gyro,
         spline_spacing_s=None if spline is None else spline.spacing_s,
     )
     frame = None

@@ -27,27 +27,38 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
+from wheelcal.diagnose.rest_stream import rest_normal, usable_rests
+from wheelcal.estimate.candidate_columns import candidate_extra, lean_columns
 from wheelcal.estimate.fisher_quadrature import quadrature_rows, stride_for
-from wheelcal.estimate.information import information_fraction, scaled_pinv
+from wheelcal.estimate.gyro_block import regress_gyro
+from wheelcal.estimate.gyro_equations import accumulate_gyro, gyro_effect
+from wheelcal.estimate.information import scaled_pinv
+from wheelcal.estimate.joint import gyro_samples
+from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.normal_equations import (
     CHUNK_SAMPLES,
     accumulate,
     quadrature_hessian,
     whitened_back,
 )
+from wheelcal.estimate.rests import RestSegment
 from wheelcal.estimate.result import CalibrationResult
-from wheelcal.model import CalibrationParams, ModelOutput, evaluate
+from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
 from wheelcal.model.effects import Effect
 from wheelcal.model.forward import (
     EvaluatedModel,
     candidate_columns,
-    jacobian_transpose_times,
-    spin_adjoint,
+    reverse_pass,
+    spin_columns,
 )
 from wheelcal.recording import Recording
 
 #: Below this fraction of its own information an effect counts as not identifiable.
 IDENTIFIABLE_FRACTION = 1e-4
+#: Rows per wheel turn of the screen's quadrature: a test's information needs ~1e-3, not
+#: the 1e-5 of a reported σ (6 rows per turn move the statistics by < 0.2 % on Table I;
+#: 3 rows by up to 7 %: ``tests/test_closed_loop_screen.py``).
+SCREEN_ROWS_PER_TURN = 6.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,17 +118,54 @@ class ScoreContribution:
     raw_information_diag: np.ndarray
 
 
+@dataclass(frozen=True, eq=False)
+class GyroStream:
+    """The recording's gyroscope at a fit, for the score tests: a second, independent stream.
+
+    ``layout`` is the fit's with the gyro's reading last and ``params`` its values
+    (the fit's own when it fitted the gyro, else regressed on the fitted wheel rate
+    with the prior on G: :func:`~wheelcal.estimate.gyro_block.regress_gyro`).
+    """
+
+    time_s: np.ndarray  # centred, usable samples only
+    samples_radps: np.ndarray
+    layout: ParameterLayout
+    params: CalibrationParams
+    noise: NoiseModel
+
+
+def gyro_stream(fit: CalibrationResult, recording: Recording) -> GyroStream | None:
+    """The gyro stream of ``recording`` at ``fit``, or None (no usable gyroscope)."""
+    gyro = getattr(recording, "gyro_radps", None)
+    if gyro is None or int(np.sum(np.all(np.isfinite(gyro), axis=1))) < 100:
+        return None
+    tc = recording.time_s - fit.centre_s
+    gyro_t, samples = gyro_samples(recording, tc, fit.layout.effects)
+    if gyro_effect(fit.layout) is not None:
+        return GyroStream(gyro_t, samples, fit.layout, fit.params, fit.gyro_noise)
+    fitted = regress_gyro(fit, gyro_t, samples)
+    return GyroStream(gyro_t, samples, fitted.layout, fitted.params, fitted.noise)
+
+
 def score_contributions(
     fit: CalibrationResult,
     recording: Recording,
     candidates: tuple[Effect, ...],
     evaluated: EvaluatedModel | None = None,
+    gyro: GyroStream | None = None,
+    rests: tuple[RestSegment, ...] = (),
 ) -> list[ScoreContribution]:
     """The score u and information C of every candidate not yet in the fit's model.
 
     For the paper's model H comes by quadrature and g from every sample without a
     Jacobian (:func:`_normal_by_quadrature`); otherwise both are summed over every
-    sample.  ``evaluated``: the model at the fit as its last pass left it.
+    sample.  ``evaluated``: the model at the fit as its last pass left it.  With a
+    ``gyro`` stream its information and score are added (:func:`_with_gyro`): the
+    gyro's reading joins the fit's parameters, and a spin candidate (an imbalance's
+    once-per-turn rate ripple) is seen by the gyro directly.  With ``rests`` their
+    static readings join too (:mod:`~wheelcal.diagnose.rest_stream`; their wheel
+    angles are nuisance parameters): a spin effect does not act at rest, so what it
+    traded into the gains shows there.
     """
     present = {e.name for e in fit.layout.effects}
     candidates = tuple(c for c in candidates if c.name not in present)
@@ -125,7 +173,11 @@ def score_contributions(
         return []
     tc = recording.time_s - fit.centre_s
     size = fit.layout.size
-    stride = 1 if fit.layout.effects else stride_for(tc, fit.params.spin, fit.noise.order)
+    stride = 1
+    if not fit.layout.effects:
+        stride = stride_for(
+            tc, fit.params.spin, fit.noise.order, rows_per_turn=SCREEN_ROWS_PER_TURN
+        )
     if stride > 1:
         h, g = _normal_by_quadrature(fit, recording, candidates, stride, evaluated)
     else:
@@ -138,46 +190,90 @@ def score_contributions(
             extra=_candidate_columns(fit.layout, candidates),
         )
         h, g = normal.hessian, normal.gradient
-    h_bb_inv = scaled_pinv(h[:size, :size])
+    nuisance = fit.layout
+    if gyro is not None:
+        nuisance = gyro.layout
+        h, g = _embedded(h, g, size, nuisance.size)
+        _add_gyro(fit, h, g, candidates, gyro)
+        size = nuisance.size
+    rests = usable_rests(fit, rests)
+    if rests:
+        h, g = _embedded(h, g, size, size + len(rests))
+        h_rest, g_rest = rest_normal(fit, rests, candidates, nuisance)
+        h += h_rest
+        g += g_rest
+        size += len(rests)
+    # The Schur complements of every candidate at once: A = H_eb H_bb⁻¹ (all rows), then
+    # each candidate's own block of H_ee − A H_be and of g_e − A g_b.
+    along = h[size:, :size] @ scaled_pinv(h[:size, :size])
+    schur = h[size:, size:] - along @ h[:size, size:]
+    score = g[size:] - along @ g[:size]
     out = []
-    start = size
+    start = 0
     for cand in candidates:
         sl = slice(start, start + cand.size)
         start += cand.size
-        h_eb = h[sl, :size]
-        c = h[sl, sl] - h_eb @ h_bb_inv @ h_eb.T
-        u = g[sl] - h_eb @ h_bb_inv @ g[:size]
-        out.append(ScoreContribution(cand, u, c, np.diag(h[sl, sl]).copy()))
+        own = np.diag(h[size:, size:][sl, sl]).copy()
+        out.append(ScoreContribution(cand, score[sl], schur[sl, sl], own))
     return out
 
 
-def _lean_columns(candidates: tuple[Effect, ...], layout):
-    """``extra`` callback of the candidates' columns, per-axis effects filled leanly."""
+def _embedded(
+    h: np.ndarray, g: np.ndarray, size: int, new_size: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """H, g over [nuisance (``size``) | candidates] with zero rows inserted before the candidates.
 
-    def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
-        total = sum(c.size for c in candidates)
-        cols = np.zeros((total, 3, t_s.size))
-        row = 0
-        for cand in candidates:
-            lean = _axis_columns(cand, params, output, t_s)
-            if lean is None:
-                cols[row : row + cand.size] = candidate_columns(params, t_s, layout, cand, output)
-            else:
-                values, axes = lean
-                for k, axis in enumerate(axes):
-                    cols[row + k, axis] = values[k]
-            row += cand.size
-        return cols
-
-    extra.size = sum(c.size for c in candidates)
-    return extra
+    The nuisance block grows to ``new_size`` (another stream's own parameters).
+    """
+    total = new_size + (h.shape[0] - size)
+    hh, gg = np.zeros((total, total)), np.zeros(total)
+    rows = np.r_[0:size, new_size:total]
+    hh[np.ix_(rows, rows)] = h
+    gg[rows] = g
+    return hh, gg
 
 
-def _axis_columns(cand: Effect, params: CalibrationParams, output: ModelOutput, t_s):
-    lean = getattr(cand, "axis_columns", None)
-    if lean is None:
-        return None
-    return lean(t_s, output.sensed_mps2, params.sensor.gain)
+def _add_gyro(
+    fit: CalibrationResult,
+    hh: np.ndarray,
+    gg: np.ndarray,
+    candidates: tuple[Effect, ...],
+    gyro: GyroStream,
+) -> None:
+    """Add the gyro stream's H and g to [the gyro layout's parameters | the candidates].
+
+    The gyro layout is the fit's with the reading last.  The gyro stream's normal
+    equations are accumulated over it with the spin candidates inserted before the
+    reading (:func:`~wheelcal.estimate.gyro_equations.accumulate_gyro`: a spin
+    effect moves ω, which the gyro reads); sensor candidates do not act on it.
+    The score is taken where the fit left the accelerometer's parameters and the
+    regression the gyro's: Neyman's C(α) form u = g_e − H_eb H_bb⁻¹ g_b holds there.
+    """
+    nuisance = gyro.layout
+    size = nuisance.size
+    spin = [c for c in candidates if c.stage == "spin"]
+    reading = gyro_effect(nuisance)
+    others = tuple(e for e in nuisance.effects if e is not reading)
+    layout = dataclasses.replace(nuisance, effects=(*others, *spin, reading))
+    values = {**gyro.params.effects, **{c.name: np.zeros(c.size) for c in spin}}
+    params = gyro.params.with_changes(effects=values)
+    normal = accumulate_gyro(params, gyro.time_s, gyro.samples_radps, layout, gyro.noise)
+    offsets, row = {}, size
+    for cand in candidates:
+        offsets[cand.name] = row
+        row += cand.size
+    position = {name: i for i, name in enumerate(nuisance.names)}
+    index = []
+    for name in layout.names:
+        if name in position:
+            index.append(position[name])
+        else:  # a spin candidate's parameter: its place among the candidates
+            effect, _, param = name.partition(".")
+            cand = next(c for c in spin if c.name == effect)
+            index.append(offsets[effect] + cand.param_names.index(param))
+    index = np.array(index)
+    hh[np.ix_(index, index)] += normal.hessian
+    gg[index] += normal.gradient
 
 
 def _normal_by_quadrature(
@@ -194,15 +290,16 @@ def _normal_by_quadrature(
     residual whitened back (u = WᵀW r), the fit's parameters by the model's reverse
     mode, a sensor candidate as Σ (its column on its axis) · u, a spin candidate
     through the wheel angle's adjoint rows (:func:`~wheelcal.model.forward.spin_adjoint`).
+    For a window of one chunk the candidates' lean columns are computed once, for
+    the score, and the quadrature's clusters take theirs from them.
     """
     params, layout, noise = fit.params, fit.layout, fit.noise
     tc = recording.time_s - fit.centre_s
     size = layout.size
-    extra = _lean_columns(candidates, layout)
-    rows = quadrature_rows(tc.size, noise.order, stride)
-    hess = quadrature_hessian(params, tc, layout, noise, rows, extra)
-    grad = np.zeros(size + extra.size)
+    width = sum(c.size for c in candidates)
+    grad = np.zeros(size + width)
     p = noise.order
+    kept = None  # (output, lean columns, spin rows) over every sample: one chunk
     for start in range(0, tc.size, CHUNK_SAMPLES):
         stop = min(tc.size, start + CHUNK_SAMPLES)
         lo = max(0, start - p)
@@ -211,20 +308,23 @@ def _normal_by_quadrature(
         if output is None:
             output = evaluate(params, t, layout)
         _, u = whitened_back(output.predicted_mps2 - recording.accel_mps2[lo:stop], noise)
-        grad[:size] += jacobian_transpose_times(params, t, layout, u, output)
-        adjoint = None
+        base, adjoint = reverse_pass(params, t, layout, u, output)
+        grad[:size] += base
+        table = lean_columns(candidates, params, output, t)
+        force = output.force
+        spin_rows = [
+            c.own_rows(t, output.kinematics, force.sin_theta, force.cos_theta)
+            if c.stage == "spin"
+            else None
+            for c in candidates
+        ]
         row = size
-        for cand in candidates:
-            lean = _axis_columns(cand, params, output, t)
+        for cand, lean, rows in zip(candidates, table, spin_rows, strict=True):
             if lean is not None:
                 values, axes = lean
                 for k, axis in enumerate(axes):
                     grad[row + k] += values[k] @ u[axis]
-            elif cand.stage == "spin":
-                if adjoint is None:
-                    adjoint = spin_adjoint(params, u, output)
-                force = output.force
-                rows = cand.own_rows(t, output.kinematics, force.sin_theta, force.cos_theta)
+            elif rows is not None:
                 grad[row : row + cand.size] += sum(
                     r @ a for r, a in zip(rows, adjoint, strict=True)
                 )
@@ -232,35 +332,93 @@ def _normal_by_quadrature(
                 cols = candidate_columns(params, t, layout, cand, output)
                 grad[row : row + cand.size] += cols.reshape(cand.size, -1) @ u.reshape(-1)
             row += cand.size
+        if lo == 0 and stop == tc.size:
+            kept = (table, spin_rows)
+    rows = quadrature_rows(tc.size, noise.order, stride)
+    extra = candidate_extra(candidates, layout)
+    if kept is not None:
+        extra = _from_kept(candidates, layout, tc, *kept)
+    hess = quadrature_hessian(params, tc, layout, noise, rows, extra)
     return hess, grad
 
 
+def _from_kept(candidates, layout, tc: np.ndarray, table: list, spin_rows: list):
+    """``extra`` callback taking the candidates' columns at the clusters from every sample's."""
+
+    def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
+        index = np.searchsorted(tc, t_s)  # the clusters' samples (times are increasing)
+        cols = np.zeros((extra.size, 3, t_s.size))
+        row = 0
+        for cand, lean, rows in zip(candidates, table, spin_rows, strict=True):
+            if lean is not None:
+                values, axes = lean
+                for k, axis in enumerate(axes):
+                    cols[row + k, axis] = values[k][index]
+            elif rows is not None:
+                here = tuple(r[:, index] for r in rows)
+                spin_columns(params, t_s, layout, here, output, cols[row : row + cand.size])
+            else:
+                cols[row : row + cand.size] = candidate_columns(params, t_s, layout, cand, output)
+            row += cand.size
+        return cols
+
+    extra.size = sum(c.size for c in candidates)
+    return extra
+
+
 def finish_tests(contributions: list[ScoreContribution]) -> list[ScoreTest]:
-    """Statistics, p-values and Bonferroni correction from (summed) contributions."""
-    results = []
-    for part in contributions:
-        cand, u, c = part.effect, part.score, part.information
-        frac = information_fraction(c, part.raw_information_diag)
-        identifiable = frac > IDENTIFIABLE_FRACTION
-        if identifiable:
-            c_inv = np.linalg.inv(c)
-            stat = float(u @ c_inv @ u)
-            # The χ² survival function (what stats.chi2.sf returns, without its ~40 µs of checks).
-            p = float(special.chdtrc(cand.size, stat))
-            estimate = -c_inv @ u
-            predicted = np.sqrt(np.diag(c_inv))
-        else:
-            stat, p = np.nan, np.nan
-            estimate = np.full(cand.size, np.nan)
-            predicted = np.full(cand.size, np.inf)
-        results.append(
-            ScoreTest(cand, stat, cand.size, p, np.nan, identifiable, frac, estimate, predicted)
+    """Statistics, p-values and Bonferroni correction from (summed) contributions.
+
+    The small matrices of candidates of one size are handled as one stack (the
+    eigenvalues of the information fractions, the inverses): a dozen candidates
+    cost a few numpy calls, not a few dozen.
+    """
+    verdicts: list[tuple | None] = [None] * len(contributions)
+    sizes = {part.effect.size for part in contributions}
+    for size in sizes:
+        index = [i for i, part in enumerate(contributions) if part.effect.size == size]
+        c = np.stack([contributions[i].information for i in index])  # (n, k, k)
+        u = np.stack([contributions[i].score for i in index])  # (n, k)
+        d = np.sqrt(
+            np.maximum(np.stack([contributions[i].raw_information_diag for i in index]), 1e-300)
         )
-    tested = sum(r.identifiable for r in results)
-    return [
-        dataclasses.replace(r, p_corrected=min(1.0, r.p_value * tested)) if r.identifiable else r
-        for r in results
-    ]
+        # λ_min of D⁻½ C D⁻½ (information_fraction), all at once.
+        fractions = np.maximum(np.linalg.eigvalsh(c / (d[:, :, None] * d[:, None, :]))[:, 0], 0.0)
+        for row, i in enumerate(index):
+            frac = float(fractions[row])
+            if frac > IDENTIFIABLE_FRACTION:
+                c_inv = np.linalg.inv(c[row])
+                stat = float(u[row] @ c_inv @ u[row])
+                verdicts[i] = (frac, stat, -c_inv @ u[row], np.sqrt(np.diag(c_inv)))
+            else:
+                verdicts[i] = (frac, None, None, None)
+    tested = sum(v[1] is not None for v in verdicts)
+    results = []
+    for part, (frac, stat, estimate, predicted) in zip(contributions, verdicts, strict=True):
+        k = part.effect.size
+        if stat is None:
+            results.append(
+                ScoreTest(
+                    part.effect,
+                    np.nan,
+                    k,
+                    np.nan,
+                    np.nan,
+                    False,
+                    frac,
+                    np.full(k, np.nan),
+                    np.full(k, np.inf),
+                )
+            )
+            continue
+        # The χ² survival function (what stats.chi2.sf returns, without its ~40 µs of checks).
+        p = float(special.chdtrc(k, stat))
+        results.append(
+            ScoreTest(
+                part.effect, stat, k, p, min(1.0, p * tested), True, frac, estimate, predicted
+            )
+        )
+    return results
 
 
 def score_tests(
@@ -268,9 +426,23 @@ def score_tests(
     recording: Recording,
     candidates: tuple[Effect, ...],
     evaluated: EvaluatedModel | None = None,
+    gyro: GyroStream | None = None,
+    rests: tuple[RestSegment, ...] = (),
 ) -> list[ScoreTest]:
-    """Score-test every candidate (not already in the fit's model) at the fit."""
-    return finish_tests(score_contributions(fit, recording, candidates, evaluated))
+    """Score-test every candidate (not already in the fit's model) at the fit.
+
+    What one recording cannot identify by construction (cross-axis coupling: the
+    rotation spans it on one mounting) is listed with no information, not computed.
+    """
+    present = {e.name for e in fit.layout.effects}
+    unseen = [
+        ScoreContribution(c, np.zeros(c.size), np.zeros((c.size, c.size)), np.ones(c.size))
+        for c in candidates
+        if not c.one_recording_identifies and c.name not in present
+    ]
+    tested = tuple(c for c in candidates if c.one_recording_identifies)
+    parts = score_contributions(fit, recording, tested, evaluated, gyro, rests)
+    return finish_tests(parts + unseen)
 
 
 def pooled_score_tests(

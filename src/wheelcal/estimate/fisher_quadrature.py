@@ -35,7 +35,11 @@ MIN_ROWS_PER_TURN = 12.0
 
 
 def quadrature_stride(
-    rate_hz: float, omega_max_radps: float, order: int, shortest_s: float | None = None
+    rate_hz: float,
+    omega_max_radps: float,
+    order: int,
+    shortest_s: float | None = None,
+    rows_per_turn: float = MIN_ROWS_PER_TURN,
 ) -> int:
     """The cell width s (odd, so its centre is a sample), or 1: every row.
 
@@ -44,7 +48,9 @@ def quadrature_stride(
     functions live a few knot intervals).  It is 1 when the clusters would take
     more evaluations than the samples (s < p + 1: each kept row needs its own p
     samples of FIR history; at s = p + 1 they take as many, and the Gram 1/s of
-    the rows) or the rate is unknown.
+    the rows) or the rate is unknown.  ``rows_per_turn`` replaces
+    :data:`MIN_ROWS_PER_TURN` for a sum that needs less accuracy (the closed loop's
+    screen: a test's information to 1e-3, not a reported σ to 1e-5).
     """
     turn_hz = abs(omega_max_radps) / (2 * np.pi)
     if not (turn_hz > 0 and np.isfinite(rate_hz) and rate_hz > 0):
@@ -52,13 +58,17 @@ def quadrature_stride(
     rows = rate_hz / turn_hz
     if shortest_s is not None:
         rows = min(rows, rate_hz * shortest_s)
-    s = int(np.floor(rows / MIN_ROWS_PER_TURN))
+    s = int(np.floor(rows / rows_per_turn))
     s -= 1 - s % 2  # odd
     return s if s > 1 and s >= order + 1 else 1
 
 
 def stride_for(
-    t_s: np.ndarray, spin: SpinParams, order: int, shortest_s: float | None = None
+    t_s: np.ndarray,
+    spin: SpinParams,
+    order: int,
+    shortest_s: float | None = None,
+    rows_per_turn: float = MIN_ROWS_PER_TURN,
 ) -> int:
     """:func:`quadrature_stride` for samples at times ``t_s`` of the spin law ``spin``.
 
@@ -75,7 +85,7 @@ def stride_for(
     real = turning.real[np.abs(turning.imag) < 1e-12]
     inside = real[(real > t0) & (real < t1)]
     fastest = float(np.max(np.abs(spin.omega_at(np.concatenate([[t0, t1], inside])))))
-    return quadrature_stride(rate, fastest, order, shortest_s)
+    return quadrature_stride(rate, fastest, order, shortest_s, rows_per_turn)
 
 
 @dataclass(frozen=True, eq=False)

@@ -27,11 +27,11 @@ from wheelcal.estimate.gyro_equations import accumulate_gyro, gyro_effect, gyro_
 from wheelcal.estimate.information import scaled_pinv
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.result import CalibrationResult
-from wheelcal.model import ParameterLayout
-from wheelcal.model.effects import GyroReading
+from wheelcal.model import CalibrationParams, ParameterLayout
+from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading
 
 #: A typical MEMS gyro's sensitivity to linear acceleration (MPU-9250: 0.1 °/s/g).
-G_SENSITIVITY_DPS_PER_G = 0.1
+G_SENSITIVITY_DPS_PER_G = G_SENSITIVITY_PRIOR_DPS_PER_G
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,29 +140,59 @@ def gyro_from_fit(
     return _calibration(values, cov, rotation, residual, "joint fit", _mean_force_mps2(result))
 
 
-def gyro_by_product(
-    result: CalibrationResult, gyro_t: np.ndarray, gyro: np.ndarray, max_ar_order: int = 10
-) -> GyroCalibration:
-    """The gyro block by regression on the fitted ω(t) (the fit did not use the gyro)."""
+@dataclass(frozen=True, eq=False)
+class GyroRegression:
+    """The gyro's reading fitted on a given wheel rate: layout, parameters, noise, σ."""
+
+    layout: ParameterLayout  # the fit's, with the reading last
+    params: CalibrationParams  # the fit's, with the reading's values
+    noise: NoiseModel  # the gyro residual's AR model
+    covariance: np.ndarray  # of the reading's parameters (conditional on the wheel rate)
+    residual_radps: np.ndarray  # gyro − prediction (N, 3)
+
+
+def regress_gyro(
+    result: CalibrationResult,
+    gyro_t: np.ndarray,
+    gyro: np.ndarray,
+    max_ar_order: int = 10,
+    reading: GyroReading | None = None,
+) -> GyroRegression:
+    """The gyro's reading (w, b, G with its prior) by regression on the fitted ω(t).
+
+    The start is the least-squares regression (:func:`~wheelcal.estimate.joint.with_gyro_start`),
+    then one Gauss–Newton step of the whitened problem with the prior on G (the problem
+    is linear in the reading's parameters).
+    """
     from wheelcal.estimate.joint import with_gyro_start
 
+    reading = reading or GyroReading()
     layout = ParameterLayout(
         spin_degree=result.layout.spin_degree,
         fit_tilt=result.layout.fit_tilt,
         fit_radius=result.layout.fit_radius,
-        effects=(*result.layout.effects, GyroReading()),
+        effects=(*result.layout.effects, reading),
     )
     params = with_gyro_start(result.params, layout, gyro_t, gyro)
     residual = gyro - gyro_prediction(params, gyro_t, layout)
     noise = NoiseModel.estimate(residual, max_ar_order)
     normal = accumulate_gyro(params, gyro_t, gyro, layout, noise)
-    effect = gyro_effect(layout)
-    block = layout.blocks[f"effect:{effect.name}"]
-    h = normal.hessian[block, block]
-    cov = scaled_pinv(h)
-    values = params.effect(effect.name, effect.size) - cov @ normal.gradient[block]
-    params = params.with_changes(effects={**params.effects, effect.name: values})
+    block = layout.blocks[f"effect:{reading.name}"]
+    cov = scaled_pinv(normal.hessian[block, block])
+    values = params.effect(reading.name, reading.size) - cov @ normal.gradient[block]
+    params = params.with_changes(effects={**params.effects, reading.name: values})
     residual = gyro - gyro_prediction(params, gyro_t, layout)
+    return GyroRegression(layout, params, noise, cov, residual)
+
+
+def gyro_by_product(
+    result: CalibrationResult, gyro_t: np.ndarray, gyro: np.ndarray, max_ar_order: int = 10
+) -> GyroCalibration:
+    """The gyro block by regression on the fitted ω(t) (the fit did not use the gyro)."""
+    fitted = regress_gyro(result, gyro_t, gyro, max_ar_order)
+    reading = gyro_effect(fitted.layout)
+    values = fitted.params.effect(reading.name, reading.size)
+    cov, residual = fitted.covariance, fitted.residual_radps
     return _calibration(
         values,
         cov,

@@ -152,6 +152,14 @@ def accumulate_gyro(
         add_gram(hess, grad, jt, r_flat, rows if view is None else view.index[rows])
         cost += float(r_flat @ r_flat)
         entries += r_flat.size
+    prior = effect.g_prior_terms(values)
+    if prior is not None:  # the sensor class's prior on G (GyroReading): once, not per chunk
+        prior_cost, prior_grad, weight = prior
+        cost += prior_cost
+        if jacobian:
+            g_rows = np.arange(layout.blocks[gyro_name].start + 6, layout.blocks[gyro_name].stop)
+            hess[g_rows, g_rows] += weight
+            grad[g_rows] += prior_grad
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
 
 

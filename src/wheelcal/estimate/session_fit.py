@@ -43,6 +43,7 @@ from wheelcal.estimate.gates import (
     undetermined_parameters,
 )
 from wheelcal.estimate.gyro_block import gyro_by_product, gyro_from_fit
+from wheelcal.estimate.gyro_equations import gyro_effect
 from wheelcal.estimate.initial import InitialGuess
 from wheelcal.estimate.joint import JointFit, gyro_samples
 from wheelcal.estimate.knots import choose_knot_spacing
@@ -112,6 +113,7 @@ class Refinement(Protocol):
         recording: Recording,
         base: CalibrationResult,
         evaluated: EvaluatedModel | None = None,
+        rests: tuple[RestSegment, ...] = (),
     ):
         """The closed loop's report on ``base`` (``final``, ``steps``)."""
         ...
@@ -186,8 +188,12 @@ class SessionFit:
             return self._run_with_gyro(recording, f"no free spin ({exc})")
         if has_gyro and self.gyro == "auto":
             window = outcome.window.recording
-            gyro_t, gyro = gyro_samples(window, window.time_s - outcome.result.centre_s)
-            block = gyro_by_product(outcome.result, gyro_t, gyro)
+            result = outcome.result
+            gyro_t, gyro = gyro_samples(window, window.time_s - result.centre_s)
+            if gyro_effect(result.layout) is not None:  # the closed loop fitted it
+                block = gyro_from_fit(result, gyro_t, gyro)
+            else:
+                block = gyro_by_product(result, gyro_t, gyro)
             assessment = dataclasses.replace(outcome.result.assessment, gyro=block)
             result = dataclasses.replace(outcome.result, assessment=assessment)
             return dataclasses.replace(outcome, result=result)
@@ -234,7 +240,7 @@ class SessionFit:
             gyro_t, gyro = gyro_samples(
                 window, window.time_s - result.centre_s, result.layout.effects
             )
-        result, diagnosis = self._refined(result, window)
+        result, diagnosis = self._refined(result, window, rests)
         block = gyro_from_fit(result, gyro_t, gyro)
         choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
         return SessionFitOutcome(
@@ -245,12 +251,13 @@ class SessionFit:
         self,
         result: CalibrationResult,
         window: Recording,
+        rests: tuple[RestSegment, ...],
         evaluated: EvaluatedModel | None = None,
     ) -> tuple[CalibrationResult, object | None]:
         """The closed loop's final model (and its report), or the fit as it is."""
         if self.closed_loop is None:
             return result, None
-        diagnosis = self.closed_loop.run(window, base=result, evaluated=evaluated)
+        diagnosis = self.closed_loop.run(window, base=result, evaluated=evaluated, rests=rests)
         return diagnosis.final, diagnosis
 
     def _run_free_spin(self, recording: Recording) -> SessionFitOutcome:
@@ -302,7 +309,7 @@ class SessionFit:
         omega = result.params.spin.omega_at(result.centred_time_s[[0, -1]])
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
         refuse_few_turns(result)
-        final, diagnosis = self._refined(result, window, evaluated)
+        final, diagnosis = self._refined(result, window, rests, evaluated)
         if final is not result:  # effects added: the final residual has its own reference
             reference = None
         outcome = assess(final, rests, gates, motion, reference=reference)

@@ -25,6 +25,11 @@ from typing import ClassVar
 import numpy as np
 
 from wheelcal.model.kinematics import Kinematics
+from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+
+#: A MEMS gyro's sensitivity to linear acceleration, °/s per g (MPU-9250 class: 0.1):
+#: the default σ of the prior on G (:class:`GyroReading`).
+G_SENSITIVITY_PRIOR_DPS_PER_G = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,6 +76,9 @@ class Effect(ABC):
     sensor_intrinsic: ClassVar[bool] = False
     #: Effects that only move the offset over time (Δv independent of s).
     offset_like: ClassVar[bool] = False
+    #: False for an effect no single recording can identify (the fit's own parameters
+    #: span it on one mounting): the single-recording screen lists it without testing.
+    one_recording_identifies: ClassVar[bool] = True
 
     @property
     def size(self) -> int:
@@ -290,6 +298,14 @@ class GyroReading(Effect):
     Calibrated: the scale along the wheel axis (|w|), the axis u, the biases (and
     G_X, G_Y).  Zero values are not "absent": this is a measurement, not an
     extension.
+
+    G gets a prior from the sensor class, N(0, σ_G²) per entry with σ_G =
+    ``g_prior_dps_per_g`` (°/s/g, MPU-9250 class: 0.1): G's once-per-turn term
+    has the shape of an imbalance's rate ripple (which goes as 1/ω), and a free G
+    would absorb it — the ripple then vanishes from the gyro and the imbalance
+    hides in the accelerometer's gains.  The prior adds G/σ_G² to the gradient and
+    1/σ_G² to the information of each entry (:func:`g_prior_terms`); ``None``
+    leaves G free.
     """
 
     name = "gyro"
@@ -298,12 +314,40 @@ class GyroReading(Effect):
     _BASE = ("w_x", "w_y", "w_z", "bias_x_radps", "bias_y_radps", "bias_z_radps")
     _SENSITIVITY = ("gx_x", "gx_y", "gx_z", "gy_x", "gy_y", "gy_z")
 
-    def __init__(self, g_sensitivity: bool = True) -> None:
+    def __init__(
+        self,
+        g_sensitivity: bool = True,
+        g_prior_dps_per_g: float | None = G_SENSITIVITY_PRIOR_DPS_PER_G,
+    ) -> None:
+        if g_prior_dps_per_g is not None and not (
+            np.isfinite(g_prior_dps_per_g) and g_prior_dps_per_g > 0
+        ):
+            raise ValueError("g_prior_dps_per_g must be a positive number (°/s/g) or None")
         self.g_sensitivity = bool(g_sensitivity)
+        self.g_prior_dps_per_g = None if g_prior_dps_per_g is None else float(g_prior_dps_per_g)
         self.param_names = self._BASE + (self._SENSITIVITY if self.g_sensitivity else ())
 
     def settings(self) -> dict:
-        return {"g_sensitivity": self.g_sensitivity}
+        return {"g_sensitivity": self.g_sensitivity, "g_prior_dps_per_g": self.g_prior_dps_per_g}
+
+    @property
+    def g_prior_std_radps_per_mps2(self) -> float | None:
+        """σ_G of the prior in the model's units (rad/s per m/s²), or None (no prior)."""
+        if not self.g_sensitivity or self.g_prior_dps_per_g is None:
+            return None
+        return self.g_prior_dps_per_g * np.pi / 180.0 / STANDARD_GRAVITY_MPS2
+
+    def g_prior_terms(self, values: np.ndarray) -> tuple[float, np.ndarray, float] | None:
+        """The prior's (cost, gradient, information) on G = values[6:12], or None.
+
+        cost = Σ G²/σ², gradient G/σ², information 1/σ² on the diagonal.
+        """
+        std = self.g_prior_std_radps_per_mps2
+        if std is None:
+            return None
+        g = np.asarray(values, dtype=float)[6:12]
+        weight = 1.0 / std**2
+        return float(weight * (g @ g)), weight * g, weight
 
     def reading(
         self,
@@ -746,6 +790,7 @@ class CrossAxis(_SensorEffect):
     param_names = ("yx_rad", "zx_rad", "zy_rad")
     description = "cross-axis coupling (non-orthogonal sensing axes)"
     sensor_intrinsic = True
+    one_recording_identifies = False
     _pairs = ((1, 0), (2, 0), (2, 1))  # (row i, column j) of L
 
     def matrix(self, values: np.ndarray) -> np.ndarray:
@@ -808,7 +853,10 @@ def make_effect(name: str, settings: dict | None = None) -> Effect:
     if name == "spin_extension":
         return SpinPolynomialExtension(int(settings.get("extra_degrees", 2)))
     if name == "gyro":
-        return GyroReading(bool(settings.get("g_sensitivity", False)))
+        return GyroReading(
+            bool(settings.get("g_sensitivity", False)),
+            settings.get("g_prior_dps_per_g", G_SENSITIVITY_PRIOR_DPS_PER_G),
+        )
     if name == "spin_spline":
         return SpinSpline(
             float(settings["start_s"]), float(settings["end_s"]), float(settings["spacing_s"])

@@ -440,16 +440,30 @@ def jacobian_transpose_times(
     Σ_n s_{n,i} w_{n,i} and offset i Σ_n w_{n,i}.  ``output`` is an
     :func:`evaluate` result at ``params`` and ``t_s`` (no Jacobian needed).
     """
+    return reverse_pass(params, t_s, layout, weights, output)[0]
+
+
+def reverse_pass(
+    params: CalibrationParams,
+    t_s: np.ndarray,
+    layout: ParameterLayout,
+    weights: np.ndarray,
+    output: ModelOutput,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`jacobian_transpose_times` and the :func:`spin_adjoint` rows it passes through.
+
+    The spin coefficients' sums run through the wheel angle's adjoint rows
+    (∂v/∂ϑ · w, ∂v/∂ω · w, ∂v/∂ω̇ · w per sample), which a quantity acting on the
+    wheel angle alone (a candidate effect) then needs too: one pass gives both.
+    """
     if layout.effects:
         raise ValueError("jacobian_transpose_times covers the paper's model (no effects)")
     t = np.asarray(t_s, dtype=float)
-    kin = output.kinematics
     force = output.force
     u = _bench_weights(params, weights)
-    r = params.bench.radius_m
     blocks = layout.blocks
     out = np.empty(layout.size)
-    by_theta = _by_theta(force, u)
+    adjoint = _adjoint_rows(params, u, output)
     # The spin rows through the powers t^j, without forming ∂ϑ/∂p, ∂ω/∂p, ∂ω̇/∂p
     # (see kinematics: ∂ϑ/∂ω_k = t^(k+1)/(k+1), ∂ω/∂ω_k = t^k, ∂ω̇/∂ω_k = k t^(k−1)).
     degree = params.spin.degree
@@ -458,17 +472,18 @@ def jacobian_transpose_times(
     for j in range(1, degree + 2):
         powers[j] = powers[j - 1] * t
     k = np.arange(degree + 1)
-    through_theta = powers @ by_theta
+    through_theta = powers @ adjoint[0]
     spin = np.empty(degree + 2)
     spin[0] = through_theta[0]
-    spin[1:] = through_theta[1:] / (k + 1) + powers[:-1] @ ((2 * r) * kin.omega_radps * u[0])
-    spin[2:] += k[1:] * (powers[:degree] @ (r * u[1]))
+    spin[1:] = through_theta[1:] / (k + 1) + powers[:-1] @ adjoint[1]
+    spin[2:] += k[1:] * (powers[:degree] @ adjoint[2])
     out[blocks["spin"]] = spin
     if layout.fit_tilt:
         out[blocks["tilt"].start] = force.g_cos_tilt * (
             force.cos_theta @ u[0] + force.sin_theta @ u[1]
         ) - force.g_sin_tilt * np.sum(u[2])
     if layout.fit_radius:
+        kin = output.kinematics
         out[blocks["radius"].start] = kin.omega_radps**2 @ u[0] + kin.omega_dot_radps2 @ u[1]
     a = force.accel_mps2
     rot0 = blocks["rotation"].start
@@ -479,7 +494,7 @@ def jacobian_transpose_times(
     for i in range(3):
         out[blocks["gain"].start + i] = sensed[:, i] @ weights[i]
         out[blocks["offset"].start + i] = np.sum(weights[i])
-    return out
+    return out, adjoint
 
 
 def _bench_weights(params: CalibrationParams, weights: np.ndarray) -> np.ndarray:
@@ -501,7 +516,11 @@ def spin_adjoint(params: CalibrationParams, weights: np.ndarray, output: ModelOu
     (∂a_X = −g sinα sinϑ ∂ϑ + 2rω ∂ω, ∂a_Y = g sinα cosϑ ∂ϑ + r ∂ω̇).  The
     paper's model (no effects); ``output`` an :func:`evaluate` result there.
     """
-    u = _bench_weights(params, weights)
+    return _adjoint_rows(params, _bench_weights(params, weights), output)
+
+
+def _adjoint_rows(params: CalibrationParams, u: np.ndarray, output: ModelOutput) -> np.ndarray:
+    """:func:`spin_adjoint` from the weights seen in the bench frame (u = Wᵀ w)."""
     r = params.bench.radius_m
     rows = np.empty((3, u.shape[1]))
     rows[0] = _by_theta(output.force, u)

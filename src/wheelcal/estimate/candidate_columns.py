@@ -1,0 +1,65 @@
+"""The columns ∂v/∂θ of candidate effects at θ = 0, leanly: for the closed loop's screen.
+
+At zero a candidate changes nothing else, so only its own columns are needed
+(:func:`~wheelcal.model.forward.candidate_columns`).  Most sensor effects act on
+one axis per parameter (:meth:`~wheelcal.model.effects.Effect.axis_columns`): a
+row per parameter instead of (3, N) mostly zeros.  The joint fit appends these
+columns to its Fisher information's quadrature (``JointFit.screen``), and the
+screen takes their score from every sample.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wheelcal.model import CalibrationParams, ModelOutput
+from wheelcal.model.effects import Effect, OffsetWarmup
+from wheelcal.model.forward import candidate_columns
+
+
+def candidate_extra(candidates: tuple[Effect, ...], layout):
+    """The candidates' columns as an ``extra`` callback of the normal equations."""
+
+    def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
+        cols = np.zeros((extra.size, 3, t_s.size))
+        row = 0
+        table = lean_columns(candidates, params, output, t_s)
+        for cand, lean in zip(candidates, table, strict=True):
+            if lean is None:
+                cols[row : row + cand.size] = candidate_columns(params, t_s, layout, cand, output)
+            else:
+                values, axes = lean
+                for k, axis in enumerate(axes):
+                    cols[row + k, axis] = values[k]
+            row += cand.size
+        return cols
+
+    extra.size = sum(c.size for c in candidates)
+    return extra
+
+
+def lean_columns(
+    candidates: tuple[Effect, ...], params: CalibrationParams, output: ModelOutput, t_s
+) -> list:
+    """Each candidate's lean per-axis columns (``axis_columns``), or None where it has none.
+
+    A grid of warm-ups shares its exponentials: e^{−t/τ} for the longest τ, then
+    squared down the grid where τ halves (the default grid: one exponential, not four).
+    """
+    warm = {c.tau_s for c in candidates if type(c) is OffsetWarmup}
+    decays: dict[float, np.ndarray] = {}
+    previous = None
+    for tau in sorted(warm, reverse=True):
+        if previous is not None and previous[0] == 2 * tau:
+            decays[tau] = previous[1] * previous[1]
+        else:
+            decays[tau] = np.exp(-t_s / tau)
+        previous = (tau, decays[tau])
+    out = []
+    for cand in candidates:
+        if type(cand) is OffsetWarmup:
+            out.append((np.broadcast_to(1.0 - decays[cand.tau_s], (3, t_s.size)), (0, 1, 2)))
+        else:
+            lean = getattr(cand, "axis_columns", None)
+            out.append(None if lean is None else lean(t_s, output.sensed_mps2, params.sensor.gain))
+    return out
