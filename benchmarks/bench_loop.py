@@ -68,9 +68,7 @@ def screen_parts(recording, repeats: int) -> None:
         "score tests (all streams, p-values)": lambda: score.score_tests(
             fit, window, default_candidates(), evaluated, None, rests
         ),
-        "the closed loop (nothing to add)": lambda: ClosedLoop().run(
-            window, fit, evaluated, rests
-        ),
+        "the closed loop (nothing to add)": lambda: ClosedLoop().run(window, fit, evaluated, rests),
     }
     ts = interleaved_times(parts, repeats)
     print(
