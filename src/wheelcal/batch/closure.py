@@ -8,7 +8,6 @@ and writes the sensor model of the joint fit to ``sensors/<sensor_id>.sensor.jso
 
 from __future__ import annotations
 
-import json
 from collections import defaultdict
 
 from wheelcal.batch.pipeline import Pipeline
@@ -16,6 +15,7 @@ from wheelcal.batch.sensors import SENSORS_FOLDER, sensor_file_stem
 from wheelcal.diagnose.sensor_closure import SessionInput, close_sensor
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.calibration import Calibration
+from wheelcal.io.json_text import dumps_indented, json_safe
 from wheelcal.model.effects import make_effect
 
 
@@ -77,7 +77,7 @@ def run_closure(pipeline: Pipeline, calibrations: list[Calibration]) -> dict:
                 "sensor_id": sensor_id,
                 **closure.sensor_fit.as_dict(),
             }
-            atomic_write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+            atomic_write_text(path, dumps_indented(json_safe(doc)) + "\n")
             entry["sensor_file"] = str(path)
         sensors.append(entry)
     return {"sensors": sensors, "skipped": skipped}

@@ -67,8 +67,27 @@ def _finite(x) -> float | None:
 
 
 def group_statistics(values: np.ndarray, stds: np.ndarray) -> dict:
-    """mean, std (ddof=1), predicted_std (RMS σ), ratio and its χ² p-value."""
+    """mean, std (ddof=1), predicted_std (RMS σ), ratio and its χ² p-value.
+
+    Over the sessions that determined the parameter (a null — undetermined — value
+    is left out, and counted in ``undetermined``); None where nothing is left.
+    """
+    values = np.asarray(values, dtype=float)
+    stds = np.asarray(stds, dtype=float)
+    known = np.isfinite(values)
+    undetermined = int(np.sum(~known))
+    values, stds = values[known], stds[known]
     n = values.size
+    if n == 0:
+        return {
+            "mean": None,
+            "std": None,
+            "predicted_std": None,
+            "ratio": None,
+            "ratio_p_value": None,
+            "n": 0,
+            "undetermined": undetermined,
+        }
     mean = float(np.mean(values))
     std = float(np.std(values, ddof=1)) if n >= 2 else None
     predicted = float(np.sqrt(np.mean(stds**2))) if np.all(np.isfinite(stds)) else None
@@ -85,11 +104,18 @@ def group_statistics(values: np.ndarray, stds: np.ndarray) -> dict:
         "ratio": ratio,
         "ratio_p_value": p_value,
         "n": int(n),
+        "undetermined": undetermined,
     }
 
 
 def _outliers(files: list[str], name: str, values: np.ndarray, n_tests: int) -> list[dict]:
-    """Each session against the others (leave-one-out t, Bonferroni over ``n_tests``)."""
+    """Each session against the others (leave-one-out t, Bonferroni over ``n_tests``).
+
+    Sessions that left the parameter undetermined (null) take no part.
+    """
+    known = np.isfinite(values)
+    files = [f for f, k in zip(files, known, strict=True) if k]
+    values = values[known]
     n = values.size
     if n < 4:
         return []
@@ -122,7 +148,9 @@ def _stats_of(members: list[dict], names: list[str]) -> dict:
     """group_statistics for each name over member parameter tables ({name: {value, std}})."""
     out = {}
     for name in names:
-        values = np.array([m[name]["value"] for m in members], dtype=float)
+        values = np.array(
+            [np.nan if m[name]["value"] is None else m[name]["value"] for m in members]
+        )
         stds = np.array([np.nan if m[name]["std"] is None else m[name]["std"] for m in members])
         out[name] = group_statistics(values, stds)
     return out
@@ -288,9 +316,42 @@ def session_entry(
         clipped_samples=counts["clipped"],
         dropped_samples=sum(counts.values()),
         warnings=len(fit.get("warnings", [])),
+        model=fit.get("model", "paper"),
+        effects_found=effects_found(calibration),
         notes=session_notes(calibration, outliers),
     )
     return entry
+
+
+def effects_found(calibration: Mapping) -> list[dict]:
+    """What the closed loop added to the paper's model, each with its evidence."""
+    out = []
+    for name, entry in calibration.get("effects", {}).items():
+        evidence = entry.get("evidence", {})
+        out.append(
+            {
+                "effect": name,
+                "statistic": evidence.get("statistic"),
+                "dof": evidence.get("dof"),
+                "p_corrected": evidence.get("p_corrected"),
+            }
+        )
+    return out
+
+
+def _effects_cell(entry: Mapping) -> str:
+    """report.md's "effects found" cell: each effect with χ² and p, or what was fitted."""
+    if entry.get("status") == "failed" or "model" not in entry:
+        return "–"
+    if entry["model"] == "paper":
+        return "not screened (paper's model)"
+    found = entry.get("effects_found") or []
+    if not found:
+        return "none"
+    return "<br>".join(
+        f"{e['effect']} (χ² = {_fmt(e['statistic'], 3)}, p = {_fmt(e['p_corrected'], 2)})"
+        for e in found
+    )
 
 
 def counts_sentence(report: Mapping) -> str:
@@ -464,8 +525,9 @@ def sessions_markdown(entries: Sequence[Mapping]) -> list[str]:
     lines = [
         "## Sessions",
         "",
-        "| # | file | status | window (s) | samples | residual rms x / y / z (m/s²) | notes |",
-        "|---:|---|---|---|---:|---|---|",
+        "| # | file | status | window (s) | samples | residual rms x / y / z (m/s²) "
+        "| effects found | notes |",
+        "|---:|---|---|---|---:|---|---|---|",
     ]
     for i, e in enumerate(entries, start=1):
         window = e.get("window_s")
@@ -479,6 +541,7 @@ def sessions_markdown(entries: Sequence[Mapping]) -> list[str]:
                 "–" if not window else f"{window[0]:.2f}–{window[1]:.2f}",
                 e.get("samples", "–"),
                 "–" if not rms else " / ".join(_fmt(x, 3) for x in rms),
+                _effects_cell(e),
                 notes,
             )
         )

@@ -469,6 +469,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     from wheelcal.batch.report import build_report, report_markdown, sessions_csv
     from wheelcal.batch.sensors import write_sensor_calibrations
     from wheelcal.io.atomic import atomic_write_bytes, atomic_write_text
+    from wheelcal.io.json_text import dumps_indented, json_safe
     from wheelcal.viz.batch_png import OVERVIEW_FILE, overview_png
 
     out = pipeline.output
@@ -549,7 +550,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
         write_batch_rrd(out / "batch.rrd", calibrations)
     _sync()  # the sensor files and the PNG (written without per-file fsync)
     # report.json last: its key marks the whole report as complete.
-    atomic_write_text(json_path, json.dumps(report, indent=2, allow_nan=False) + "\n")
+    atomic_write_text(json_path, dumps_indented(json_safe(report)) + "\n")
     return tuple(map(str, paths)), True
 
 

@@ -60,6 +60,7 @@ def session_summary(outcome: SessionOutcome) -> str:
         + " ".join(f"{x:.4f}" for x in noise.marginal_std_mps2)
         + f" ({colour}, effective samples {100 * np.mean(noise.effective_sample_fraction):.0f} %)"
     )
+    lines.append("  " + model_line(outcome))
     verdict = noise_verdict(r)
     if verdict:
         lines.append("  " + verdict)
@@ -71,6 +72,29 @@ def session_summary(outcome: SessionOutcome) -> str:
         f"  → {outcome.calibration_path}" + (f", {outcome.rrd_path}" if outcome.rrd_path else "")
     )
     return "\n".join(lines)
+
+
+def model_line(outcome: SessionOutcome) -> str:
+    """One line: what the closed loop added (each with χ² and p), or that nothing was needed."""
+    d = outcome.diagnosis
+    if d is None:
+        return "model: the paper's (--model paper: no screen for effects it lacks)"
+    tested = sum(t.identifiable for t in d.final_tests)
+    if not d.steps:
+        return (
+            f"model: the paper's — the screen found none of {tested} candidate effects "
+            f"(family-wise α = {d.alpha:g})"
+        )
+    found = ", ".join(
+        f"{s.test.effect.label()} (χ² = {s.test.statistic:.0f}, {p_text(s.test.p_corrected)})"
+        for s in d.steps
+    )
+    return f"model: the paper's + {found} (closed loop, family-wise α = {d.alpha:g})"
+
+
+def p_text(p: float) -> str:
+    """``p = 3e-05``, or ``p < 1e-300`` where it underflows."""
+    return "p < 1e-300" if p <= 0 else f"p = {p:.1g}"
 
 
 def noise_verdict(result) -> str:

@@ -272,12 +272,18 @@ class SessionFit:
         exclude = (choice.found.start_s, choice.found.end_s) if choice.found else tuple(spin_s)
         rests = find_rests(recording, exclude)
         window = choice.recording
-        note = ""
+        note = rail_note = ""
         while True:
             guess = self.fitter.start(window, fastest)  # a shortened window: no faster
             _check_implied_radius(guess, window, gates)
             result, evaluated = self.fitter.fit_evaluated(window, guess=guess)
-            motion, reference = _motion(result, window, rests, evaluated)
+            fitted = window
+            if window.clip_limits_mps2 is not None:
+                result, fitted, rail_note = _clear_of_rails(self.fitter, result, window)
+            # The closed loop before the motion check: an effect of the spin (a spin-down
+            # beyond the cubic, an imbalance) is what the check would otherwise cut away.
+            final, diagnosis = self._refined(result, fitted, rests, evaluated)
+            motion, reference = _motion(final, fitted, rests, evaluated)
             if motion is None or not motion.inadequate(gates.motion_z, gates.motion_shift_sigma):
                 break
             if window.duration_s * SHRINK < gates.min_window_s:
@@ -298,20 +304,13 @@ class SessionFit:
                 f"{motion.worst()}); shortened to its first {shorter:.0f} s"
             )
             window = window.window(t0, t0 + shorter)
-        if window.clip_limits_mps2 is not None:
-            fitted = result
-            result, window, rail_note = _clear_of_rails(self.fitter, result, window)
-            note = "; ".join(x for x in (note, rail_note) if x)
-            if result is not fitted:  # refitted: its residual has its own reference
-                reference = None
+        window = fitted
+        note = "; ".join(x for x in (note, rail_note) if x)
         if note:
             choice = WindowChoice(window, choice.found, choice.reason + "; " + note)
-        omega = result.params.spin.omega_at(result.centred_time_s[[0, -1]])
+        omega = final.params.spin.omega_at(final.centred_time_s[[0, -1]])
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
-        refuse_few_turns(result)
-        final, diagnosis = self._refined(result, window, rests, evaluated)
-        if final is not result:  # effects added: the final residual has its own reference
-            reference = None
+        refuse_few_turns(final)
         outcome = assess(final, rests, gates, motion, reference=reference)
         return SessionFitOutcome(outcome, choice, rests, diagnosis)
 

@@ -17,9 +17,31 @@ then writes or refuses it exactly as before.
 from __future__ import annotations
 
 import json
+import math
 from json.encoder import encode_basestring_ascii
 
-__all__ = ["dumps_indented"]
+import numpy as np
+
+__all__ = ["dumps_indented", "json_safe"]
+
+
+def json_safe(value):
+    """``value`` with every non-finite float (NaN, ±∞) made None, through lists and dicts.
+
+    JSON has no NaN: a report built from sessions with undetermined (null) values
+    must still be written, with those values null (numpy scalars become plain).
+    """
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
 
 
 class _NotPlain(Exception):
