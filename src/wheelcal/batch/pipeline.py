@@ -128,6 +128,7 @@ _SECTIONS: dict[str, dict[str, _Key]] = {
         "tilt_std_deg": _Key("number", "a number >= 0 (°)", lambda v: v >= 0),
         "gyro": _choice("auto", "on", "off"),
         "model": _choice("closed_loop", "paper"),
+        "gyro_g_sensitivity_dps_per_g": _positive(" (°/s/g)"),
     },
     "executor": {
         "kind": _choice("processes", "dask"),
@@ -332,6 +333,7 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
             alpha=float(run.get("alpha", 0.01)),
             gyro=str(run.get("gyro", "auto")),
             model=str(run.get("model", "closed_loop")),
+            gyro_g_sensitivity_dps_per_g=float(run.get("gyro_g_sensitivity_dps_per_g", 0.1)),
             defaults=tuple(sorted(data.get("defaults", {}).items())),
             gates=gates,
             **overrides,

@@ -86,6 +86,8 @@ class SessionOptions:
     force_gravity: bool = False
     #: Use of the gyroscope: "auto" (when only it can follow the motion), "on", "off".
     gyro: str = "auto"
+    #: σ of the prior on the gyro's sensitivity to linear acceleration, °/s/g (its class).
+    gyro_g_sensitivity_dps_per_g: float = 0.1
 
     def __post_init__(self) -> None:
         if (self.start_s is None) != (self.end_s is None):
@@ -98,6 +100,7 @@ class SessionOptions:
             )
         _positive("radius", self.radius_m, "m")
         _positive("full scale", self.full_scale_g, "g")
+        _positive("--gyro-g-sensitivity", self.gyro_g_sensitivity_dps_per_g, "°/s/g")
         if self.radius_std_m is not None and not (
             np.isfinite(self.radius_std_m) and self.radius_std_m >= 0
         ):
@@ -145,6 +148,7 @@ class SessionOptions:
             known_tilt_deg=self.known_tilt_deg,
             tilt_std_deg=self.tilt_std_deg,
             use_gyro=self.geometry == "rolling",  # the yaw rate comes from the gyro
+            gyro_g_prior_dps_per_g=self.gyro_g_sensitivity_dps_per_g,
         )
 
     def session_fit(self) -> SessionFit:

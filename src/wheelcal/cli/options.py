@@ -51,6 +51,15 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
         help="use the gyroscope: auto (default: only when the free spin's cubic cannot follow "
         "the motion), on (always, with a flexible wheel angle), off",
     )
+    w.add_argument(
+        "--gyro-g-sensitivity",
+        type=positive_float,
+        default=0.1,
+        metavar="DPS_PER_G",
+        help="the gyro's typical sensitivity to linear acceleration, °/s per g (default 0.1, "
+        "MPU-9250 class): the σ of its prior, so that it cannot absorb an unbalanced wheel's "
+        "rate ripple",
+    )
     m = parser.add_argument_group("geometry")
     m.add_argument(
         "--geometry",
@@ -153,6 +162,7 @@ def session_options(args: argparse.Namespace, rrd: bool = False):
             gyro=args.gyro,
             model=args.model,
             alpha=args.alpha,
+            gyro_g_sensitivity_dps_per_g=args.gyro_g_sensitivity,
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from None

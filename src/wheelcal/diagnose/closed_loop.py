@@ -88,11 +88,11 @@ class ClosedLoop:
         )
         # A wheel rolling on the ground (a gyro-aided fit of a vertical wheel): yaw from the gyro.
         candidates += rolling_candidates(base, recording)
-        gyro = gyro_stream(base, recording)
+        gyro = gyro_stream(base, recording, self.fit.gyro_reading())
         fit, frame = _motion_fit(self.fit, base, with_gyro=gyro is not None)
         for _ in range(self.max_steps):
             if current is not base:
-                gyro = gyro_stream(current, recording)
+                gyro = gyro_stream(current, recording, self.fit.gyro_reading())
             tests = score_tests(
                 current,
                 recording,

@@ -44,7 +44,7 @@ from wheelcal.estimate.normal_equations import (
 from wheelcal.estimate.rests import RestSegment
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
-from wheelcal.model.effects import Effect
+from wheelcal.model.effects import Effect, GyroReading
 from wheelcal.model.forward import (
     EvaluatedModel,
     candidate_columns,
@@ -134,8 +134,13 @@ class GyroStream:
     noise: NoiseModel
 
 
-def gyro_stream(fit: CalibrationResult, recording: Recording) -> GyroStream | None:
-    """The gyro stream of ``recording`` at ``fit``, or None (no usable gyroscope)."""
+def gyro_stream(
+    fit: CalibrationResult, recording: Recording, reading: GyroReading | None = None
+) -> GyroStream | None:
+    """The gyro stream of ``recording`` at ``fit``, or None (no usable gyroscope).
+
+    ``reading``: the gyro's reading model (its prior on G) when the fit has none.
+    """
     gyro = getattr(recording, "gyro_radps", None)
     if gyro is None or int(np.sum(np.all(np.isfinite(gyro), axis=1))) < 100:
         return None
@@ -143,7 +148,7 @@ def gyro_stream(fit: CalibrationResult, recording: Recording) -> GyroStream | No
     gyro_t, samples = gyro_samples(recording, tc, fit.layout.effects)
     if gyro_effect(fit.layout) is not None:
         return GyroStream(gyro_t, samples, fit.layout, fit.params, fit.gyro_noise)
-    fitted = regress_gyro(fit, gyro_t, samples)
+    fitted = regress_gyro(fit, gyro_t, samples, reading=reading)
     return GyroStream(gyro_t, samples, fitted.layout, fitted.params, fitted.noise)
 
 

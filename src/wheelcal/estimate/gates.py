@@ -273,8 +273,47 @@ def tolerance_warnings(result: CalibrationResult, gates: Gates, bad: set[str]) -
     return out
 
 
-def noise_warnings(noise: NoiseReference, gates: Gates) -> list[str]:
-    """The warning band on the residual against the independent noise floor."""
+#: A residual sample beyond this many robust σ of its axis is an isolated spike.
+SPIKE_SIGMAS = 8.0
+
+
+def isolated_spikes(
+    residual_mps2: np.ndarray, time_s: np.ndarray | None = None
+) -> tuple[int, str, np.ndarray] | None:
+    """Residual samples far beyond the rest (a glitch, a knock): count, the worst, rms without.
+
+    Robust σ per axis (1.4826 × median |r|); a sample beyond :data:`SPIKE_SIGMAS` of
+    it on any axis is a spike (Gaussian noise gives one such in ~10¹⁴ samples).
+    Returns None when there is none; else the count, the worst in words and the
+    residual rms per axis with the spikes left out.
+    """
+    r = np.asarray(residual_mps2, dtype=float)
+    if r.shape[0] < 20:
+        return None
+    sigma = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+    z = np.abs(r) / np.maximum(sigma, 1e-12)
+    spikes = np.any(z > SPIKE_SIGMAS, axis=1)
+    count = int(spikes.sum())
+    if count == 0 or count > 1e-3 * r.shape[0]:  # many: not isolated (vibration, a misfit)
+        return None
+    row, axis = np.unravel_index(int(np.argmax(z)), z.shape)
+    when = f" at t = {time_s[row]:.2f} s" if time_s is not None else ""
+    worst = f"{r[row, axis]:+.3g} m/s² on {AXES[axis]}{when}"
+    return count, worst, np.sqrt(np.mean(r[~spikes] ** 2, axis=0))
+
+
+def noise_warnings(
+    noise: NoiseReference,
+    gates: Gates,
+    residual_mps2: np.ndarray | None = None,
+    time_s: np.ndarray | None = None,
+) -> list[str]:
+    """The warning band on the residual against the independent noise floor.
+
+    With the ``residual`` the warning names isolated spikes (a logger's corrupt
+    sample, a knock) when they alone lift the residual above the floor, not the
+    bench's vibration.
+    """
     ratio = float(np.max(noise.ratio))
     if not ratio > gates.unexplained_ratio:
         return []
@@ -283,6 +322,18 @@ def noise_warnings(noise: NoiseReference, gates: Gates) -> list[str]:
     unexplained = noise.unexplained_mps2[axis]
     vibration = noise.vibration_mps2[axis] if noise.source == "rests" else 0.0
     harmonic = noise.harmonic_mps2[axis]
+    spikes = isolated_spikes(residual_mps2, time_s) if residual_mps2 is not None else None
+    if spikes is not None and np.all(
+        spikes[2] <= gates.unexplained_ratio * np.maximum(noise.floor_mps2, 1e-12)
+    ):
+        count, worst, _ = spikes
+        return [
+            f"the residual on {AXES[axis]} ({noise.residual_rms_mps2[axis]:.3g} m/s² rms) is "
+            f"{ratio:.1f}× the sensor's noise {source} ({noise.floor_mps2[axis]:.3g} m/s²) "
+            f"because of {count} isolated sample{'s' if count > 1 else ''} far from the model "
+            f"(worst {worst}): a logger glitch or a knock, not vibration; too small for the "
+            "reader's outlier check, it barely moves the calibration"
+        ]
     if vibration >= harmonic:
         cause = (
             f"most of it is broadband ({vibration:.3g} m/s² between the wheel harmonics): the "
@@ -298,6 +349,61 @@ def noise_warnings(noise: NoiseReference, gates: Gates) -> list[str]:
         f"{ratio:.1f}× the sensor's noise {source} ({noise.floor_mps2[axis]:.3g} m/s²): "
         f"{unexplained:.3g} m/s² is left unexplained; {cause}"
     ]
+
+
+#: G beyond this many σ of its prior is a finding (the data pulled it there).
+G_FINDING_SIGMAS = 3.0
+
+
+def gyro_findings(source: str, block, rests: tuple, gates: Gates) -> list[str]:
+    """The gyro stream's gate against its own noise floor (the rests), and G's finding.
+
+    The gyro's residual rms over its noise at rest (pooled over the rests that
+    read the gyro): above ``unexplained_ratio`` a warning, above
+    ``max_harmonic_ratio`` with most of it once per turn the ``misfit`` refusal —
+    the rate ripples with the wheel beyond the model (an unbalanced wheel the
+    screen could not resolve).  A sensitivity to linear acceleration fitted
+    beyond :data:`G_FINDING_SIGMAS` σ of its prior is reported with its likely
+    causes.
+    """
+    out = []
+    g, prior = block.g_sensitivity, block.g_prior_std
+    if g is not None and prior is not None and np.max(np.abs(g)) > G_FINDING_SIGMAS * prior:
+        dps_per_g = float(np.max(np.abs(g))) * STANDARD_GRAVITY_MPS2 * 180 / np.pi
+        out.append(
+            f"the gyro's sensitivity to linear acceleration fits {dps_per_g:.2g} °/s/g, beyond "
+            f"the {prior * STANDARD_GRAVITY_MPS2 * 180 / np.pi:.2g} °/s/g of its class "
+            "(--gyro-g-sensitivity): the rate ripples once per turn beyond the model — an "
+            "unbalanced wheel, or a gyro more sensitive to acceleration than assumed"
+        )
+    floors = [r.gyro_noise_std_radps for r in rests if r.gyro_noise_std_radps is not None]
+    if not floors:
+        return out
+    floor = np.sqrt(np.mean(np.square(floors), axis=0))
+    ratio = block.residual_rms_radps / np.maximum(floor, 1e-12)
+    axis = int(np.argmax(ratio))
+    if not ratio[axis] > gates.unexplained_ratio:
+        return out
+    ripple = block.once_per_turn_radps
+    turn = ripple[axis] / np.sqrt(2) if ripple is not None else 0.0  # its rms
+    excess = np.sqrt(max(block.residual_rms_radps[axis] ** 2 - floor[axis] ** 2, 0.0))
+    text = (
+        f"the gyro's residual on its {AXES[axis]} axis ({block.residual_rms_radps[axis]:.3g} "
+        f"rad/s rms) is {ratio[axis]:.1f}× its noise at rest ({floor[axis]:.3g} rad/s); "
+        f"{turn:.3g} rad/s rms of it turns once per wheel turn"
+    )
+    if ratio[axis] > gates.max_harmonic_ratio and turn > 0.5 * excess:
+        raise CalibrationRefused(
+            source,
+            "misfit",
+            text + ": the wheel's rate ripples once per turn beyond the model (an unbalanced "
+            "wheel the effect screen could not resolve, or a gyro far more sensitive to "
+            "acceleration than its class)",
+            "balance the wheel (a counterweight opposite the sensor), or give the gyro's "
+            "g-sensitivity with --gyro-g-sensitivity",
+        )
+    out.append(text + " (vibration while the wheel turns, or a rate ripple the model lacks)")
+    return out
 
 
 def refuse_misfit(source: str, noise: NoiseReference, gates: Gates) -> None:

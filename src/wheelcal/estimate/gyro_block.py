@@ -29,6 +29,7 @@ from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.model import CalibrationParams, ParameterLayout
 from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading
+from wheelcal.model.forward import wheel_kinematics
 
 #: A typical MEMS gyro's sensitivity to linear acceleration (MPU-9250: 0.1 °/s/g).
 G_SENSITIVITY_DPS_PER_G = G_SENSITIVITY_PRIOR_DPS_PER_G
@@ -53,6 +54,11 @@ class GyroCalibration:
     #: G R e_X and G R e_Y (rad/s per m/s², gyro axes) with σ, when fitted.
     g_sensitivity: np.ndarray | None = None
     g_sensitivity_std: np.ndarray | None = None
+    #: The residual's once-per-turn amplitude per gyro axis (rad/s): what an
+    #: imbalance's rate ripple or a larger sensitivity to acceleration would leave.
+    once_per_turn_radps: np.ndarray | None = None
+    #: σ of the prior on G (rad/s per m/s²), when there is one.
+    g_prior_std: float | None = None
 
     def to_dict(self) -> dict:
         """The calibration JSON's ``gyro`` block."""
@@ -81,6 +87,16 @@ class GyroCalibration:
             ),
             "axis_angle_to_wheel_axis_deg": self.axis_angle_deg,
             "residual_rms_radps": self.residual_rms_radps.tolist(),
+            **(
+                {"residual_once_per_turn_radps": self.once_per_turn_radps.tolist()}
+                if self.once_per_turn_radps is not None
+                else {}
+            ),
+            **(
+                {"g_sensitivity_prior_std_radps_per_mps2": self.g_prior_std}
+                if self.g_prior_std is not None
+                else {}
+            ),
             "source": self.source,
             "calibrated": "scale along the wheel axis, the axis direction, the three biases",
             "note": "u is free: it tilts from −R·e_Z by the gyro's own misalignment and "
@@ -98,7 +114,16 @@ def _mean_force_mps2(result: CalibrationResult) -> float:
     return float(np.linalg.norm(np.mean(sensed, axis=0)))
 
 
-def _calibration(values, cov, rotation, residual, source, mean_force) -> GyroCalibration:
+def _once_per_turn(theta_rad: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """Amplitude of the residual's first wheel harmonic per axis (least squares on cos, sin)."""
+    basis = np.column_stack([np.cos(theta_rad), np.sin(theta_rad), np.ones_like(theta_rad)])
+    coef, *_ = np.linalg.lstsq(basis, residual, rcond=None)
+    return np.hypot(coef[0], coef[1])
+
+
+def _calibration(
+    values, cov, rotation, residual, source, mean_force, theta_rad=None, reading=None
+) -> GyroCalibration:
     values = np.asarray(values, float)
     w, b = values[:3], values[3:6]
     k = float(np.linalg.norm(w))
@@ -124,6 +149,8 @@ def _calibration(values, cov, rotation, residual, source, mean_force) -> GyroCal
         g_sensitivity_std=(
             np.sqrt(np.maximum(np.diag(cov[6:12, 6:12]), 0.0)) if values.size == 12 else None
         ),
+        once_per_turn_radps=None if theta_rad is None else _once_per_turn(theta_rad, residual),
+        g_prior_std=None if reading is None else reading.g_prior_std_radps_per_mps2,
     )
 
 
@@ -137,7 +164,17 @@ def gyro_from_fit(
     cov = result.covariance[np.ix_(index, index)]
     residual = gyro - gyro_prediction(result.params, gyro_t, result.layout)
     rotation = result.params.bench.misalignment.matrix
-    return _calibration(values, cov, rotation, residual, "joint fit", _mean_force_mps2(result))
+    theta = wheel_kinematics(result.params, gyro_t, result.layout.effects).theta_rad
+    return _calibration(
+        values,
+        cov,
+        rotation,
+        residual,
+        "joint fit",
+        _mean_force_mps2(result),
+        theta,
+        effect,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -186,10 +223,14 @@ def regress_gyro(
 
 
 def gyro_by_product(
-    result: CalibrationResult, gyro_t: np.ndarray, gyro: np.ndarray, max_ar_order: int = 10
+    result: CalibrationResult,
+    gyro_t: np.ndarray,
+    gyro: np.ndarray,
+    max_ar_order: int = 10,
+    reading: GyroReading | None = None,
 ) -> GyroCalibration:
     """The gyro block by regression on the fitted ω(t) (the fit did not use the gyro)."""
-    fitted = regress_gyro(result, gyro_t, gyro, max_ar_order)
+    fitted = regress_gyro(result, gyro_t, gyro, max_ar_order, reading)
     reading = gyro_effect(fitted.layout)
     values = fitted.params.effect(reading.name, reading.size)
     cov, residual = fitted.covariance, fitted.residual_radps
@@ -200,4 +241,6 @@ def gyro_by_product(
         residual,
         "regression on the fitted wheel rate (the free spin's cubic was kept)",
         _mean_force_mps2(result),
+        wheel_kinematics(result.params, gyro_t, result.layout.effects).theta_rad,
+        reading,
     )

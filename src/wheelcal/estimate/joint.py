@@ -69,7 +69,7 @@ from wheelcal.estimate.systematic import (
 from wheelcal.estimate.twins import TwinChoice, choose_twin, twin_of
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
 from wheelcal.model.bench import bench_force
-from wheelcal.model.effects import GyroReading, SpinSpline
+from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, SpinSpline
 from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
 from wheelcal.recording import Recording, RecordingError
 
@@ -135,6 +135,9 @@ class JointFit:
     effects: tuple = ()
     use_gyro: bool = False
     spline_spacing_s: float | None = None
+    #: σ of the prior on the gyro's sensitivity to linear acceleration, °/s/g
+    #: (:class:`~wheelcal.model.effects.GyroReading`; None: no prior).
+    gyro_g_prior_dps_per_g: float | None = G_SENSITIVITY_PRIOR_DPS_PER_G
 
     def __post_init__(self) -> None:
         if self.spline_spacing_s is not None and not self.spline_spacing_s > 0:
@@ -178,8 +181,12 @@ class JointFit:
         if spline is not None:
             motion.append(spline)
         if self.use_gyro:
-            motion.append(GyroReading())
+            motion.append(self.gyro_reading())
         return dataclasses.replace(self.layout, effects=tuple(self.effects) + tuple(motion))
+
+    def gyro_reading(self) -> GyroReading:
+        """The gyroscope's reading with this configuration's prior on G."""
+        return GyroReading(g_sensitivity=True, g_prior_dps_per_g=self.gyro_g_prior_dps_per_g)
 
     def _fixed_tilt_rad(self) -> float | None:
         if self.geometry in ("vertical", "rolling"):

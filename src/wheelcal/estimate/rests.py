@@ -43,6 +43,8 @@ class RestSegment:
     mean_std_mps2: np.ndarray  # (3,) σ of the mean (coloured noise included)
     noise_std_mps2: np.ndarray  # (3,) marginal noise std
     noise_dof: float  # effective samples behind noise_std (for its uncertainty)
+    #: The gyroscope's noise std per axis over the rest (rad/s), when there is a gyro.
+    gyro_noise_std_radps: np.ndarray | None = None
 
     @property
     def mid_s(self) -> float:
@@ -92,7 +94,8 @@ def find_rests(
         i0, i1 = first * block, (last + 1) * block
         if t[i1 - 1] - t[i0] < min_duration_s:
             continue
-        segments.append(_segment(t[i0:i1], v[i0:i1]))
+        gyro = getattr(recording, "gyro_radps", None)
+        segments.append(_segment(t[i0:i1], v[i0:i1], None if gyro is None else gyro[i0:i1]))
     return tuple(segments)
 
 
@@ -107,7 +110,7 @@ def block_statistics(v: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]
     return blocks.mean(axis=2).T, blocks.std(axis=2, ddof=1).T
 
 
-def _segment(t: np.ndarray, v: np.ndarray) -> RestSegment:
+def _segment(t: np.ndarray, v: np.ndarray, gyro: np.ndarray | None = None) -> RestSegment:
     mean = column_means(v)
     centred = centred_rows(v, mean)  # (3, n)
     noise = NoiseModel.estimate(centred.T, max_order=6)
@@ -122,7 +125,16 @@ def _segment(t: np.ndarray, v: np.ndarray) -> RestSegment:
         mean_std_mps2=mean_std,
         noise_std_mps2=np.array([np.std(row, ddof=1) for row in centred]),
         noise_dof=float(n * np.min(noise.effective_sample_fraction)),
+        gyro_noise_std_radps=_gyro_std(gyro),
     )
+
+
+def _gyro_std(gyro: np.ndarray | None) -> np.ndarray | None:
+    """The gyro's std per axis over a rest's rows (None: no gyro, or too few valid rows)."""
+    if gyro is None:
+        return None
+    valid = gyro[np.all(np.isfinite(gyro), axis=1)]
+    return np.std(valid, axis=0, ddof=1) if valid.shape[0] >= 10 else None
 
 
 def pooled_noise_std(rests: tuple[RestSegment, ...]) -> tuple[np.ndarray, float] | None:

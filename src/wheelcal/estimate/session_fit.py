@@ -32,6 +32,7 @@ import numpy as np
 from wheelcal.estimate.gates import (
     Assessment,
     Gates,
+    gyro_findings,
     noise_warnings,
     refuse_few_turns,
     refuse_gain_scale,
@@ -193,9 +194,14 @@ class SessionFit:
             if gyro_effect(result.layout) is not None:  # the closed loop fitted it
                 block = gyro_from_fit(result, gyro_t, gyro)
             else:
-                block = gyro_by_product(result, gyro_t, gyro)
-            assessment = dataclasses.replace(outcome.result.assessment, gyro=block)
-            result = dataclasses.replace(outcome.result, assessment=assessment)
+                block = gyro_by_product(result, gyro_t, gyro, reading=self.fitter.gyro_reading())
+            findings = tuple(gyro_findings(result.source, block, outcome.rests, self.gates))
+            assessment = dataclasses.replace(
+                result.assessment, gyro=block, warnings=result.assessment.warnings + findings
+            )
+            result = dataclasses.replace(
+                result, assessment=assessment, warnings=result.warnings + findings
+            )
             return dataclasses.replace(outcome, result=result)
         return outcome
 
@@ -475,9 +481,11 @@ def assess(
     noise = reference or noise_reference(result.residual_mps2, _theta(result), rests)
     refuse_misfit(result.source, noise, gates)
     checks = () if bad else check_rests(result, rests, gates.rest_alpha)
+    gyro_notes = [] if gyro is None else gyro_findings(result.source, gyro, rests, gates)
     warnings = (
-        tolerance_warnings(result, gates, bad)
-        + noise_warnings(noise, gates)
+        gyro_notes
+        + tolerance_warnings(result, gates, bad)
+        + noise_warnings(noise, gates, result.residual_mps2, result.time_s)
         + rest_warnings(checks, gates)
         + [f"{name} is undetermined: {reason}" for name, reason in undetermined]
     )

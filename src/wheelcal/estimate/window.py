@@ -289,7 +289,9 @@ def _find_in_stretch(recording: Recording, search: WindowSearch) -> FreeSpinWind
         )
     # The rotating gravity component keeps its size g sin α through a free spin.
     typical = np.median(amplitude[steady]) if np.any(steady) else np.inf
-    free = steady & (np.abs(np.log(amplitude / typical)) < np.log(1 / search.amplitude_fraction))
+    with np.errstate(divide="ignore", invalid="ignore"):  # an amplitude of 0: not free
+        ratio = np.abs(np.log(amplitude / typical))
+    free = steady & (ratio < np.log(1 / search.amplitude_fraction))
     starts, stops = _runs(free)
     if starts.size == 0:
         raise RecordingError(

@@ -141,11 +141,13 @@ def clean_samples(
     t, a = _drop_stray_stamps(t, a, policy, notes)
     t, a = _order(path, t, a, policy, notes)
     t, a = _merge_duplicates(path, t, a, policy, notes)
+    t, a = _drop_leading_zeros(path, t, a, notes)
     step_ns = _typical_step_ns(t)  # sorted and unique from here on
     _report_gaps(t, step_ns, policy, notes)
     t, a = _drop_gross_outliers(path, t, a, policy, notes)
     t, a, rails = _drop_clipped(path, t, a, full_scale_g, policy, notes)
     _check_rate(path, t.size, step_ns, policy)
+    _check_alive(path, a)
     if policy.check_units:
         _check_units(path, a, unit, unit_remedy)
     duration_s = (t[-1] - t[0]) * 1e-9 if t.size else 0.0
@@ -197,6 +199,44 @@ def _drop_nonfinite(path, t, a, policy, notes):
         )
     notes.append(f"dropped {count} NaN/inf samples ({_pct(count, t.size)})")
     return t[~bad], a[~bad]
+
+
+def _drop_leading_zeros(path, t, a, notes):
+    """Drop rows of exact zeros on all three axes at the start (a logger's first rows).
+
+    A real accelerometer never reads exactly (0, 0, 0): gravity alone is 9.8 m/s².
+    Loggers often write zero rows before the sensor's first reading.
+    """
+    zero = np.all(a == 0.0, axis=1)
+    if not zero.size or not zero[0] or np.all(zero):
+        return t, a  # nothing to drop, or nothing left: _check_alive names it
+    first = int(np.argmin(zero))
+    notes.append(
+        f"dropped the first {first} samples: every axis reads exactly 0 (a logger's rows "
+        "before the sensor's first reading)"
+    )
+    return t[first:], a[first:]
+
+
+def _check_alive(path, a: np.ndarray) -> None:
+    """Refuse a recording whose axes never change: the sensor was not read."""
+    if a.shape[0] < 2:
+        return
+    flat = [k for k in range(3) if np.all(a[:, k] == a[0, k])]
+    if not flat:
+        return
+    if len(flat) == 3 and np.all(a[0] == 0.0):
+        raise SampleError(
+            path,
+            "every sample reads exactly 0 on all three axes: the sensor was not read (a "
+            "logger writing zeros, a wrong register or topic)",
+        )
+    axes = ", ".join(f"{'xyz'[k]} = {a[0, k]:g} m/s²" for k in flat)
+    raise SampleError(
+        path,
+        f"axis {axes} never changes over {a.shape[0]} samples: a dead or unread axis (a "
+        "real axis reads noise and gravity); check the wiring, the register map or the topic",
+    )
 
 
 def _typical_step_ns(t: np.ndarray) -> float:
