@@ -55,11 +55,22 @@ class DragSpin:
 
 @dataclass(frozen=True)
 class ImbalancedSpin:
-    """A polynomial spin (eq. 2) disturbed by ω̇ += a sinϑ + b cosϑ (ε = √(a²+b²))."""
+    """A spin disturbed by ω̇ += a sinϑ + b cosϑ (ε = √(a²+b²)): an unbalanced wheel.
 
-    base: SpinParams
+    ``base`` is the undisturbed motion: a polynomial spin (eq. 2) or any motion
+    with ``kinematics(t)`` (a :class:`RateProfile`: a wheel pushed again and again).
+    The sensor's own mass on the rim is the commonest imbalance: its torque is
+    g sinα · m r sinϑ / I, so ``cos_radps2`` = 0 and ``sin_radps2`` = m g r sinα / I.
+    """
+
+    base: SpinParams | RateProfile
     sin_radps2: float
     cos_radps2: float
+
+    def _base(self, t_s: np.ndarray) -> Kinematics:
+        if isinstance(self.base, SpinParams):
+            return spin_kinematics(self.base, t_s)
+        return self.base.kinematics(t_s)
 
     def kinematics(self, t_s: np.ndarray) -> Kinematics:
         """Integrate ϑ̈ = ω̇_base(t) + a sinϑ + b cosϑ across the sample times."""
@@ -67,27 +78,31 @@ class ImbalancedSpin:
 
         t = np.asarray(t_s, float)
         a, b = self.sin_radps2, self.cos_radps2
-        base = spin_kinematics(self.base, t[:1])
+        base = self._base(t[:1])
         # Start on the forced (once-per-turn) solution so no free oscillation is excited.
         w0 = base.omega_radps[0]
         s, c = np.sin(base.theta_rad[0]), np.cos(base.theta_rad[0])
         y0 = [base.theta_rad[0] - (a * s + b * c) / w0**2, w0 - (a * c - b * s) / w0]
-        k = np.arange(1, self.base.degree + 1)
-        dot_coef = self.base.omega_radps[1:] * k  # ω̇_base(t) polynomial
+        if isinstance(self.base, SpinParams):
+            k = np.arange(1, self.base.degree + 1)
+            dot_coef = self.base.omega_radps[1:] * k  # ω̇_base(t) polynomial
+
+            def base_rate_dot(tt):
+                return np.polynomial.polynomial.polyval(tt, dot_coef)
+        else:
+
+            def base_rate_dot(tt):
+                return self.base.kinematics(np.atleast_1d(tt)).omega_dot_radps2
 
         def rhs(tt, y):
             return [
                 y[1],
-                np.polynomial.polynomial.polyval(tt, dot_coef)
-                + a * np.sin(y[0])
-                + b * np.cos(y[0]),
+                float(np.squeeze(base_rate_dot(tt))) + a * np.sin(y[0]) + b * np.cos(y[0]),
             ]
 
         sol = solve_ivp(rhs, (t[0], t[-1]), y0, t_eval=t, rtol=1e-10, atol=1e-10, method="DOP853")
         theta, omega = sol.y
-        omega_dot = (
-            np.polynomial.polynomial.polyval(t, dot_coef) + a * np.sin(theta) + b * np.cos(theta)
-        )
+        omega_dot = base_rate_dot(t) + a * np.sin(theta) + b * np.cos(theta)
         return Kinematics(theta, omega, omega_dot)
 
 
