@@ -22,10 +22,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 
 def row(case) -> tuple[str, str, str, float | None, bool]:
+    from threadpoolctl import threadpool_limits
+
     import wheelcal
     from loop_truth import sigmas_from_truth
     from test_one_answer import _session
-    from threadpoolctl import threadpool_limits
     from wheelcal.recording import CalibrationRefused, RecordingError
 
     name, gyro = case
