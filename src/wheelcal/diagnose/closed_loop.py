@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from wheelcal.diagnose.harmonics import wheel_harmonics
 from wheelcal.diagnose.rolling_candidate import rolling_candidates
-from wheelcal.diagnose.score import ScoreTest, gyro_stream, score_tests
+from wheelcal.diagnose.score import ScoreTest, gyro_stream, score_tests, screen
 from wheelcal.estimate.joint import JointFit
 from wheelcal.estimate.rests import RestSegment
 from wheelcal.estimate.result import CalibrationResult
@@ -93,7 +93,7 @@ class ClosedLoop:
         for _ in range(self.max_steps):
             if current is not base:
                 gyro = gyro_stream(current, recording, self.fit.gyro_reading())
-            tests = score_tests(
+            tests, rest_tests = screen(
                 current,
                 recording,
                 candidates,
@@ -101,11 +101,9 @@ class ClosedLoop:
                 gyro,
                 rests,
             )
-            usable = [t for t in tests if t.identifiable]
-            if not usable:
-                break
-            best = min(usable, key=lambda t: t.p_corrected)
-            if not best.p_corrected < self.alpha:
+            best = self._best(tests) or self._best(rest_tests)
+            tests = tests + rest_tests
+            if best is None:
                 break
             effect = self._refined(best.effect, current, recording)
             effects = (*_own_effects(current), effect)
@@ -127,7 +125,10 @@ class ClosedLoop:
                 )
             steps.append(Step(test=best, tests=tuple(tests), result=refit))
             current = refit
-        not_identifiable = tuple(t for t in tests if not t.identifiable)
+        seen = {t.effect.label() for t in tests if t.identifiable}
+        not_identifiable = tuple(
+            t for t in tests if not t.identifiable and t.effect.label() not in seen
+        )
         return Diagnosis(
             base=base,
             steps=tuple(steps),
@@ -136,6 +137,14 @@ class ClosedLoop:
             not_identifiable=not_identifiable,
             alpha=self.alpha,
         )
+
+    def _best(self, tests: list[ScoreTest]) -> ScoreTest | None:
+        """The most significant identifiable test, if it passes the family-wise level."""
+        usable = [t for t in tests if t.identifiable]
+        if not usable:
+            return None
+        best = min(usable, key=lambda t: t.p_corrected)
+        return best if best.p_corrected < self.alpha else None
 
     @staticmethod
     def _refined(effect: Effect, current: CalibrationResult, recording: Recording) -> Effect:

@@ -74,6 +74,9 @@ class ScoreTest:
     information_fraction: float
     estimate: np.ndarray  # one-step size of the effect parameters
     predicted_std: np.ndarray  # CRLB of the effect parameters at the fit
+    #: What the test saw: "spin" (the accelerometer, and the gyro when there is one) or
+    #: "spin+rests" (the rests around the window joined: :func:`screen`).
+    streams: str = "spin"
 
     def as_dict(self) -> dict:
         """JSON-ready summary (non-finite numbers as None)."""
@@ -94,6 +97,7 @@ class ScoreTest:
             "information_fraction": num(self.information_fraction),
             "estimate": dict(zip(names, map(num, self.estimate), strict=True)),
             "predicted_std": dict(zip(names, map(num, self.predicted_std), strict=True)),
+            "streams": self.streams,
         }
 
 
@@ -165,19 +169,37 @@ def score_contributions(
     For the paper's model H comes by quadrature and g from every sample without a
     Jacobian (:func:`_normal_by_quadrature`); otherwise both are summed over every
     sample.  ``evaluated``: the model at the fit as its last pass left it.  With a
-    ``gyro`` stream its information and score are added (:func:`_with_gyro`): the
+    ``gyro`` stream its information and score are added (:func:`_add_gyro`): the
     gyro's reading joins the fit's parameters, and a spin candidate (an imbalance's
     once-per-turn rate ripple) is seen by the gyro directly.  With ``rests`` their
     static readings join too (:mod:`~wheelcal.diagnose.rest_stream`; their wheel
     angles are nuisance parameters): a spin effect does not act at rest, so what it
     traded into the gains shows there.
     """
-    present = {e.name for e in fit.layout.effects}
-    candidates = tuple(c for c in candidates if c.name not in present)
+    candidates = _absent(fit, candidates)
     if not candidates:
         return []
+    h, g, nuisance = _streams(fit, recording, candidates, evaluated, gyro)
+    rests = usable_rests(fit, rests)
+    if rests:
+        h, g = _with_rests(fit, h, g, nuisance, rests, candidates)
+    return _schur(h, g, nuisance.size + len(rests), candidates)
+
+
+def _absent(fit: CalibrationResult, candidates: tuple[Effect, ...]) -> tuple[Effect, ...]:
+    present = {e.name for e in fit.layout.effects}
+    return tuple(c for c in candidates if c.name not in present)
+
+
+def _streams(
+    fit: CalibrationResult,
+    recording: Recording,
+    candidates: tuple[Effect, ...],
+    evaluated: EvaluatedModel | None,
+    gyro: GyroStream | None,
+) -> tuple[np.ndarray, np.ndarray, ParameterLayout]:
+    """H and g of the accelerometer (and the gyro) over [nuisance | candidates], the nuisance."""
     tc = recording.time_s - fit.centre_s
-    size = fit.layout.size
     stride = 1
     if not fit.layout.effects:
         stride = stride_for(
@@ -195,19 +217,25 @@ def score_contributions(
             extra=_candidate_columns(fit.layout, candidates),
         )
         h, g = normal.hessian, normal.gradient
-    nuisance = fit.layout
-    if gyro is not None:
-        nuisance = gyro.layout
-        h, g = _embedded(h, g, size, nuisance.size)
-        _add_gyro(fit, h, g, candidates, gyro)
-        size = nuisance.size
-    rests = usable_rests(fit, rests)
-    if rests:
-        h, g = _embedded(h, g, size, size + len(rests))
-        h_rest, g_rest = rest_normal(fit, rests, candidates, nuisance)
-        h += h_rest
-        g += g_rest
-        size += len(rests)
+    if gyro is None:
+        return h, g, fit.layout
+    h, g = _embedded(h, g, fit.layout.size, gyro.layout.size)
+    _add_gyro(fit, h, g, candidates, gyro)
+    return h, g, gyro.layout
+
+
+def _with_rests(fit, h, g, nuisance: ParameterLayout, rests, candidates):
+    """H and g with the rests' stream: their angles join the nuisance parameters."""
+    size = nuisance.size
+    h, g = _embedded(h, g, size, size + len(rests))
+    h_rest, g_rest = rest_normal(fit, rests, candidates, nuisance)
+    return h + h_rest, g + g_rest
+
+
+def _schur(
+    h: np.ndarray, g: np.ndarray, size: int, candidates: tuple[Effect, ...]
+) -> list[ScoreContribution]:
+    """Each candidate's score and information once the nuisance (the first ``size``) is fitted."""
     # The Schur complements of every candidate at once: A = H_eb H_bb⁻¹ (all rows), then
     # each candidate's own block of H_ee − A H_be and of g_e − A g_b.
     along = h[size:, :size] @ scaled_pinv(h[:size, :size])
@@ -221,6 +249,49 @@ def score_contributions(
         own = np.diag(h[size:, size:][sl, sl]).copy()
         out.append(ScoreContribution(cand, score[sl], schur[sl, sl], own))
     return out
+
+
+def screen(
+    fit: CalibrationResult,
+    recording: Recording,
+    candidates: tuple[Effect, ...],
+    evaluated: EvaluatedModel | None = None,
+    gyro: GyroStream | None = None,
+    rests: tuple[RestSegment, ...] = (),
+) -> tuple[list[ScoreTest], list[ScoreTest]]:
+    """The closed loop's two screens at ``fit``, Bonferroni-corrected over both together.
+
+    1. The spin's streams (accelerometer, gyro): every candidate.
+    2. The same with the rests joined (:mod:`~wheelcal.diagnose.rest_stream`), for the
+       candidates that do not follow time — a rest lies outside the window where a
+       warm-up's or a drift's law is known — and only while the model holds no such
+       effect (the rests would then be judged by an extrapolated law).  Empty when
+       there are no usable rests.
+
+    The loop takes the first screen's best when it is significant, else the second's:
+    a rest confirms what the spin cannot tell (an imbalance in the gains), it does not
+    explain what the spin shows.
+    """
+    present = {e.name for e in fit.layout.effects}
+    unseen = [
+        ScoreContribution(c, np.zeros(c.size), np.zeros((c.size, c.size)), np.ones(c.size))
+        for c in candidates
+        if not c.one_recording_identifies and c.name not in present
+    ]
+    tested = _absent(fit, tuple(c for c in candidates if c.one_recording_identifies))
+    if not tested:
+        return finish_tests(unseen), []
+    h, g, nuisance = _streams(fit, recording, tested, evaluated, gyro)
+    plain = _schur(h, g, nuisance.size, tested)
+    rests = usable_rests(fit, rests)
+    static = [i for i, c in enumerate(tested) if not c.varies_in_time]
+    if not rests or not static or any(e.varies_in_time for e in fit.layout.effects):
+        return finish_tests(plain + unseen), []
+    h2, g2 = _with_rests(fit, h, g, nuisance, rests, tested)
+    at_rest = _schur(h2, g2, nuisance.size + len(rests), tested)
+    both = finish_tests(plain + unseen + [at_rest[i] for i in static])
+    first = len(plain) + len(unseen)
+    return both[:first], [dataclasses.replace(t, streams="spin+rests") for t in both[first:]]
 
 
 def _embedded(

@@ -270,11 +270,14 @@ def _screen(diagnosis) -> dict:
             "alpha": diagnosis.alpha,
             "correction": "Bonferroni over the candidates tested (each τ grid point counts)",
             "added": [s.test.effect.label() for s in diagnosis.steps],
-            "tested": [t.effect.label() for t in tests if t.identifiable],
+            "tested": list(dict.fromkeys(t.effect.label() for t in tests if t.identifiable)),
+            "with_rests": list(
+                dict.fromkeys(t.effect.label() for t in tests if t.streams == "spin+rests")
+            ),
             "smallest_p_corrected": _num(
                 min((t.p_corrected for t in tests if t.identifiable), default=float("nan"))
             ),
-            "not_identifiable": [t.effect.label() for t in tests if not t.identifiable],
+            "not_identifiable": [t.effect.label() for t in diagnosis.not_identifiable],
         }
     }
 
@@ -291,6 +294,7 @@ def _evidence(diagnosis) -> dict:
             "p_corrected": _num(step.test.p_corrected),
             "alpha": diagnosis.alpha,
             "test": "score (Lagrange multiplier) test at the model before it was added",
+            "streams": step.test.streams,
         }
         for step in diagnosis.steps
     }

@@ -79,6 +79,9 @@ class Effect(ABC):
     #: False for an effect no single recording can identify (the fit's own parameters
     #: span it on one mounting): the single-recording screen lists it without testing.
     one_recording_identifies: ClassVar[bool] = True
+    #: A sensor effect that follows time (a warm-up, a drift): its law is known within
+    #: the fitted window only, so the rests around it cannot test or check it.
+    varies_in_time: ClassVar[bool] = False
 
     @property
     def size(self) -> int:
@@ -654,6 +657,7 @@ class OffsetWarmup(_SensorEffect):
     name = "offset_warmup"
     param_names = ("x_mps2", "y_mps2", "z_mps2")
     offset_like = True
+    varies_in_time = True
     description = "offset warm-up d·(1 − e^(−t/τ))"
     sensor_intrinsic = False
 
@@ -737,6 +741,7 @@ class OffsetDrift(_SensorEffect):
     name = "offset_drift"
     param_names = ("x_mps2_per_s", "y_mps2_per_s", "z_mps2_per_s")
     offset_like = True
+    varies_in_time = True
     description = "linear offset drift"
 
     def sensor_delta(self, values, t_s, sensed, gain, jacobian):
@@ -757,6 +762,7 @@ class GainDrift(_SensorEffect):
 
     name = "gain_drift"
     param_names = ("x_per_s", "y_per_s", "z_per_s")
+    varies_in_time = True
     description = "linear gain drift"
 
     def sensor_delta(self, values, t_s, sensed, gain, jacobian):

@@ -28,6 +28,7 @@ class TemperatureOffset(_SensorEffect):
     name = "temperature_offset"
     param_names = ("x_mps2_per_c", "y_mps2_per_c", "z_mps2_per_c")
     offset_like = True
+    varies_in_time = True
     description = "offset following the measured temperature c·(T(t) − T(centre))"
 
     def __init__(self, time_s: np.ndarray, temperature_c: np.ndarray) -> None:
