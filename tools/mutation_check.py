@@ -51,6 +51,9 @@ class Mutation:
 
 
 _INFO = "src/wheelcal/estimate/information.py"
+_EFFECTS = "src/wheelcal/model/effects.py"
+_ROLLING = "src/wheelcal/model/rolling.py"
+_GYRO_SIM = "src/wheelcal/simulate/gyro.py"
 _BENCH = "src/wheelcal/model/bench.py"
 _FORWARD = "src/wheelcal/model/forward.py"
 _COV_LINE = "    cov = (v[:, keep] / w[keep]) @ v[:, keep].T / np.outer(scale, scale)\n"
@@ -91,8 +94,8 @@ MUTATIONS: tuple[Mutation, ...] = (
             ),
             Replacement(
                 _FORWARD,
-                "powers[:degree] @ (r * u[1])",
-                "powers[:degree] @ (-r * u[1])",
+                "np.multiply(u[1], r, out=rows[2])",
+                "np.multiply(u[1], -r, out=rows[2])",
             ),
             Replacement(
                 _FORWARD,
@@ -120,8 +123,8 @@ MUTATIONS: tuple[Mutation, ...] = (
             ),
             Replacement(
                 _FORWARD,
-                "powers[:-1] @ ((2 * r) * kin.omega_radps * u[0])",
-                "powers[:-1] @ ((-2 * r) * kin.omega_radps * u[0])",
+                "rows[1] *= 2 * r",
+                "rows[1] *= -2 * r",
             ),
             Replacement(
                 _FORWARD,
@@ -151,8 +154,8 @@ MUTATIONS: tuple[Mutation, ...] = (
             ),
             Replacement(
                 _FORWARD,
-                "day = d_theta * (force.g_sin_tilt * force.cos_theta)",
-                "day = d_theta * (-force.g_sin_tilt * force.cos_theta)",
+                "np.multiply(d_theta, force.g_sin_tilt * force.cos_theta, out=day)",
+                "np.multiply(d_theta, -force.g_sin_tilt * force.cos_theta, out=day)",
             ),
             Replacement(
                 _FORWARD,
@@ -163,6 +166,75 @@ MUTATIONS: tuple[Mutation, ...] = (
                 _FORWARD,
                 "force.cos_theta @ u[0] + force.sin_theta @ u[1]",
                 "force.cos_theta @ u[0] - force.sin_theta @ u[1]",
+            ),
+        ),
+    ),
+    Mutation(
+        "gyro_reading_sign",
+        "the simulated gyro reads +ω R e_Z instead of −ω R e_Z (the gyro's sign convention)",
+        (
+            Replacement(
+                _GYRO_SIM,
+                "axis = -np.asarray(misalignment, dtype=float)[:, 2]",
+                "axis = np.asarray(misalignment, dtype=float)[:, 2]",
+            ),
+        ),
+    ),
+    Mutation(
+        "rolling_travel_sign",
+        "sign of a rolling wheel's travel term ρ·ω̇ (model and its partials, consistently)",
+        (
+            Replacement(
+                _ROLLING,
+                "delta[:, 0] = rho * w_dot * s + r * yaw2 * s * s",
+                "delta[:, 0] = -rho * w_dot * s + r * yaw2 * s * s",
+            ),
+            Replacement(
+                _ROLLING,
+                "delta[:, 1] = -rho * w_dot * c - r * yaw2 * s * c",
+                "delta[:, 1] = rho * w_dot * c - r * yaw2 * s * c",
+            ),
+            Replacement(_ROLLING, "d_own[0, :, 0] = w_dot * s", "d_own[0, :, 0] = -w_dot * s"),
+            Replacement(_ROLLING, "d_own[0, :, 1] = -w_dot * c", "d_own[0, :, 1] = w_dot * c"),
+            Replacement(
+                _ROLLING,
+                "by_theta[:, 0] = rho * w_dot * c + 2 * r * yaw2 * s * c",
+                "by_theta[:, 0] = -rho * w_dot * c + 2 * r * yaw2 * s * c",
+            ),
+            Replacement(
+                _ROLLING,
+                "by_theta[:, 1] = rho * w_dot * s - r * yaw2 * (c * c - s * s)",
+                "by_theta[:, 1] = -rho * w_dot * s - r * yaw2 * (c * c - s * s)",
+            ),
+            Replacement(_ROLLING, "by_omega_dot[:, 0] = rho * s", "by_omega_dot[:, 0] = -rho * s"),
+            Replacement(_ROLLING, "by_omega_dot[:, 1] = -rho * c", "by_omega_dot[:, 1] = rho * c"),
+        ),
+    ),
+    Mutation(
+        "imbalance_rate_sign",
+        "sign of an imbalance's rate ripple Δω (its value, own rows and partials, consistently)",
+        (
+            Replacement(_EFFECTS, "d_omega = -du / w\n", "d_omega = du / w\n"),
+            Replacement(
+                _EFFECTS,
+                "own_omega = np.vstack([-c / w, s / w])",
+                "own_omega = np.vstack([c / w, -s / w])",
+            ),
+            Replacement(
+                _EFFECTS,
+                "np.negative(omega[0], out=omega[0])\n"
+                "        np.multiply(sin_theta, inv, out=omega[1])",
+                "np.multiply(sin_theta, -inv, out=omega[1])",
+            ),
+            Replacement(
+                _EFFECTS,
+                "by_theta = (-du / w**2, u / w, du)",
+                "by_theta = (-du / w**2, -u / w, du)",
+            ),
+            Replacement(
+                _EFFECTS,
+                "by_omega = (2 * u / w**3, du / w**2, np.zeros_like(u))",
+                "by_omega = (2 * u / w**3, -du / w**2, np.zeros_like(u))",
             ),
         ),
     ),
