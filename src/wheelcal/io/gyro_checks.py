@@ -18,6 +18,9 @@ what                               what happens
 =================================  ==============================================
 rows NaN, inf, or absent from      the row is NaN (left out); counted in a note
 their message
+isolated gross outliers (a         the row is NaN (left out); noted — one bad
+logger's bit error: one sample     sample never costs a recording
+far from its neighbours)
 a channel of exact zeros           no gyro (many accelerometer-only drivers
                                    publish zeros); noted
 no usable row at all               no gyro; noted
@@ -56,6 +59,12 @@ class GyroPolicy:
     """Thresholds of the gyro checks (see the module table)."""
 
     max_plausible_dps: float = 4000.0
+    #: A sample this many robust σ (and ``outlier_floor_dps``) from the running median of
+    #: five is a gross outlier, or one beyond ``max_plausible_dps`` whose neighbours are not.
+    outlier_sigmas: float = 25.0
+    outlier_floor_dps: float = 100.0
+    #: More outliers than this fraction: not glitches but a wrong unit or a broken channel.
+    max_outlier_fraction: float = 0.001
     full_scale_tolerance: float = 1.02
     clip_margin: float = 0.995
     clip_run_samples: int = 3
@@ -171,6 +180,16 @@ def check_gyro(
             f"gyro: {int(bad.sum())} of {n} samples ({_pct(int(bad.sum()), n)}) have no "
             "reading (absent from their message, or NaN/inf); left out"
         )
+    outliers = _gross_outliers(w, valid, policy)
+    if outliers.any():
+        count = int(outliers.sum())
+        w[outliers] = np.nan
+        valid &= ~outliers
+        worst = float(np.nanmax(np.abs(np.asarray(gyro_radps, dtype=float)[outliers])))
+        notes.append(
+            f"gyro: {count} of {n} samples ({_pct(count, n)}) far from their neighbours "
+            f"(largest {worst:.3g} rad/s: a logger's glitch); left out"
+        )
     _check_range(path, w[valid], full_scale_dps, policy, unit_hint)
     clipped, how = _clipped_rows(w, valid, full_scale_dps, policy)
     count = int(clipped.sum())
@@ -184,6 +203,32 @@ def check_gyro(
             notes.append("gyro: every reading is clipped; recording read without a gyro")
             return None, tuple(notes)
     return w, tuple(notes)
+
+
+def _gross_outliers(w: np.ndarray, valid: np.ndarray, policy: GyroPolicy) -> np.ndarray:
+    """Isolated rows far from their neighbours (bit errors, glitches): a boolean row mask.
+
+    A row is one when an axis differs from the running median of five valid rows
+    (its own and two each side) by more than ``outlier_sigmas`` robust σ of that
+    difference and ``outlier_floor_dps``.  A wheel's rate changes by far less
+    between neighbouring samples.  Too many (``max_outlier_fraction``): none are
+    taken — a wrong unit or a broken channel is for the range check to name.
+    """
+    rows = np.flatnonzero(valid)
+    out = np.zeros(w.shape[0], dtype=bool)
+    if rows.size < 5:
+        return out
+    x = w[rows]
+    padded = np.concatenate([x[:1], x[:1], x, x[-1:], x[-1:]])
+    windows = np.stack([padded[k : k + x.shape[0]] for k in range(5)])  # (5, m, 3)
+    residual = np.abs(x - np.median(windows, axis=0))
+    sigma = 1.4826 * np.median(residual, axis=0)
+    limit = np.maximum(policy.outlier_sigmas * sigma, policy.outlier_floor_dps * RADPS_PER_DPS)
+    beyond = rows_any(residual > limit)
+    if not np.any(beyond) or beyond.sum() > policy.max_outlier_fraction * x.shape[0]:
+        return out
+    out[rows[beyond]] = True
+    return out
 
 
 def _check_range(path, w, full_scale_dps, policy, unit_hint) -> None:
