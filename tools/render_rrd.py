@@ -35,6 +35,7 @@ import dataclasses
 import functools
 import http.server
 import io
+import itertools
 import subprocess
 import sys
 import threading
@@ -89,7 +90,10 @@ def imbalance_recording(path: Path) -> None:
         scenario.truth.spin, eps_radps2 * np.cos(phase_rad), eps_radps2 * np.sin(phase_rad)
     )
     scenario = dataclasses.replace(scenario, motion=motion)
-    recording = simulate_session(scenario, np.random.default_rng(31), source=str(path)).recording
+    start_unix_ns = 1_710_241_200_000_000_000  # 2024-03-12 11:00:00 UTC
+    recording = simulate_session(
+        scenario, np.random.default_rng(31), epoch_unix_ns=start_unix_ns, source=str(path)
+    ).recording
     write_recording(recording, path)
 
 
@@ -134,7 +138,7 @@ def file_server(root: Path):
 
 
 def tab_centres(png: bytes, width: int) -> list[int]:
-    """x of each tab title in the viewport's tab bar (runs of ink separated by > 14 px)."""
+    """The x of each tab title in the viewport's tab bar (runs of ink > 14 px apart)."""
     from PIL import Image
 
     image = np.asarray(Image.open(io.BytesIO(png)).convert("L"), dtype=float)
@@ -143,7 +147,7 @@ def tab_centres(png: bytes, width: int) -> list[int]:
     if ink.size == 0:
         return []
     runs, start = [], ink[0]
-    for a, b in zip(ink[:-1], ink[1:], strict=True):
+    for a, b in itertools.pairwise(ink):
         if b - a > 14:
             runs.append((start, a))
             start = b
@@ -157,7 +161,9 @@ def small_png(png: bytes) -> bytes:
 
     image = Image.open(io.BytesIO(png)).convert("RGB")
     buffer = io.BytesIO()
-    image.quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(buffer, format="PNG", optimize=True)
+    image.quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(
+        buffer, format="PNG", optimize=True
+    )
     return buffer.getvalue()
 
 
@@ -225,6 +231,7 @@ def _temporary_directory():
 
 
 def main() -> None:
+    """Make the files, render every shot, list the PNGs."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "render")
     ap.add_argument("--docs", type=Path, default=ROOT / "docs" / "rerun")

@@ -268,7 +268,7 @@ def _parameter_grid(group: _Group, names: list[str]) -> rrb.Grid:
             origin=f"/{group.path}/{rr.escape_entity_path_part(name)}",
             name=f"{name} (per session)" if per_session(name) else name,
             axis_x=_LINKED,
-            plot_legend=rrb.PlotLegend(corner="LeftTop"),
+            plot_legend=rrb.PlotLegend(corner="LeftTop", visible=True),
         )
         for name in names
     ]

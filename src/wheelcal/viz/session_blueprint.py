@@ -198,7 +198,7 @@ def _calibration_tab(layout: Layout) -> rrb.Horizontal:
             origin="/spin",
             name="ω(t): model and measured (rad/s)",
             axis_x=_LINKED,
-            plot_legend=rrb.PlotLegend(corner="RightTop"),
+            plot_legend=rrb.PlotLegend(corner="RightTop", visible=True),
         ),
         *[extra.view() for extra in layout.extra_views],
     ]

@@ -347,9 +347,9 @@ def _window_configuration() -> tuple[ArrowColumn, ...]:
         rr.StateConfiguration(
             values=list(_WINDOW_STATES),
             labels=[
-                "before (not fitted)",
+                "before",
                 "free spin (fitted)",
-                "after (not fitted)",
+                "after",
             ],
             colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
         )
