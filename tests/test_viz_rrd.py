@@ -42,13 +42,15 @@ from wheelcal.viz.rrd_file import RrdWriteError
 from wheelcal.viz.session_blueprint import (
     GLOBAL_VIEW_PATH,
     XYZ_COMPONENT,
+    GlobalTimeAxis,
     Layout,
+    per_file_chunks,
     session_layout,
     time_panel,
 )
 from wheelcal.viz.session_rrd import (
     ANGLE_BINS,
-    BAND_ENTITIES,
+    BAND_ENTITY,
     CHUNK_ROWS,
     TIME_MARGIN_S,
     recorded_at,
@@ -97,10 +99,15 @@ def temporal(chunks, entity, component, timeline):
     return index[order], [values[i] for i in order]
 
 
-def xyz(chunks, entity, timeline="time"):
-    """(index values, (N, 3) array) of an entity's {x, y, z} rows, sorted by index."""
+def xyz(chunks, entity, prefix="", timeline="time"):
+    """(index values, (N, 3) array) of an entity's {x, y, z} rows (or ``<prefix>x`` …).
+
+    Rows where the fields are null (``/signal``'s model outside the window) are left out.
+    """
     index, rows = temporal(chunks, entity, XYZ_COMPONENT, timeline)
-    return index, np.array([[r[0][a] for a in "xyz"] for r in rows])
+    values = [[r[0][prefix + a] for a in "xyz"] for r in rows]
+    kept = [i for i, v in enumerate(values) if v[0] is not None]
+    return index[kept], np.array([values[i] for i in kept], dtype=float)
 
 
 def static(chunks, entity, component):
@@ -174,11 +181,10 @@ def no_leftovers(directory):
 def test_session_entity_paths(session_file):
     _, chunks = session_file
     expected = {
-        "/signal/raw",
-        "/signal/model",
+        "/signal",
         "/window",
         "/residual/fit",
-        *(f"/residual_angle_mean/{a}/{e}" for a in "xyz" for e in ("fit", *BAND_ENTITIES)),
+        *(f"/residual_angle_mean/{a}/{e}" for a in "xyz" for e in ("fit", BAND_ENTITY)),
         "/spin/omega_radps",
         "/spin/omega_measured_radps",
         "/report",
@@ -189,9 +195,11 @@ def test_session_entity_paths(session_file):
 def test_raw_signal_is_the_whole_recording(session, session_file):
     recording, _, _ = session
     _, chunks = session_file
-    t_ns, values = xyz(chunks, "/signal/raw")
+    t_ns, values = xyz(chunks, "/signal", "data_")
     np.testing.assert_array_equal(t_ns, np.rint(recording.time_s * 1e9).astype(np.int64))
     np.testing.assert_array_equal(values, recording.accel_mps2)
+    # One row per sample for the data and the model: the model's times are the data's.
+    assert sum(c.num_rows for c in chunks["/signal"] if not c.is_static) == recording.samples
 
 
 def test_residual_series_equals_the_result(session, session_file):
@@ -210,7 +218,7 @@ def test_long_series_are_cut_into_store_sized_chunks(session, session_file):
     """≤ CHUNK_ROWS rows per chunk, in order, together every row once (a file sink cost)."""
     recording, _, result = session
     _, chunks = session_file
-    for entity, n in (("/signal/raw", recording.samples), ("/residual/fit", result.time_s.size)):
+    for entity, n in (("/signal", recording.samples), ("/residual/fit", result.time_s.size)):
         temporal_chunks = [c for c in chunks[entity] if not c.is_static]
         sizes = [c.num_rows for c in temporal_chunks]
         assert sum(sizes) == n and len(sizes) == -(-n // CHUNK_ROWS)
@@ -221,10 +229,28 @@ def test_long_series_are_cut_into_store_sized_chunks(session, session_file):
         assert starts == sorted(starts)
 
 
+def test_signal_rows_are_the_union_of_data_and_model_times():
+    """Model times that are not data times get rows of their own (data null there)."""
+    from wheelcal.viz.session_rrd import signal_chunks
+
+    data_t, model_t = np.array([0.0, 1.0, 2.0, 3.0]), np.array([1.0, 1.5, 3.0])
+    data, model = np.arange(12.0).reshape(4, 3), -np.arange(9.0).reshape(3, 3)
+    (chunk,) = signal_chunks(data_t, data, model_t, model)
+    chunks = {"/signal": [chunk]}
+    t_ns, values = xyz(chunks, "/signal", "data_")
+    np.testing.assert_array_equal(t_ns, [0, 1_000_000_000, 2_000_000_000, 3_000_000_000])
+    np.testing.assert_array_equal(values, data)
+    t_ns, values = xyz(chunks, "/signal", "model_")
+    np.testing.assert_array_equal(t_ns, [1_000_000_000, 1_500_000_000, 3_000_000_000])
+    np.testing.assert_array_equal(values, model)
+    assert chunk.num_rows == 5
+
+
 def test_model_plus_residual_is_the_data(session, session_file):
     recording, _, result = session
     _, chunks = session_file
-    t_ns, model = xyz(chunks, "/signal/model")
+    t_ns, model = xyz(chunks, "/signal", "model_")
+    assert t_ns.size == result.time_s.size
     inside = np.isin(np.rint(recording.time_s * 1e9).astype(np.int64), t_ns)
     np.testing.assert_allclose(
         model + result.residual_mps2, recording.accel_mps2[inside], atol=1e-9
@@ -291,10 +317,11 @@ def test_mean_residual_per_angle_bin(session, session_file):
         n_total = sum(n for n, _ in per_turn)
         var = sum(n**2 * (m - r.mean()) ** 2 for n, m in per_turn) / n_total**2
         var *= len(per_turn) / (len(per_turn) - 1)
-        plus = static(chunks, f"{base}/{BAND_ENTITIES[0]}", "BarChart:values")[0]["buffer"]
-        minus = static(chunks, f"{base}/{BAND_ENTITIES[1]}", "BarChart:values")[0]["buffer"]
-        assert plus[j] == pytest.approx(2 * np.sqrt(var), rel=1e-9)
-        assert minus[j] == pytest.approx(-2 * np.sqrt(var), rel=1e-9)
+        band = static(chunks, f"{base}/{BAND_ENTITY}", "BarChart:values")[0]["buffer"]
+        band_at = static(chunks, f"{base}/{BAND_ENTITY}", "BarChart:abscissa")[0]["buffer"]
+        assert band_at == abscissa["buffer"] * 2  # each bin twice: up, then down
+        assert band[j] == pytest.approx(2 * np.sqrt(var), rel=1e-9)
+        assert band[ANGLE_BINS + j] == pytest.approx(-2 * np.sqrt(var), rel=1e-9)
 
 
 def test_bin_sigma_is_honest_under_coloured_noise():
@@ -399,14 +426,15 @@ def view_properties(path):
 
 
 def overrides_of(props):
-    """{overridden entity: (names, selector)} of a view's visualizer overrides."""
-    out = {}
+    """{(overridden entity, legend names, selector)} of a view's visualizer overrides."""
+    out = set()
     for suffix, components in props.items():
         if "VisualizerInstruction:component_map" not in components:
             continue
         entity = "/" + suffix.split("overrides/")[1].split("/visualizers")[0]
         (mapping,) = components["VisualizerInstruction:component_map"][0]
-        out[entity] = (components["SeriesLines:names"][0], mapping["selector"])
+        names = tuple(components["SeriesLines:names"][0])
+        out.add((entity, names, mapping["selector"]))
     return out
 
 
@@ -455,13 +483,15 @@ def test_session_blueprint(session, session_file):
     for axis in "xyz":
         signal = props[f"{axis}: data and model (m/s²)"]
         assert overrides_of(signal) == {
-            "/signal/raw": (["data"], f".{axis}"),
-            "/signal/model": (["model"], f".{axis}"),
+            ("/signal", ("data",), f".data_{axis}"),
+            ("/signal", ("model",), f".model_{axis}"),
         }
-        assert signal["PlotLegend"]["PlotLegend:visible"] == [[True]]
+        assert "PlotLegend" not in signal  # Rerun's default: the legend is shown
         residual = props[f"{axis}: residual, data − model (m/s²)"]
-        assert overrides_of(residual) == {"/residual/fit": (["fit"], f".{axis}")}
-        assert residual["PlotLegend"]["PlotLegend:visible"] == [[False]]  # one series: the title
+        assert overrides_of(residual) == {("/residual/fit", ("data − model",), f".{axis}")}
+        assert "PlotLegend" not in residual
+        bars = props[f"{axis}: residual per 5° of ϑ; grey: ±2σ of noise"]
+        assert bars["PlotLegend"]["PlotLegend:visible"] == [[False]]  # entity paths: the title
         assert (
             "BarChart",
             f"{axis}: residual per 5° of ϑ; grey: ±2σ of noise",
@@ -652,8 +682,25 @@ def test_session_file_blueprint_is_what_send_blueprint_sends(session, tmp_path, 
     x_range = {k: got.pop(k) for k in list(got) if k[0] == f"/{GLOBAL_VIEW_PATH}"}
     assert list(x_range) == [(f"/{GLOBAL_VIEW_PATH}", "TimeAxis:view_range", False)]
     got, expected = (without_ids(c) for c in (got, blueprint_contents(reference)))
-    assert len(expected) > 150  # ≈ 70 entities, every component
+    assert len(expected) > 120  # ≈ 55 entities, every component
     assert got == expected
+
+
+@pytest.mark.parametrize(
+    "window_s, shown_s", [((1.5, 80.25), (-0.5, 99.5)), ((0.0, 1e-9), (3.0, 4e4))]
+)
+def test_per_file_chunks_are_the_converted_parts(window_s, shown_s):
+    """The time panel and x-range built from templates equal Rerun's own conversion."""
+    fast = [(c.entity_path, c.to_record_batch()) for c in per_file_chunks(window_s, shown_s)]
+    slow = [
+        (c.entity_path, c.to_record_batch())
+        for c in blueprint_chunks(time_panel(*window_s), GlobalTimeAxis(*shown_s))
+    ]
+    assert len(fast) == len(slow) == 3  # the time panel is a static and a timed row
+    for (path_a, a), (path_b, b) in zip(fast, slow, strict=True):
+        assert path_a == path_b
+        a, b = (x.drop_columns(["rerun.controls.RowId"]) for x in (a, b))
+        assert a.schema == b.schema and a.equals(b)
 
 
 def test_each_file_gets_its_own_time_selection_and_range(session, tmp_path):
@@ -700,15 +747,15 @@ def test_more_residual_sets(session, tmp_path):
     _, values = xyz(chunks, "/residual/after")
     np.testing.assert_array_equal(values, after)
     assert "/residual_angle_mean/y/after" in chunks
-    assert "/residual_angle_mean/y/band_plus_2sigma" in chunks  # the calibration's set only
+    assert f"/residual_angle_mean/y/{BAND_ENTITY}" in chunks  # the calibration's set only
     assert not any(e.startswith("/residual_angle_mean/y/after/") for e in chunks)
     # The blueprint, written last, draws the new set in the per-axis views, with a legend.
     props = view_properties(path)["y: residual, data − model (m/s²)"]
     assert overrides_of(props) == {
-        "/residual/fit": (["fit"], ".y"),
-        "/residual/after": (["half"], ".y"),
+        ("/residual/fit", ("data − model",), ".y"),
+        ("/residual/after", ("half",), ".y"),
     }
-    assert props["PlotLegend"]["PlotLegend:visible"] == [[True]]
+    assert "PlotLegend" not in props  # shown (Rerun's default)
 
 
 def test_extra_views_join_the_layout(session, tmp_path):
@@ -900,8 +947,8 @@ def test_diagnose_shows_the_effects_added_before_and_after(diagnosed):
     assert ("TextDocument", "closed loop: what it added", "/closed_loop/report") in views
     props = view_properties(path)["x: residual, mean per 2 s (m/s²)"]
     assert overrides_of(props) == {
-        "/closed_loop/trend/paper_model": (["paper's model"], ".x"),
-        "/closed_loop/trend/with_effects": (["with effects"], ".x"),
+        ("/closed_loop/trend/paper_model", ("paper's model",), ".x"),
+        ("/closed_loop/trend/with_effects", ("with effects",), ".x"),
     }
 
 

@@ -4,8 +4,9 @@ What it renders (``docs/rerun/`` by default):
 
 * ``session.png`` — ``session001.rrd`` of the bundled pipeline
   (``pipelines/table2-repeatability.toml``), as it opens;
-* ``batch.png`` and ``batch_sessions.png`` — its ``batch.rrd``: the group's
-  tab (as it opens) and the sessions tab;
+* ``batch.png``, ``batch_spin.png`` and ``batch_sessions.png`` — its
+  ``batch.rrd``: the group's tab (as it opens), the group's spin tab and the
+  sessions tab;
 * ``closed_loop.png`` and ``closed_loop_calibration.png`` — a simulated
   session with an undeclared wheel imbalance (0.15 rad/s², the size of
   ``tests/test_closed_loop.py``), run through ``wheelcal diagnose --rrd``: the
@@ -244,6 +245,7 @@ def main() -> None:
         Shot(files["session"], "session.png"),
         Shot(files["batch"], "batch.png"),
         Shot(files["batch"], "batch_sessions.png", tab=0),
+        Shot(files["batch"], "batch_spin.png", tab=2),
         Shot(files["closed_loop"], "closed_loop.png", tab=1),
         Shot(files["closed_loop"], "closed_loop_calibration.png"),
     ]

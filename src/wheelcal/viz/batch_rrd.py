@@ -29,9 +29,10 @@ If the scatter of the points matches the bands (ratio ≈ 1), σ is honest;
 ratio ≫ 1 means something varies between sessions that σ does not cover
 (remounting, temperature, a systematic error).
 
-Blueprint: per group a tab with a grid of one plot per repeatable parameter
-(legend: "estimate", "±σ", "mean") next to the group report, and a tab with
-the spin's parameters (titled "per session"); a first tab with the overall
+Blueprint: per group a tab with one plot per repeatable parameter, a row per
+family — gains, offsets, the bench (tilt, mounting angles, radius) — (legend:
+"estimate", "±σ", "mean") next to the group report, and a tab with the
+spin's parameters (titled "per session"); a first tab with the overall
 report.  It opens on the first group's tab, paused on ``session``, every plot
 over all sessions (two sessions of room at the left, where the legend sits)
 on one shared x-axis, the side panels collapsed (see
@@ -234,7 +235,8 @@ def _group_report(group: _Group) -> str:
 
 def _overall_report(groups: list[_Group], files: list[tuple[int, str]]) -> str:
     lines = [
-        f"# wheelcal batch — {len(files)} sessions, {len(groups)} groups",
+        f"# wheelcal batch — {len(files)} sessions, {len(groups)} "
+        + ("group" if len(groups) == 1 else "groups"),
         "",
         "| # | file | sensor | mounting |",
         "|---:|---|---|---|",
@@ -261,18 +263,24 @@ class _GlobalSessionAxis:
         stream.log(GLOBAL_VIEW_PATH, rrb.TimeAxis(view_range=self.range))
 
 
-def _parameter_grid(group: _Group, names: list[str]) -> rrb.Grid:
-    """One plot per parameter (estimate, ±σ, mean), three columns."""
-    plots = [
-        rrb.TimeSeriesView(
-            origin=f"/{group.path}/{rr.escape_entity_path_part(name)}",
-            name=f"{name} (per session)" if per_session(name) else name,
-            axis_x=_LINKED,
-            plot_legend=rrb.PlotLegend(corner="LeftTop", visible=True),
+def _family(name: str) -> int:
+    """The row a parameter's plot goes in: gains, offsets, the bench (tilt, mounting, radius)."""
+    return min(_parameter_rank(name), 2)
+
+
+def _parameter_rows(group: _Group, names: list[str]) -> rrb.Vertical:
+    """One plot per parameter (estimate, ±σ, mean), a row per family (gains, offsets, …)."""
+    rows: dict[int, list[rrb.TimeSeriesView]] = {}
+    for name in names:
+        rows.setdefault(_family(name), []).append(
+            rrb.TimeSeriesView(
+                origin=f"/{group.path}/{rr.escape_entity_path_part(name)}",
+                name=f"{name} (per session)" if per_session(name) else name,
+                axis_x=_LINKED,
+                plot_legend=rrb.PlotLegend(corner="LeftTop", visible=True),
+            )
         )
-        for name in names
-    ]
-    return rrb.Grid(*plots, grid_columns=3)
+    return rrb.Vertical(*[rrb.Horizontal(*plots) for plots in rows.values()])
 
 
 def batch_blueprint(groups: list[_Group]) -> rrb.Blueprint:
@@ -284,13 +292,13 @@ def batch_blueprint(groups: list[_Group]) -> rrb.Blueprint:
         spin = [name for name in group.parameters if per_session(name)]
         tabs.append(
             rrb.Horizontal(
-                _parameter_grid(group, repeatable), report, column_shares=[2, 1], name=group.title
+                _parameter_rows(group, repeatable), report, column_shares=[2, 1], name=group.title
             )
         )
         if spin:
             tabs.append(
                 rrb.Horizontal(
-                    _parameter_grid(group, spin),
+                    _parameter_rows(group, spin),
                     report,
                     column_shares=[2, 1],
                     name=f"{group.title}: spin (per session)",

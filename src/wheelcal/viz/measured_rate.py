@@ -97,14 +97,16 @@ def per_turn_rate(
     typical = float(np.median(np.asarray(model_omega_radps, dtype=float)))
     if t.size < 16 or not np.isfinite(typical) or typical == 0.0:
         return None
-    dt = float(np.median(np.diff(t)))
+    dt = (t[-1] - t[0]) / (t.size - 1)
     period_s = 2 * np.pi / abs(typical)
     if not period_s < 0.25 * (t[-1] - t[0]):
         return None  # fewer than four turns
     n = max(3, round(period_s / dt))
     # The axis gravity turns in most: the largest sample-to-sample change (the slow
     # centripetal part hardly changes from one sample to the next).
-    k = int(np.argmax(np.sum(np.diff(a, axis=0) ** 2, axis=0)))
+    # (A few thousand samples decide it: dozens of turns.)
+    head = a[: 16 * n]
+    k = int(np.argmax(np.sum(np.diff(head, axis=0) ** 2, axis=0)))
     s = a[:, k] - _moving_mean(a[:, k], n)
     rising = np.flatnonzero((s[:-1] < 0) & (s[1:] >= 0))
     rising = rising[(rising >= n // 2) & (rising < s.size - n // 2 - 1)]  # moving mean complete
@@ -131,12 +133,10 @@ def per_turn_rate(
 
 
 def _moving_mean(x: np.ndarray, n: int) -> np.ndarray:
-    """Centred moving mean of ``n`` samples (the ends use what there is)."""
-    c = np.concatenate([[0.0], np.cumsum(x)])
-    idx = np.arange(x.size)
-    lo = np.clip(idx - n // 2, 0, x.size)
-    hi = np.clip(idx - n // 2 + n, 0, x.size)
-    return (c[hi] - c[lo]) / np.maximum(hi - lo, 1)
+    """Centred moving mean of ``n`` samples (the end values repeated beyond the ends)."""
+    padded = np.pad(x, (n // 2, n - n // 2), mode="edge")
+    c = np.cumsum(padded)
+    return (c[n:] - c[:-n]) / n
 
 
 def _running_median(x: np.ndarray, n: int) -> np.ndarray:

@@ -3,13 +3,14 @@
 Tab **calibration** (always):
 
 * left, three columns x / y / z — *data and model* against time; the
-  free-spin window lane across them; the *residual* (data − model) against
-  time; the *mean residual per 5° of ϑ* as bars on a real angle axis 0–360°,
-  with the ±2σ that noise alone gives a bin mean as a grey band;
+  *residual* (data − model) against time; the *mean residual per 5° of ϑ* as
+  bars on a real angle axis 0–360°, with the ±2σ that noise alone gives a bin
+  mean as a grey band;
 * right — the calibration report, ω(t) (model, and the measured rate: gyro or
   per turn from the accelerometer), and any extra views a logging function
   registered (:meth:`wheelcal.viz.session_rrd.SessionRrd.add_view`, e.g. the
-  rests' Allan deviation under ``/allan``).
+  rests' Allan deviation under ``/allan``);
+* across the bottom, the free-spin window lane (before / free spin / after).
 
 Tab **closed loop** (when the closed loop added effects): the paper's model
 against the final one — the residual per 5° of ϑ (effects that repeat every
@@ -31,10 +32,11 @@ the result).  The side panels start collapsed, the time panel folded to its
 play bar: the views get the screen.
 
 Per-axis views show one axis of a three-axis entity: the samples are stored
-as one struct {x, y, z} per row (:data:`XYZ_COMPONENT`; one row per sample
-for all three axes, the cheap layout) and each view's visualizer picks a field
-(a component mapping with a selector, rerun-sdk 0.41).  So a legend lists
-exactly the series drawn ("data", "model"; "paper's model", "with effects").
+as one struct {x, y, z} per row (:data:`XYZ_COMPONENT`; ``/signal`` holds
+the data and the model, {data_x … model_z}: one row per sample for all, the
+cheap layout) and each view's visualizers pick a field (a component mapping
+with a selector, rerun-sdk 0.41).  So a legend lists exactly the series drawn
+("data", "model"; "paper's model", "with effects").
 
 Speed: the layout is turned into blueprint chunks once per process and per
 layout key (:func:`layout_chunks`); a file adds two chunks of its own — the
@@ -47,18 +49,23 @@ import functools
 import uuid
 from dataclasses import dataclass
 
+import numpy as np
+import pyarrow as pa
 import rerun as rr
 import rerun.blueprint as rrb
 from rerun.blueprint.encodings import VisualizerComponentMapping
 from rerun.chunk import Chunk
 
 from wheelcal.model.parameters import AXES
+from wheelcal.viz.arrow_chunks import ArrowColumn, column
 from wheelcal.viz.blueprint_chunks import blueprint_chunk, blueprint_chunks, blueprint_rows
 
 TIME_TIMELINE = "time"
 #: The struct component of three-axis samples: one {x, y, z} per row, m/s².
 XYZ_ARCHETYPE = "Xyz"
 XYZ_COMPONENT = f"{XYZ_ARCHETYPE}:mps2"
+#: Field prefixes of ``/signal``'s struct: ``data_x`` … ``model_z``.
+SIGNAL_FIELDS = ("data_", "model_")
 #: Rerun 0.41's ``GLOBAL_VIEW_ID`` (re_viewer_context): the shared x-range of linked views.
 GLOBAL_VIEW_ID = uuid.UUID("5c0dca6a-e63f-9cf7-f657-2602590474cc")
 GLOBAL_VIEW_PATH = f"view/{GLOBAL_VIEW_ID}/TimeAxis"
@@ -118,47 +125,52 @@ class Layout:
 
 
 def axis_series(
-    entity: str, axis: int, label: str, color: Rgb, width: float = 1.0
+    axis: int, label: str, color: Rgb, width: float = 1.0, prefix: str = ""
 ) -> rrb.Visualizer:
-    """A line visualizer drawing one field (x, y or z) of an entity's {x, y, z} rows."""
+    """A line visualizer drawing one field (``<prefix>x``, ``y`` or ``z``) of {x, y, z} rows."""
     mapping = VisualizerComponentMapping(
         "Scalars:scalars",
         "SourceComponent",
         source_component=XYZ_COMPONENT,
-        selector=f".{AXES[axis]}",
+        selector=f".{prefix}{AXES[axis]}",
     )
     style = rr.SeriesLines(names=[label], colors=[color], widths=[width])
     return style.visualizer(mappings=[mapping])
 
 
+#: A series of a per-axis view: entity, field prefix, legend label, colour, width.
+Series = tuple[str, str, str, Rgb, float]
+
+
 def _per_axis_view(
-    axis: int, title: str, series: tuple[tuple[str, str, Rgb, float], ...], legend: bool
+    axis: int, title: str, series: tuple[Series, ...], legend: bool
 ) -> rrb.TimeSeriesView:
-    """A time view of one axis of several {x, y, z} entities ``(path, label, colour, width)``."""
+    """A time view of one axis of {x, y, z} entities (several series may share an entity)."""
+    overrides: dict[str, list[rrb.Visualizer]] = {}
+    for path, prefix, label, color, width in series:
+        overrides.setdefault(path, []).append(axis_series(axis, label, color, width, prefix))
     return rrb.TimeSeriesView(
         origin="/",
-        contents=[path for path, _, _, _ in series],
+        contents=list(overrides),
         name=title,
         axis_x=_LINKED,
-        overrides={
-            path: axis_series(path, axis, label, color, width)
-            for path, label, color, width in series
-        },
-        plot_legend=rrb.PlotLegend(corner="RightBottom", visible=legend),
+        overrides=overrides,
+        # Rerun's default legend (shown) costs no blueprint entity: only a hidden one is set.
+        plot_legend=None if legend else rrb.PlotLegend(visible=False),
     )
 
 
 def _signal_view(k: int) -> rrb.TimeSeriesView:
     series = (
-        ("/signal/raw", "data", DATA_COLOR, 1.0),
-        ("/signal/model", "model", AXIS_COLORS[k], 1.5),
+        ("/signal", SIGNAL_FIELDS[0], "data", DATA_COLOR, 1.0),
+        ("/signal", SIGNAL_FIELDS[1], "model", AXIS_COLORS[k], 1.5),
     )
     return _per_axis_view(k, f"{AXES[k]}: data and model (m/s²)", series, legend=True)
 
 
 def _residual_view(k: int, sets: tuple[tuple[str, str, Rgb], ...], title: str):
-    series = tuple((f"/residual/{name}", label, rgb, 1.0) for name, label, rgb in sets)
-    return _per_axis_view(k, title, series, legend=len(series) > 1)
+    series = tuple((f"/residual/{name}", "", label, rgb, 1.0) for name, label, rgb in sets)
+    return _per_axis_view(k, title, series, legend=True)
 
 
 def _angle_view(origin: str, title: str, legend: bool) -> rrb.BarChartView:
@@ -169,49 +181,43 @@ def _angle_view(origin: str, title: str, legend: bool) -> rrb.BarChartView:
     )
 
 
-def _calibration_tab(layout: Layout) -> rrb.Horizontal:
+def _calibration_tab(layout: Layout) -> rrb.Vertical:
     sets = layout.residual_sets
-    left = rrb.Vertical(
-        rrb.Horizontal(*[_signal_view(k) for k in range(3)]),
-        rrb.StateTimelineView(origin="/window", name="free-spin window", time_view=_LINKED),
-        rrb.Horizontal(
-            *[
-                _residual_view(k, sets, f"{AXES[k]}: residual, data − model (m/s²)")
-                for k in range(3)
-            ]
-        ),
-        rrb.Horizontal(
-            *[
-                _angle_view(
-                    f"/residual_angle_mean/{AXES[k]}",
-                    f"{AXES[k]}: residual per 5° of ϑ; grey: ±2σ of noise",
-                    legend=len(sets) > 1,
-                )
-                for k in range(3)
-            ]
-        ),
-        row_shares=[3, 1.1, 2.4, 2.4],
+    # One grid (not a column of rows) and the lane across the bottom: every container
+    # is a blueprint entity, and each costs the file as much as a view's property.
+    per_axis = rrb.Grid(
+        *[_signal_view(k) for k in range(3)],
+        *[_residual_view(k, sets, f"{AXES[k]}: residual, data − model (m/s²)") for k in range(3)],
+        *[
+            _angle_view(
+                f"/residual_angle_mean/{AXES[k]}",
+                f"{AXES[k]}: residual per 5° of ϑ; grey: ±2σ of noise",
+                legend=len(sets) > 1,
+            )
+            for k in range(3)
+        ],
+        grid_columns=3,
+        row_shares=[3, 2.4, 2.4],
     )
     right = [
         rrb.TextDocumentView(origin="/report", name="calibration"),
-        rrb.TimeSeriesView(
-            origin="/spin",
-            name="ω(t): model and measured (rad/s)",
-            axis_x=_LINKED,
-            plot_legend=rrb.PlotLegend(corner="RightTop", visible=True),
-        ),
+        # The legend in Rerun's default corner (bottom left: ω spins down, away from it).
+        rrb.TimeSeriesView(origin="/spin", name="ω(t): model and measured (rad/s)", axis_x=_LINKED),
         *[extra.view() for extra in layout.extra_views],
     ]
     shares = [3.2, 1.6, *[1.6] * len(layout.extra_views)]
-    return rrb.Horizontal(
-        left, rrb.Vertical(*right, row_shares=shares), column_shares=[3, 1.15], name="calibration"
+    return rrb.Vertical(
+        rrb.Horizontal(per_axis, rrb.Vertical(*right, row_shares=shares), column_shares=[3, 1.15]),
+        rrb.StateTimelineView(origin="/window", name="free-spin window", time_view=_LINKED),
+        row_shares=[10, 1],
+        name="calibration",
     )
 
 
 def _closed_loop_tab() -> rrb.Horizontal:
     trends = (
-        ("/closed_loop/trend/paper_model", "paper's model", BEFORE_COLOR, 1.5),
-        ("/closed_loop/trend/with_effects", "with effects", AFTER_COLOR, 1.5),
+        ("/closed_loop/trend/paper_model", "", "paper's model", BEFORE_COLOR, 1.5),
+        ("/closed_loop/trend/with_effects", "", "with effects", AFTER_COLOR, 1.5),
     )
     angle = rrb.Vertical(
         *[
@@ -235,12 +241,11 @@ def _closed_loop_tab() -> rrb.Horizontal:
     return rrb.Horizontal(angle, trend, report, column_shares=[1, 1, 1.05], name="closed loop")
 
 
-def session_layout(layout: Layout) -> rrb.Tabs:
-    """The tabs of a session file (module docstring)."""
-    tabs = [_calibration_tab(layout)]
-    if layout.closed_loop:
-        tabs.append(_closed_loop_tab())
-    return rrb.Tabs(*tabs, active_tab=0)
+def session_layout(layout: Layout) -> rrb.Container:
+    """The tabs of a session file (module docstring); one tab needs no tab container."""
+    if not layout.closed_loop:
+        return _calibration_tab(layout)
+    return rrb.Tabs(_calibration_tab(layout), _closed_loop_tab(), active_tab=0)
 
 
 class GlobalTimeAxis:
@@ -293,9 +298,55 @@ def layout_chunks(layout: Layout) -> tuple[Chunk, ...]:
     return blueprint_chunks(blueprint)
 
 
-def per_file_chunks(window_s: tuple[float, float], shown_s: tuple[float, float]) -> list[Chunk]:
-    """The time panel (window selected) and the global x-range of one file."""
-    return [
-        blueprint_chunk(*row)
-        for row in blueprint_rows(time_panel(*window_s), GlobalTimeAxis(*shown_s))
+@functools.lru_cache(maxsize=1)
+def _per_file_rows() -> tuple:
+    """The time panel and the global x-range as rows, converted once (values replaced per file)."""
+    return tuple(blueprint_rows(time_panel(0.0, 0.0), GlobalTimeAxis(0.0, 0.0)))
+
+
+def _absolute(union_type: pa.DenseUnionType, time_ns: int) -> pa.Array:
+    """One ``TimeRangeBoundary.absolute(nanos=time_ns)`` as its Arrow dense union."""
+    k = [f.name for f in union_type].index("Absolute")
+    children = [
+        pa.array([time_ns] if i == k else [], type=f.type) for i, f in enumerate(union_type)
     ]
+    codes = pa.py_buffer(np.array([union_type.type_codes[k]], dtype=np.int8))
+    # Built on the union type itself (``UnionArray.from_dense`` drops "not null").
+    return pa.Array.from_buffers(
+        union_type, 1, [None, codes, pa.py_buffer(np.zeros(1, np.int32))], children=children
+    )
+
+
+def _replaced(columns: tuple[ArrowColumn, ...], name: str, value: pa.Array) -> list[ArrowColumn]:
+    """``columns`` with the one-row column of component ``name`` holding ``value``."""
+    out = []
+    for c in columns:
+        if c.component_descriptor().component == name:
+            c = column(c.component_descriptor(), value)
+        out.append(c)
+    return out
+
+
+def per_file_chunks(window_s: tuple[float, float], shown_s: tuple[float, float]) -> list[Chunk]:
+    """The time panel (window selected) and the global x-range of one file.
+
+    The same rows as converting :func:`time_panel` and :class:`GlobalTimeAxis`
+    (``tests/test_viz_rrd.py`` compares them); only the two values are built here.
+    """
+    chunks = []
+    for path, static, columns in _per_file_rows():
+        for c in columns:
+            name = c.component_descriptor().component
+            value_type = c.as_arrow_array().type.value_type
+            if name == "TimePanelBlueprint:time_selection":
+                window_ns = {"min": round(window_s[0] * 1e9), "max": round(window_s[1] * 1e9)}
+                columns = _replaced(columns, name, pa.array([window_ns], type=value_type))
+            elif name == "TimeAxis:view_range":
+                ends = [
+                    _absolute(value_type.field(k).type, round(v * 1e9))
+                    for k, v in enumerate(shown_s)
+                ]
+                value = pa.StructArray.from_arrays(ends, fields=list(value_type))
+                columns = _replaced(columns, name, value)
+        chunks.append(blueprint_chunk(path, static, columns))
+    return chunks

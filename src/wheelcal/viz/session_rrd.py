@@ -3,18 +3,19 @@
 What is in the file (entity paths; ``<set>`` names a residual set — ``fit``
 for this calibration, more can be added, see below; ``<a>`` is an axis):
 
-* ``/signal/raw`` — v(t) over the whole recording, m/s²: one row per sample,
-  a struct {x, y, z} (:data:`~wheelcal.viz.session_blueprint.XYZ_COMPONENT`,
-  timeline ``time``);
-* ``/signal/model`` — o + Γ R a(t) (eq. 6) over the fitted window, same layout;
+* ``/signal`` — the data v(t) over the whole recording and the model
+  o + Γ R a(t) (eq. 6) over the fitted window, m/s²: one row per sample, a
+  struct {data_x, data_y, data_z, model_x, model_y, model_z}
+  (:data:`~wheelcal.viz.session_blueprint.XYZ_COMPONENT`, timeline ``time``;
+  the model's fields are null outside the window);
 * ``/window`` — state lane *before* / *free spin* / *after* on ``time``: the
   free-spin window (also selected in the time panel);
-* ``/residual/<set>`` — data − model, m/s², {x, y, z} per row on ``time``;
+* ``/residual/<set>`` — data − model, m/s², a struct {x, y, z} per row on ``time``;
 * ``/residual_angle_mean/<a>/<set>`` — static bar chart: the residual's mean
   in 72 bins of 5° of ϑ mod 360°, abscissa in degrees (a real angle axis);
-  ``/residual_angle_mean/<a>/band_plus_2sigma`` and ``…/band_minus_2sigma`` —
-  ±2σ of each bin's mean (:mod:`wheelcal.viz.angle_profile`), grey: noise
-  alone stays inside;
+  ``/residual_angle_mean/<a>/band_2sigma`` — ±2σ of each bin's mean
+  (:mod:`wheelcal.viz.angle_profile`; each bin twice, up and down), grey:
+  noise alone stays inside;
 * ``/spin/omega_radps`` — ω(t) of the model, eq. (2), over the window
   (the cubic, plus the spline of a gyro-aided fit; at most
   :data:`OMEGA_POINTS` samples);
@@ -62,7 +63,8 @@ More residual sets: inside :func:`session_rrd`, call
 Speed: no data are decimated (except ω, which is a polynomial).  Rerun's
 cost grows with the number of *rows* (each carries a 16-byte row id and its
 time), so the three axes share a row (a struct; ≈ 4× faster than one entity
-per axis): ≈ 54 000 rows for a 90 s / 200 Hz session, ≈ 2.3 MB.  The rest is
+per axis), and so do the data and the model: ≈ 36 000 rows for a 90 s /
+200 Hz session, ≈ 2.4 MB.  The rest is
 per message: each chunk costs ≈ 40–100 µs in Rerun (Arrow IPC schema,
 compression, hand-over between its threads), and the blueprint is ≈ 70 of
 them.  So the layout is built once per process; the static rows (the window
@@ -117,6 +119,7 @@ from wheelcal.viz.session_blueprint import (
     AFTER_COLOR,
     AXIS_COLORS,
     BEFORE_COLOR,
+    SIGNAL_FIELDS,
     TIME_TIMELINE,
     TREND_S,
     XYZ_ARCHETYPE,
@@ -142,8 +145,8 @@ OMEGA_POINTS = 1000
 #: 4096-row chunks (each in its own process; ≈ 1 650 against ≈ 520, and 9 % less CPU
 #: time, alternating both in one process).
 CHUNK_ROWS = 4096
-#: Entity names of the ±2σ band of the bin means (drawn under the bars).
-BAND_ENTITIES = ("band_plus_2sigma", "band_minus_2sigma")
+#: Entity name of the ±2σ band of the bin means (drawn under the bars).
+BAND_ENTITY = "band_2sigma"
 #: Space left of the first and right of the last sample in the time views, s.
 TIME_MARGIN_S = 0.5
 
@@ -175,11 +178,23 @@ def _xyz_descriptor() -> rr.ComponentDescriptor:
     return batch.component_descriptor()
 
 
-def xyz_column(values: np.ndarray) -> ArrowColumn:
-    """One struct {x, y, z} (float64) per row of ``values`` (N, 3): :data:`XYZ_COMPONENT`."""
+def xyz_column(values: np.ndarray, valid: np.ndarray | None = None) -> ArrowColumn:
+    """One struct {x, y, z} (float64) per row of ``values`` (N, 3): :data:`XYZ_COMPONENT`.
+
+    With ``valid`` (N, k) booleans and ``values`` (N, 3k), the fields are
+    ``<prefix>x, <prefix>y, <prefix>z`` per group (:data:`SIGNAL_FIELDS`), null
+    where ``valid`` is False.
+    """
     v = np.asarray(values, dtype=np.float64)
-    fields = [pa.array(np.ascontiguousarray(v[:, k])) for k in range(3)]
-    struct = pa.StructArray.from_arrays(fields, names=list(AXES))
+    by_field = np.ascontiguousarray(v.T)  # one copy; each field a contiguous row
+    if valid is None:
+        fields = [pa.array(by_field[k]) for k in range(3)]
+        names = list(AXES)
+    else:
+        missing = np.ascontiguousarray(~valid.T)
+        fields = [pa.array(by_field[k], mask=missing[k // 3]) for k in range(v.shape[1])]
+        names = [f"{prefix}{a}" for prefix in SIGNAL_FIELDS for a in AXES]
+    struct = pa.StructArray.from_arrays(fields, names=names)
     offsets = pa.array(np.arange(v.shape[0] + 1, dtype=np.int32))
     return ArrowColumn(_xyz_descriptor(), pa.ListArray.from_arrays(offsets, struct))
 
@@ -249,12 +264,40 @@ def wheel_angle_rad(result: CalibrationResult) -> np.ndarray:
     return wheel_kinematics(result.params, result.centred_time_s, result.layout.effects).theta_rad
 
 
-def log_signal(
-    stream: rr.RecordingStream, name: str, time_s: np.ndarray, accel_mps2: np.ndarray
-) -> None:
-    """Log (N, 3) samples in m/s² as ``/signal/<name>``: {x, y, z} rows on ``time``."""
-    t, v = _check_series(time_s, accel_mps2, f"signal {name!r}")
-    stream.send_chunks(xyz_chunks(f"signal/{name}", t, v))
+def signal_chunks(
+    data_time_s: np.ndarray,
+    data_mps2: np.ndarray,
+    model_time_s: np.ndarray,
+    model_mps2: np.ndarray,
+) -> list[Chunk]:
+    """``/signal``: the data and the model in one row per time (module docstring).
+
+    The rows are the union of both sets of times (to the nanosecond; the model's
+    are the data's inside the window): a field is null where its series has no sample.
+    """
+    t_data, v_data = _check_series(data_time_s, data_mps2, "signal 'data'")
+    t_model, v_model = _check_series(model_time_s, model_mps2, "signal 'model'")
+    ns_data, ns_model = _time_ns(t_data), _time_ns(t_model)
+    at = np.minimum(np.searchsorted(ns_data, ns_model), ns_data.size - 1)
+    if np.array_equal(ns_data[at], ns_model):
+        ns = ns_data  # the model's times are the data's (a window of the recording)
+    else:
+        ns = np.concatenate([ns_data, ns_model])
+        ns.sort()
+        ns = ns[np.concatenate([[True], np.diff(ns) != 0])]
+    values = np.zeros((ns.size, 6))
+    valid = np.zeros((ns.size, 2), dtype=bool)
+    for k, (at, v) in enumerate(((ns_data, v_data), (ns_model, v_model))):
+        rows = np.searchsorted(ns, at)
+        values[rows, 3 * k : 3 * k + 3] = v
+        valid[rows, k] = True
+    chunks = []
+    for start in range(0, ns.size, CHUNK_ROWS):
+        rows = slice(start, start + CHUNK_ROWS)
+        index = [duration_index(TIME_TIMELINE, ns[rows])]
+        columns = [xyz_column(values[rows], valid[rows])]
+        chunks.append(Chunk.from_columns("signal", indexes=index, columns=columns))
+    return chunks
 
 
 @functools.lru_cache(maxsize=16)
@@ -276,7 +319,8 @@ def angle_bar_chunks(
     """``<base>/<a>/<name>``: mean residual per 5° of ϑ per axis (and its ±2σ band if asked).
 
     The bars are translucent (sets overlap in one view); the band, grey, sits
-    under them at ``<base>/<a>/band_plus_2sigma`` and ``…/band_minus_2sigma``.
+    under them at ``<base>/<a>/band_2sigma``: each bin twice in its abscissa,
+    first up to +2σ, then down to −2σ.
     """
     profile = angle_profile(theta_rad, residual_mps2, ANGLE_BINS)
     centres = tuple(profile.centres_deg.tolist())
@@ -287,11 +331,11 @@ def angle_bar_chunks(
         bars = (column(values, tensor_f64(profile.mean_mps2[:, k])), *shared)
         chunks.append(static_chunk(f"{base}/{axis}/{name}", bars))
         if band:
+            # One chart, each bin twice: a bar up to +2σ and one down to −2σ.
             two_sigma = np.nan_to_num(2 * profile.std_of_mean_mps2[:, k])
-            grey = _bar_chart_shared(centres, _BAND_COLOR)
-            for entity, sign in zip(BAND_ENTITIES, (1.0, -1.0), strict=True):
-                bars = (column(values, tensor_f64(sign * two_sigma)), *grey)
-                chunks.append(static_chunk(f"{base}/{axis}/{entity}", bars))
+            grey = _bar_chart_shared(centres + centres, _BAND_COLOR)
+            bars = (column(values, tensor_f64(np.concatenate([two_sigma, -two_sigma]))), *grey)
+            chunks.append(static_chunk(f"{base}/{axis}/{BAND_ENTITY}", bars))
     return chunks
 
 
@@ -735,9 +779,8 @@ def session_rrd(
     with rrd_file(path, APPLICATION_ID, name, durable=durable) as stream:
         if recording.epoch_unix_ns:  # 0: times without a Unix epoch (no start time to give)
             stream.send_recording_start_time_nanos(recording.epoch_unix_ns)
-        log_signal(stream, "raw", recording.time_s, recording.accel_mps2)
         model = predict(result.params, result.centred_time_s, result.layout)  # Eq. (6)
-        log_signal(stream, "model", fit_time_s, model)
+        stream.send_chunks(signal_chunks(recording.time_s, recording.accel_mps2, fit_time_s, model))
         log_window(stream, start_s, end_s, first_s, last_s)
         chunks = spin_chunks(result, recording, shift_s, gyro_calibration)
         markdown = report_markdown(result, window, start_s, end_s, recording.epoch_unix_ns)
@@ -746,7 +789,11 @@ def session_rrd(
         stream.send_chunks(chunks)
         rrd = SessionRrd(stream, shift_s=shift_s)
         rrd.log_residuals(
-            FIT_SET, fit_time_s, result.residual_mps2, wheel_angle_rad(result), label="fit"
+            FIT_SET,
+            fit_time_s,
+            result.residual_mps2,
+            wheel_angle_rad(result),
+            label="data − model",
         )
         yield rrd
         shown_s = (first_s - TIME_MARGIN_S, last_s + TIME_MARGIN_S)
