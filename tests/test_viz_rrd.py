@@ -41,6 +41,8 @@ from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunk
 from wheelcal.viz.rrd_file import RrdWriteError
 from wheelcal.viz.session_blueprint import (
     GLOBAL_VIEW_PATH,
+    SIGNAL_DATA,
+    SIGNAL_MODEL,
     XYZ_COMPONENT,
     GlobalTimeAxis,
     Layout,
@@ -99,15 +101,14 @@ def temporal(chunks, entity, component, timeline):
     return index[order], [values[i] for i in order]
 
 
-def xyz(chunks, entity, prefix="", timeline="time"):
-    """(index values, (N, 3) array) of an entity's {x, y, z} rows (or ``<prefix>x`` …).
+def xyz(chunks, entity, component=XYZ_COMPONENT, timeline="time"):
+    """(index values, (N, 3) array) of an entity's {x, y, z} rows of one component.
 
-    Rows where the fields are null (``/signal``'s model outside the window) are left out.
+    Null rows (``/signal``'s model outside the window) are left out.
     """
-    index, rows = temporal(chunks, entity, XYZ_COMPONENT, timeline)
-    values = [[r[0][prefix + a] for a in "xyz"] for r in rows]
-    kept = [i for i, v in enumerate(values) if v[0] is not None]
-    return index[kept], np.array([values[i] for i in kept], dtype=float)
+    index, rows = temporal(chunks, entity, component, timeline)
+    kept = [i for i, r in enumerate(rows) if r is not None]
+    return index[kept], np.array([[rows[i][0][a] for a in "xyz"] for i in kept], dtype=float)
 
 
 def static(chunks, entity, component):
@@ -195,7 +196,7 @@ def test_session_entity_paths(session_file):
 def test_raw_signal_is_the_whole_recording(session, session_file):
     recording, _, _ = session
     _, chunks = session_file
-    t_ns, values = xyz(chunks, "/signal", "data_")
+    t_ns, values = xyz(chunks, "/signal", SIGNAL_DATA)
     np.testing.assert_array_equal(t_ns, np.rint(recording.time_s * 1e9).astype(np.int64))
     np.testing.assert_array_equal(values, recording.accel_mps2)
     # One row per sample for the data and the model: the model's times are the data's.
@@ -237,10 +238,10 @@ def test_signal_rows_are_the_union_of_data_and_model_times():
     data, model = np.arange(12.0).reshape(4, 3), -np.arange(9.0).reshape(3, 3)
     (chunk,) = signal_chunks(data_t, data, model_t, model)
     chunks = {"/signal": [chunk]}
-    t_ns, values = xyz(chunks, "/signal", "data_")
+    t_ns, values = xyz(chunks, "/signal", SIGNAL_DATA)
     np.testing.assert_array_equal(t_ns, [0, 1_000_000_000, 2_000_000_000, 3_000_000_000])
     np.testing.assert_array_equal(values, data)
-    t_ns, values = xyz(chunks, "/signal", "model_")
+    t_ns, values = xyz(chunks, "/signal", SIGNAL_MODEL)
     np.testing.assert_array_equal(t_ns, [1_000_000_000, 1_500_000_000, 3_000_000_000])
     np.testing.assert_array_equal(values, model)
     assert chunk.num_rows == 5
@@ -249,7 +250,7 @@ def test_signal_rows_are_the_union_of_data_and_model_times():
 def test_model_plus_residual_is_the_data(session, session_file):
     recording, _, result = session
     _, chunks = session_file
-    t_ns, model = xyz(chunks, "/signal", "model_")
+    t_ns, model = xyz(chunks, "/signal", SIGNAL_MODEL)
     assert t_ns.size == result.time_s.size
     inside = np.isin(np.rint(recording.time_s * 1e9).astype(np.int64), t_ns)
     np.testing.assert_allclose(
@@ -426,7 +427,7 @@ def view_properties(path):
 
 
 def overrides_of(props):
-    """{(overridden entity, legend names, selector)} of a view's visualizer overrides."""
+    """{(overridden entity, legend names, [source component unless Xyz,] selector)} of a view."""
     out = set()
     for suffix, components in props.items():
         if "VisualizerInstruction:component_map" not in components:
@@ -434,7 +435,12 @@ def overrides_of(props):
         entity = "/" + suffix.split("overrides/")[1].split("/visualizers")[0]
         (mapping,) = components["VisualizerInstruction:component_map"][0]
         names = tuple(components["SeriesLines:names"][0])
-        out.add((entity, names, mapping["selector"]))
+        source = mapping["source_component"]
+        out.add(
+            (entity, names, mapping["selector"])
+            if source == XYZ_COMPONENT
+            else (entity, names, source, mapping["selector"])
+        )
     return out
 
 
@@ -483,8 +489,8 @@ def test_session_blueprint(session, session_file):
     for axis in "xyz":
         signal = props[f"{axis}: data and model (m/s²)"]
         assert overrides_of(signal) == {
-            ("/signal", ("data",), f".data_{axis}"),
-            ("/signal", ("model",), f".model_{axis}"),
+            ("/signal", ("data",), SIGNAL_DATA, f".{axis}"),
+            ("/signal", ("model",), SIGNAL_MODEL, f".{axis}"),
         }
         assert "PlotLegend" not in signal  # Rerun's default: the legend is shown
         residual = props[f"{axis}: residual, data − model (m/s²)"]
@@ -1051,6 +1057,9 @@ def test_batch_reports_and_blueprint(batch_sessions, tmp_path):
     # The tabs: the overview, and per group its parameters and its spins.
     names = blueprint_component(path, "ContainerBlueprint:display_name")
     assert ["imu/B / m1"] in names and ["imu/B / m1: spin (per session)"] in names
+    # Each tab shows the group's report beside its plots (a view of its own in each).
+    report = ("TextDocument", "repeatability", group_path("imu/B", "m1") + "/report")
+    assert views.count(report) == 2
     assert RrdReader(path).recordings()[0].application_id == "wheelcal_batch"
 
 
@@ -1083,3 +1092,28 @@ def test_a_gyro_session_shows_measured_and_modelled_omega(tmp_path):
     assert t_gyro.size > 100
     assert np.sqrt(np.mean((gyro - model) ** 2)) < 0.01  # rad/s: the gyro's noise, ~2e-3
     assert np.ptp(model) > 0.5  # the motor's ±5 % of 10 rad/s is in the modelled ω
+
+
+def test_the_session_writer_passes_the_gyro_calibration_of_a_diagnosis(tmp_path):
+    """A closed loop's final fit is assessed without the gyro block: the writer takes the base's."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from wheelcal.batch.session import _write_rrd
+    from wheelcal.estimate.session_fit import SessionFit
+    from wheelcal.simulate import hostile
+    from wheelcal.simulate.gyro import GyroSpec
+
+    session = hostile.wandering(np.random.default_rng(300), gyro=GyroSpec())
+    result = SessionFit(gyro="on").run(session.recording).result
+    assert result.assessment.gyro is not None
+    final = dataclasses.replace(
+        result, assessment=dataclasses.replace(result.assessment, gyro=None)
+    )
+    label = "SeriesLines:names"
+    for name, diagnosis, expected in (
+        ("without", None, "measured: gyro (uncalibrated)"),
+        ("with", SimpleNamespace(base=result, steps=()), "measured: gyro"),
+    ):
+        path = _write_rrd(tmp_path / f"{name}.rrd", final, session.recording, None, diagnosis)
+        assert static(read_store(path), "/spin/omega_measured_radps", label) == [expected]

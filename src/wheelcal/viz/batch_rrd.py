@@ -271,8 +271,10 @@ def _family(name: str) -> int:
 def _parameter_rows(group: _Group, names: list[str]) -> rrb.Vertical:
     """One plot per parameter (estimate, ±σ, mean), a row per family (gains, offsets, …)."""
     rows: dict[int, list[rrb.TimeSeriesView]] = {}
-    for name in names:
-        rows.setdefault(_family(name), []).append(
+    for i, name in enumerate(names):
+        # The spin's five in rows of three; the others a row per family.
+        row = 100 + i // 3 if per_session(name) else _family(name)
+        rows.setdefault(row, []).append(
             rrb.TimeSeriesView(
                 origin=f"/{group.path}/{rr.escape_entity_path_part(name)}",
                 name=f"{name} (per session)" if per_session(name) else name,
@@ -287,21 +289,19 @@ def batch_blueprint(groups: list[_Group]) -> rrb.Blueprint:
     """Per group a tab of its repeatable parameters and one of its spins; the overview first."""
     tabs = [rrb.TextDocumentView(origin="/report", name="sessions")]
     for group in groups:
-        report = rrb.TextDocumentView(origin=f"/{group.path}/report", name="repeatability")
         repeatable = [name for name in group.parameters if not per_session(name)]
         spin = [name for name in group.parameters if per_session(name)]
-        tabs.append(
-            rrb.Horizontal(
-                _parameter_rows(group, repeatable), report, column_shares=[2, 1], name=group.title
-            )
-        )
-        if spin:
+        for names, title in (
+            (repeatable, group.title),
+            (spin, f"{group.title}: spin (per session)"),
+        ):
+            if not names:
+                continue
+            # A view lives in one container: each tab gets its own view of the report.
+            report = rrb.TextDocumentView(origin=f"/{group.path}/report", name="repeatability")
             tabs.append(
                 rrb.Horizontal(
-                    _parameter_rows(group, spin),
-                    report,
-                    column_shares=[2, 1],
-                    name=f"{group.title}: spin (per session)",
+                    _parameter_rows(group, names), report, column_shares=[2, 1], name=title
                 )
             )
     return rrb.Blueprint(

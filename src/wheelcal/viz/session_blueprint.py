@@ -33,10 +33,11 @@ play bar: the views get the screen.
 
 Per-axis views show one axis of a three-axis entity: the samples are stored
 as one struct {x, y, z} per row (:data:`XYZ_COMPONENT`; ``/signal`` holds
-the data and the model, {data_x … model_z}: one row per sample for all, the
-cheap layout) and each view's visualizers pick a field (a component mapping
-with a selector, rerun-sdk 0.41).  So a legend lists exactly the series drawn
-("data", "model"; "paper's model", "with effects").
+the data and the model as two such components on one row per sample, the
+model's null outside the window: the cheap layout) and each view's
+visualizers pick a field (a component mapping with a selector, rerun-sdk
+0.41).  So a legend lists exactly the series drawn ("data", "model";
+"paper's model", "with effects").
 
 Speed: the layout is turned into blueprint chunks once per process and per
 layout key (:func:`layout_chunks`); a file adds two chunks of its own — the
@@ -64,8 +65,10 @@ TIME_TIMELINE = "time"
 #: The struct component of three-axis samples: one {x, y, z} per row, m/s².
 XYZ_ARCHETYPE = "Xyz"
 XYZ_COMPONENT = f"{XYZ_ARCHETYPE}:mps2"
-#: Field prefixes of ``/signal``'s struct: ``data_x`` … ``model_z``.
-SIGNAL_FIELDS = ("data_", "model_")
+#: ``/signal``'s two components, each a struct {x, y, z} per row (the model's null
+#: outside the fitted window).
+SIGNAL_DATA = "Signal:data_mps2"
+SIGNAL_MODEL = "Signal:model_mps2"
 #: Rerun 0.41's ``GLOBAL_VIEW_ID`` (re_viewer_context): the shared x-range of linked views.
 GLOBAL_VIEW_ID = uuid.UUID("5c0dca6a-e63f-9cf7-f657-2602590474cc")
 GLOBAL_VIEW_PATH = f"view/{GLOBAL_VIEW_ID}/TimeAxis"
@@ -125,20 +128,20 @@ class Layout:
 
 
 def axis_series(
-    axis: int, label: str, color: Rgb, width: float = 1.0, prefix: str = ""
+    axis: int, label: str, color: Rgb, width: float = 1.0, component: str = XYZ_COMPONENT
 ) -> rrb.Visualizer:
-    """A line visualizer drawing one field (``<prefix>x``, ``y`` or ``z``) of {x, y, z} rows."""
+    """A line visualizer drawing one field (x, y or z) of a component of {x, y, z} rows."""
     mapping = VisualizerComponentMapping(
         "Scalars:scalars",
         "SourceComponent",
-        source_component=XYZ_COMPONENT,
-        selector=f".{prefix}{AXES[axis]}",
+        source_component=component,
+        selector=f".{AXES[axis]}",
     )
     style = rr.SeriesLines(names=[label], colors=[color], widths=[width])
     return style.visualizer(mappings=[mapping])
 
 
-#: A series of a per-axis view: entity, field prefix, legend label, colour, width.
+#: A series of a per-axis view: entity, component, legend label, colour, width.
 Series = tuple[str, str, str, Rgb, float]
 
 
@@ -147,8 +150,8 @@ def _per_axis_view(
 ) -> rrb.TimeSeriesView:
     """A time view of one axis of {x, y, z} entities (several series may share an entity)."""
     overrides: dict[str, list[rrb.Visualizer]] = {}
-    for path, prefix, label, color, width in series:
-        overrides.setdefault(path, []).append(axis_series(axis, label, color, width, prefix))
+    for path, component, label, color, width in series:
+        overrides.setdefault(path, []).append(axis_series(axis, label, color, width, component))
     return rrb.TimeSeriesView(
         origin="/",
         contents=list(overrides),
@@ -162,14 +165,16 @@ def _per_axis_view(
 
 def _signal_view(k: int) -> rrb.TimeSeriesView:
     series = (
-        ("/signal", SIGNAL_FIELDS[0], "data", DATA_COLOR, 1.0),
-        ("/signal", SIGNAL_FIELDS[1], "model", AXIS_COLORS[k], 1.5),
+        ("/signal", SIGNAL_DATA, "data", DATA_COLOR, 1.0),
+        ("/signal", SIGNAL_MODEL, "model", AXIS_COLORS[k], 1.5),
     )
     return _per_axis_view(k, f"{AXES[k]}: data and model (m/s²)", series, legend=True)
 
 
 def _residual_view(k: int, sets: tuple[tuple[str, str, Rgb], ...], title: str):
-    series = tuple((f"/residual/{name}", "", label, rgb, 1.0) for name, label, rgb in sets)
+    series = tuple(
+        (f"/residual/{name}", XYZ_COMPONENT, label, rgb, 1.0) for name, label, rgb in sets
+    )
     return _per_axis_view(k, title, series, legend=True)
 
 
@@ -216,8 +221,8 @@ def _calibration_tab(layout: Layout) -> rrb.Vertical:
 
 def _closed_loop_tab() -> rrb.Horizontal:
     trends = (
-        ("/closed_loop/trend/paper_model", "", "paper's model", BEFORE_COLOR, 1.5),
-        ("/closed_loop/trend/with_effects", "", "with effects", AFTER_COLOR, 1.5),
+        ("/closed_loop/trend/paper_model", XYZ_COMPONENT, "paper's model", BEFORE_COLOR, 1.5),
+        ("/closed_loop/trend/with_effects", XYZ_COMPONENT, "with effects", AFTER_COLOR, 1.5),
     )
     angle = rrb.Vertical(
         *[

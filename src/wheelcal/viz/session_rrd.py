@@ -4,13 +4,13 @@ What is in the file (entity paths; ``<set>`` names a residual set — ``fit``
 for this calibration, more can be added, see below; ``<a>`` is an axis):
 
 * ``/signal`` — the data v(t) over the whole recording and the model
-  o + Γ R a(t) (eq. 6) over the fitted window, m/s²: one row per sample, a
-  struct {data_x, data_y, data_z, model_x, model_y, model_z}
-  (:data:`~wheelcal.viz.session_blueprint.XYZ_COMPONENT`, timeline ``time``;
-  the model's fields are null outside the window);
+  o + Γ R a(t) (eq. 6) over the fitted window, m/s²: one row per sample on
+  ``time`` with two components, ``Signal:data_mps2`` and ``Signal:model_mps2``,
+  each a struct {x, y, z} (the model's null outside the window);
 * ``/window`` — state lane *before* / *free spin* / *after* on ``time``: the
   free-spin window (also selected in the time panel);
-* ``/residual/<set>`` — data − model, m/s², a struct {x, y, z} per row on ``time``;
+* ``/residual/<set>`` — data − model, m/s², a struct {x, y, z} per row on
+  ``time`` (:data:`~wheelcal.viz.session_blueprint.XYZ_COMPONENT`);
 * ``/residual_angle_mean/<a>/<set>`` — static bar chart: the residual's mean
   in 72 bins of 5° of ϑ mod 360°, abscissa in degrees (a real angle axis);
   ``/residual_angle_mean/<a>/band_2sigma`` — ±2σ of each bin's mean
@@ -119,10 +119,10 @@ from wheelcal.viz.session_blueprint import (
     AFTER_COLOR,
     AXIS_COLORS,
     BEFORE_COLOR,
-    SIGNAL_FIELDS,
+    SIGNAL_DATA,
+    SIGNAL_MODEL,
     TIME_TIMELINE,
     TREND_S,
-    XYZ_ARCHETYPE,
     XYZ_COMPONENT,
     ExtraView,
     Layout,
@@ -169,34 +169,26 @@ def _time_ns(time_s: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
 
 
-@functools.lru_cache(maxsize=1)
-def _xyz_descriptor() -> rr.ComponentDescriptor:
-    """The descriptor Rerun's ``DynamicArchetype`` gives :data:`XYZ_COMPONENT`."""
-    (batch,) = rr.DynamicArchetype.columns(
-        archetype=XYZ_ARCHETYPE, components={XYZ_COMPONENT.split(":")[1]: np.zeros(1)}
-    )
+@functools.lru_cache(maxsize=4)
+def _descriptor(component: str) -> rr.ComponentDescriptor:
+    """The descriptor Rerun's ``DynamicArchetype`` gives ``Archetype:field``."""
+    archetype, name = component.split(":")
+    (batch,) = rr.DynamicArchetype.columns(archetype=archetype, components={name: np.zeros(1)})
     return batch.component_descriptor()
 
 
-def xyz_column(values: np.ndarray, valid: np.ndarray | None = None) -> ArrowColumn:
-    """One struct {x, y, z} (float64) per row of ``values`` (N, 3): :data:`XYZ_COMPONENT`.
+def xyz_column(
+    values: np.ndarray, component: str = XYZ_COMPONENT, valid: np.ndarray | None = None
+) -> ArrowColumn:
+    """One struct {x, y, z} (float64) per row of ``values`` (N, 3), e.g. :data:`XYZ_COMPONENT`.
 
-    With ``valid`` (N, k) booleans and ``values`` (N, 3k), the fields are
-    ``<prefix>x, <prefix>y, <prefix>z`` per group (:data:`SIGNAL_FIELDS`), null
-    where ``valid`` is False.
+    Rows where ``valid`` (N,) is False are null: no value at that time.
     """
-    v = np.asarray(values, dtype=np.float64)
-    by_field = np.ascontiguousarray(v.T)  # one copy; each field a contiguous row
-    if valid is None:
-        fields = [pa.array(by_field[k]) for k in range(3)]
-        names = list(AXES)
-    else:
-        missing = np.ascontiguousarray(~valid.T)
-        fields = [pa.array(by_field[k], mask=missing[k // 3]) for k in range(v.shape[1])]
-        names = [f"{prefix}{a}" for prefix in SIGNAL_FIELDS for a in AXES]
-    struct = pa.StructArray.from_arrays(fields, names=names)
-    offsets = pa.array(np.arange(v.shape[0] + 1, dtype=np.int32))
-    return ArrowColumn(_xyz_descriptor(), pa.ListArray.from_arrays(offsets, struct))
+    by_axis = np.ascontiguousarray(np.asarray(values, dtype=np.float64).T)  # one copy
+    struct = pa.StructArray.from_arrays([pa.array(f) for f in by_axis], names=list(AXES))
+    offsets = pa.array(np.arange(by_axis.shape[1] + 1, dtype=np.int32))
+    mask = None if valid is None else pa.array(~np.asarray(valid, dtype=bool))
+    return ArrowColumn(_descriptor(component), pa.ListArray.from_arrays(offsets, struct, mask=mask))
 
 
 def _row_chunks(path: str, time_s: np.ndarray, values: np.ndarray, make_column) -> list[Chunk]:
@@ -273,7 +265,8 @@ def signal_chunks(
     """``/signal``: the data and the model in one row per time (module docstring).
 
     The rows are the union of both sets of times (to the nanosecond; the model's
-    are the data's inside the window): a field is null where its series has no sample.
+    are the data's inside the window): a component is null where its series has
+    no sample.
     """
     t_data, v_data = _check_series(data_time_s, data_mps2, "signal 'data'")
     t_model, v_model = _check_series(model_time_s, model_mps2, "signal 'model'")
@@ -285,17 +278,22 @@ def signal_chunks(
         ns = np.concatenate([ns_data, ns_model])
         ns.sort()
         ns = ns[np.concatenate([[True], np.diff(ns) != 0])]
-    values = np.zeros((ns.size, 6))
-    valid = np.zeros((ns.size, 2), dtype=bool)
-    for k, (at, v) in enumerate(((ns_data, v_data), (ns_model, v_model))):
+    series = []
+    for at, v in ((ns_data, v_data), (ns_model, v_model)):
         rows = np.searchsorted(ns, at)
-        values[rows, 3 * k : 3 * k + 3] = v
-        valid[rows, k] = True
+        values = np.zeros((ns.size, 3))
+        values[rows] = v
+        valid = np.zeros(ns.size, dtype=bool)
+        valid[rows] = True
+        series.append((values, valid))
     chunks = []
     for start in range(0, ns.size, CHUNK_ROWS):
         rows = slice(start, start + CHUNK_ROWS)
         index = [duration_index(TIME_TIMELINE, ns[rows])]
-        columns = [xyz_column(values[rows], valid[rows])]
+        columns = [
+            xyz_column(values[rows], component, None if valid[rows].all() else valid[rows])
+            for (values, valid), component in zip(series, (SIGNAL_DATA, SIGNAL_MODEL), strict=True)
+        ]
         chunks.append(Chunk.from_columns("signal", indexes=index, columns=columns))
     return chunks
 
