@@ -277,21 +277,6 @@ def time_panel(start_s: float, end_s: float) -> rrb.TimePanel:
     )
 
 
-def session_blueprint_parts(
-    layout: Layout, window_s: tuple[float, float], shown_s: tuple[float, float]
-) -> tuple:
-    """Every blueprint part of a file (for ``send_blueprint`` or :func:`blueprint_chunks`)."""
-    return (
-        rrb.Blueprint(
-            session_layout(layout),
-            rrb.BlueprintPanel(state="collapsed"),
-            rrb.SelectionPanel(state="collapsed"),
-        ),
-        time_panel(*window_s),
-        GlobalTimeAxis(*shown_s),
-    )
-
-
 @functools.lru_cache(maxsize=16)
 def layout_chunks(layout: Layout) -> tuple[Chunk, ...]:
     """The layout and the side panels as chunks, built once per process and layout."""

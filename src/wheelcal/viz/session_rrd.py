@@ -128,7 +128,6 @@ from wheelcal.viz.session_blueprint import (
     Layout,
     layout_chunks,
     per_file_chunks,
-    session_blueprint_parts,
 )
 
 APPLICATION_ID = "wheelcal"
@@ -720,11 +719,6 @@ def send_session_blueprint(
 ) -> None:
     """Send the session blueprint: the layout from the per-process cache, this file's ranges."""
     send_blueprint_chunks(stream, (*layout_chunks(layout), *per_file_chunks(window_s, shown_s)))
-
-
-def session_blueprint(layout: Layout, window_s, shown_s) -> tuple:
-    """The blueprint parts a file carries (for Rerun's own ``send_blueprint``, in tests)."""
-    return session_blueprint_parts(layout, window_s, shown_s)
 
 
 @contextlib.contextmanager
