@@ -183,6 +183,20 @@ def settle(page, minimum_s: float = LOAD_S, timeout_s: float = 90.0) -> None:
     raise RuntimeError(f"the viewer kept changing for {timeout_s:.0f} s")
 
 
+def open_tab(page, shot: Shot, width: int, tries: int = 4) -> None:
+    """Click the shot's tab title until the view changes (a click while drawing can be lost)."""
+    before = page.screenshot()
+    centres = tab_centres(before, width)
+    if len(centres) <= shot.tab:
+        raise RuntimeError(f"{shot.file}: found tabs at {centres}, not tab {shot.tab}")
+    for _ in range(tries):
+        page.mouse.click(centres[shot.tab], TOP_BAR_PX + TAB_BAR_PX // 2)
+        settle(page, minimum_s=2.0)
+        if page.screenshot() != before:
+            return
+    raise RuntimeError(f"{shot.file}: clicking tab {shot.tab} changed nothing")
+
+
 def render(shots: list[Shot], docs: Path, chromium: str, size: tuple[int, int]) -> list[Path]:
     """Screenshot every shot in the web viewer; returns the PNGs written."""
     import rerun as rr
@@ -210,11 +224,7 @@ def render(shots: list[Shot], docs: Path, chromium: str, size: tuple[int, int]) 
             page.goto(f"http://127.0.0.1:{viewer_port}/?url={url}&renderer=webgl")
             settle(page)
             if shot.tab is not None:
-                centres = tab_centres(page.screenshot(), size[0])
-                if len(centres) <= shot.tab:
-                    raise RuntimeError(f"{shot.file}: found tabs at {centres}, not tab {shot.tab}")
-                page.mouse.click(centres[shot.tab], TOP_BAR_PX + TAB_BAR_PX // 2)
-                settle(page, minimum_s=2.0)
+                open_tab(page, shot, size[0])
             target = docs / shot.png
             target.write_bytes(small_png(page.screenshot()))
             written.append(target)
