@@ -523,11 +523,9 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     )
     report["sensors"] = [s.summary() for s in sensors]
     paths = [json_path, md_path, csv_path, *(s.path for s in sensors)]
+    numbers = [i + 1 for i, r in enumerate(records) if r.ok]  # as report.md's session table
     png, note = overview_png(
-        calibrations,
-        [s.doc for s in sensors],
-        title=pipeline.name,
-        numbers=[i + 1 for i, r in enumerate(records) if r.ok],  # as report.md's session table
+        calibrations, [s.doc for s in sensors], title=pipeline.name, numbers=numbers
     )
     if png is not None:
         atomic_write_bytes(out / OVERVIEW_FILE, png, durable=False)
@@ -547,7 +545,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     if batch_rrd:
         from wheelcal.viz.batch_rrd import write_batch_rrd
 
-        write_batch_rrd(out / "batch.rrd", calibrations)
+        write_batch_rrd(out / "batch.rrd", calibrations, numbers)
     _sync()  # the sensor files and the PNG (written without per-file fsync)
     # report.json last: its key marks the whole report as complete.
     atomic_write_text(json_path, dumps_indented(json_safe(report)) + "\n")

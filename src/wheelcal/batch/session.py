@@ -254,17 +254,19 @@ def _outcome_of(source, result, choice: WindowChoice, diagnosis, recording, timi
 
 
 def _write_rrd(path: Path, result, recording, window, diagnosis, durable: bool = True) -> Path:
-    """Session .rrd; with a diagnosis, the paper's model's residual is a second set."""
-    from wheelcal.viz.session_rrd import session_rrd, wheel_angle_rad
+    """Session .rrd; with a diagnosis that added effects, its before/after tab.
 
-    with session_rrd(path, result, recording, window, durable=durable) as rrd:
-        if diagnosis is not None and diagnosis.steps:
-            base = diagnosis.base
-            shift_s = (base.epoch_unix_ns - recording.epoch_unix_ns) * 1e-9
-            rrd.log_residuals(
-                "paper_model", base.time_s + shift_s, base.residual_mps2, wheel_angle_rad(base)
-            )
-    return path
+    A closed loop's final fit is assessed anew, without the gyroscope's
+    calibration of the first fit: that one is passed on for the measured ω.
+    """
+    from wheelcal.viz.session_rrd import write_session_rrd
+
+    gyro = None
+    if diagnosis is not None and diagnosis.base.assessment is not None:
+        gyro = diagnosis.base.assessment.gyro
+    return write_session_rrd(
+        path, result, recording, window, durable, diagnosis=diagnosis, gyro_calibration=gyro
+    )
 
 
 def write_session(

@@ -10,6 +10,11 @@ import numpy as np
 
 from wheelcal.batch.pipeline import Pipeline
 
+#: First sample of the first simulated recording: 2024-03-12 09:00:00 UTC.
+FIRST_START_UNIX_NS = 1_710_234_000_000_000_000
+#: Simulated recordings start this far apart (10 min: a spin, notes, the next spin).
+SPACING_NS = 600_000_000_000
+
 
 def simulate_inputs(
     pipeline: Pipeline, progress: Callable[[str], None] | None = None
@@ -18,6 +23,8 @@ def simulate_inputs(
 
     Recording i uses the random stream ``default_rng([seed, i])``: the same
     pipeline always produces the same files, and each has its own hand spin.
+    Recording i starts at :data:`FIRST_START_UNIX_NS` + i · :data:`SPACING_NS`
+    (sessions recorded one after another, each with its own start time).
     """
     spec = pipeline.simulate
     if spec is None:  # before the imports: the simulator costs ~1 s to import (scipy.signal)
@@ -42,10 +49,13 @@ def simulate_inputs(
         info = scenario.info.merged(sensor_id=spec.sensor_id, mounting_id=spec.mounting_id)
         scenario = dataclasses.replace(scenario, info=info)
         path.parent.mkdir(parents=True, exist_ok=True)
+        start_ns = FIRST_START_UNIX_NS + i * SPACING_NS
         if spec.push_and_stop:
-            recording = simulate_session(scenario, rng, source=str(path)).recording
+            recording = simulate_session(
+                scenario, rng, epoch_unix_ns=start_ns, source=str(path)
+            ).recording
         else:
-            recording = simulate(scenario, rng, source=str(path)).recording
+            recording = simulate(scenario, rng, epoch_unix_ns=start_ns, source=str(path)).recording
         write_recording(recording, path, encoding=spec.format, batch_size=20)
         made.append(path)
         if progress is not None:

@@ -1,12 +1,16 @@
 """Rerun (``.rrd``) views of calibrations — the top layer, nothing below imports it.
 
-* :mod:`wheelcal.viz.session_rrd` — one file per session: raw signal with the
-  free-spin window, model fit, residuals against time and against the wheel
-  angle ϑ, ω(t), a parameter report and a blueprint that lays them out.
-  :func:`~wheelcal.viz.session_rrd.session_rrd` lets a caller (the closed loop)
-  add more residual sets (``before``/``after``) before the file is written.
+* :mod:`wheelcal.viz.session_rrd` — one file per session: data and model with
+  the free-spin window, residuals against time and per 5° of the wheel angle ϑ
+  (with the ±2σ of noise, :mod:`~wheelcal.viz.angle_profile`), ω(t) of the
+  model and as measured (:mod:`~wheelcal.viz.measured_rate`), a parameter
+  report, and the closed loop's before/after; the layout is
+  :mod:`~wheelcal.viz.session_blueprint`.
+  :func:`~wheelcal.viz.session_rrd.session_rrd` lets a caller add residual
+  sets and views before the file is written.
 * :mod:`wheelcal.viz.batch_rrd` — one file per batch: every parameter per
-  session with its predicted ±σ band, grouped by sensor and mounting.
+  session with its predicted ±σ band, grouped by sensor and mounting, the
+  spin's parameters apart (they differ per session by nature).
 
 Files are written atomically (a reader never sees a partial ``.rrd``), each
 from its own :class:`rerun.RecordingStream`: no global Rerun state.  The

@@ -6,9 +6,10 @@ Input: the per-session calibration dictionaries of
 ``source.mounting_id`` and ``parameters: {name: {value, std}}`` are read
 (JSON ``null`` — an undetermined σ — is accepted).
 
-Timeline ``session``: a sequence, the session's position in the input list
-(the same numbering in every group, so the index names one file; the report
-panel lists them).  Entities, with ``<g>`` = ``<sensor_id>/<mounting_id>``
+Timeline ``session``: a sequence, the session's number — as in ``report.md``
+and the files (``session001`` is 1; by default 1, 2, … in input order), the
+same numbering in every group, so a number names one file; the report panel
+lists them.  Entities, with ``<g>`` = ``<sensor_id>/<mounting_id>``
 (``unspecified`` where empty; escaped as entity-path parts) and ``<p>`` a
 contract parameter name (``gain_x``, ``tilt_deg``, ``drift.rate_mps3`` …):
 
@@ -19,16 +20,23 @@ contract parameter name (``gain_x``, ``tilt_deg``, ``drift.rate_mps3`` …):
 * ``/batch/<g>/<p>/mean`` — the group mean, as a flat line across its sessions;
 * ``/batch/<g>/report`` — markdown: per parameter mean, std (ddof = 1),
   predicted std (RMS of the per-session σ) and their ratio, as in
-  ``report.json``;
+  ``report.json``; the spin's parameters (θ₀, ω₀ … ω₃: each hand spin has
+  its own) get mean and std only, marked "per session" — their scatter is
+  the hands', not the estimator's, so a ratio would mean nothing;
 * ``/report`` — markdown: the session index → file table and the groups.
 
 If the scatter of the points matches the bands (ratio ≈ 1), σ is honest;
 ratio ≫ 1 means something varies between sessions that σ does not cover
 (remounting, temperature, a systematic error).
 
-Blueprint: one tab per group — a grid of one plot per parameter next to the
-group report — and a first tab with the overall report; the time panel opens
-on ``session``.
+Blueprint: per group a tab with one plot per repeatable parameter, a row per
+family — gains, offsets, the bench (tilt, mounting angles, radius) — (legend:
+"estimate", "±σ", "mean") next to the group report, and a tab with the
+spin's parameters (titled "per session"); a first tab with the overall
+report.  It opens on the first group's tab, paused on ``session``, every plot
+over all sessions (two sessions of room at the left, where the legend sits)
+on one shared x-axis, the side panels collapsed (see
+:mod:`wheelcal.viz.session_blueprint` for the shared axis).
 """
 
 from __future__ import annotations
@@ -44,15 +52,25 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from wheelcal.io.calibration import Calibration
+from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import rrd_file
+from wheelcal.viz.session_blueprint import GLOBAL_VIEW_PATH
 
 APPLICATION_ID = "wheelcal_batch"
 SESSION_TIMELINE = "session"
 UNSPECIFIED = "unspecified"
+#: Parameters of the hand spin (θ₀, ω₀ … ω₃): each session has its own by nature.
+PER_SESSION_PREFIXES = ("theta", "omega")
 
 _VALUE_COLOR = (38, 110, 210)
 _BAND_COLOR = (38, 110, 210, 110)
 _MEAN_COLOR = (120, 120, 120)
+_LINKED = rrb.TimeAxis(link=rrb.components.LinkAxis.LinkToGlobal)
+
+
+def per_session(name: str) -> bool:
+    """True for a parameter of the hand spin, which differs per session by nature."""
+    return name.startswith(PER_SESSION_PREFIXES)
 
 
 @dataclass
@@ -62,7 +80,7 @@ class _Group:
     sensor_id: str
     mounting_id: str
     sessions: list[int] = field(default_factory=list)
-    # name -> list of (session index, value, std); value/std NaN when absent or null
+    # name -> list of (session number, value, std); value/std NaN when absent or null
     parameters: dict[str, list[tuple[int, float, float]]] = field(default_factory=dict)
 
     @property
@@ -77,35 +95,32 @@ class _Group:
         return f"{self.sensor_id or UNSPECIFIED} / {self.mounting_id or UNSPECIFIED}"
 
 
-def _number(x) -> float:
-    """A JSON number, or NaN for null."""
-    return math.nan if x is None else float(x)
-
-
 def _parameter_rank(name: str) -> int:
     """Sensor parameters first, then bench, then motion and effects (as the session report)."""
     for rank, prefix in enumerate(("gain_", "offset_", "tilt_", "euler_", "radius_")):
         if name.startswith(prefix):
             return rank
-    return 9
+    return 10 if per_session(name) else 9
 
 
-def _groups(sessions: Sequence[Mapping]) -> tuple[list[_Group], list[str]]:
+def _groups(
+    sessions: Sequence[Mapping], numbers: Sequence[int]
+) -> tuple[list[_Group], list[tuple[int, str]]]:
     """Group the sessions by (sensor_id, mounting_id), in order of first appearance."""
     groups: dict[tuple[str, str], _Group] = {}
-    files: list[str] = []
-    for index, session in enumerate(sessions):
+    files: list[tuple[int, str]] = []
+    for index, (number, session) in enumerate(zip(numbers, sessions, strict=True)):
         try:
             cal = session if isinstance(session, Calibration) else Calibration(session)
             key = (cal.sensor_id, cal.mounting_id)
-            files.append(cal.source_file or f"session {index}")
+            files.append((number, cal.source_file or f"session {number}"))
             group = groups.setdefault(key, _Group(*key))
-            group.sessions.append(index)
+            group.sessions.append(number)
             for name, (value, std) in cal.parameters.items():
-                group.parameters.setdefault(name, []).append((index, value, std))
+                group.parameters.setdefault(name, []).append((number, value, std))
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ValueError(
-                f"batch .rrd: session {index} is not a calibration "
+                f"batch .rrd: session {index} (number {number}) is not a calibration "
                 f"(needs source and parameters {{name: {{value, std}}}}): {exc!r}"
             ) from None
     for group in groups.values():
@@ -131,7 +146,7 @@ def _fmt(x: float, digits: int) -> str:
 
 
 def _log_parameter(
-    stream: rr.RecordingStream, path: str, name: str, entries: list[tuple[int, float, float]]
+    stream: rr.RecordingStream, path: str, entries: list[tuple[int, float, float]]
 ) -> None:
     index = np.array([i for i, _, _ in entries], dtype=np.int64)
     value = np.array([v for _, v, _ in entries])
@@ -140,7 +155,7 @@ def _log_parameter(
     if not shown.any():
         return
     style = rr.SeriesPoints(
-        colors=[_VALUE_COLOR], names=[name], markers=["circle"], marker_sizes=[4.0]
+        colors=[_VALUE_COLOR], names=["estimate"], markers=["circle"], marker_sizes=[4.0]
     )
     stream.log(f"{path}/value", style, static=True)
     stream.send_columns(
@@ -151,9 +166,10 @@ def _log_parameter(
     banded = shown & np.isfinite(std)
     if banded.any():
         band = np.column_stack([value[banded] - std[banded], value[banded] + std[banded]])
+        # One legend entry for both lines (the legend groups series by name).
         style = rr.SeriesLines(
             colors=[_BAND_COLOR] * 2,
-            names=[f"{name} − σ", f"{name} + σ"],
+            names=["±σ"] * 2,
             widths=[1.0, 1.0],
             interpolation_mode="StepMid",
         )
@@ -164,7 +180,7 @@ def _log_parameter(
             columns=rr.Scalars.columns(scalars=band),
         )
     mean = float(value[shown].mean())
-    style = rr.SeriesLines(colors=[_MEAN_COLOR], names=[f"{name} mean"], widths=[1.0])
+    style = rr.SeriesLines(colors=[_MEAN_COLOR], names=["mean"], widths=[1.0])
     stream.log(f"{path}/mean", style, static=True)
     stream.send_columns(
         f"{path}/mean",
@@ -173,68 +189,132 @@ def _log_parameter(
     )
 
 
+def _numbers_text(numbers: Sequence[int]) -> str:
+    """``1–10`` for a run, else the list."""
+    if numbers and list(numbers) == list(range(numbers[0], numbers[0] + len(numbers))):
+        return f"{numbers[0]}–{numbers[-1]}" if len(numbers) > 1 else str(numbers[0])
+    return ", ".join(map(str, numbers))
+
+
 def _group_report(group: _Group) -> str:
     lines = [
         f"# {group.title}",
         "",
-        f"{len(group.sessions)} sessions: " + ", ".join(str(i) for i in group.sessions),
+        f"{len(group.sessions)} sessions: {_numbers_text(group.sessions)}",
         "",
-        "| parameter | mean | std | predicted std | ratio |",
+        "| parameter | mean | std | pred. std | ratio |",
         "|---|---:|---:|---:|---:|",
     ]
+    spin = []
     for name, entries in group.parameters.items():
         s = group_statistics(entries)
+        if per_session(name):
+            spin.append(f"| `{name}` | {_fmt(s['mean'], 7)} | {_fmt(s['std'], 2)} |")
+            continue
         lines.append(
             f"| `{name}` | {_fmt(s['mean'], 7)} | {_fmt(s['std'], 2)} "
             f"| {_fmt(s['predicted_std'], 2)} | {_fmt(s['ratio'], 3)} |"
         )
-    lines += ["", "std: ddof = 1 over the sessions; predicted std: RMS of their σ."]
+    lines += [
+        "",
+        "std: ddof = 1 over the sessions; pred. std: RMS of their σ; ratio = std / pred. std "
+        "(≈ 1 when σ is honest; ≫ 1: something varies between sessions that σ misses).",
+    ]
+    if spin:
+        lines += [
+            "",
+            "**Per session by nature** — the hand spin (start angle θ₀, rate ω₀ … ω₃) "
+            "differs every time; no ratio:",
+            "",
+            "| parameter | mean | std |",
+            "|---|---:|---:|",
+            *spin,
+        ]
     return "\n".join(lines) + "\n"
 
 
-def _overall_report(groups: list[_Group], files: list[str]) -> str:
+def _overall_report(groups: list[_Group], files: list[tuple[int, str]]) -> str:
     lines = [
-        f"# wheelcal batch — {len(files)} sessions, {len(groups)} groups",
+        f"# wheelcal batch — {len(files)} sessions, {len(groups)} "
+        + ("group" if len(groups) == 1 else "groups"),
         "",
-        "| session | file | sensor | mounting |",
+        "| # | file | sensor | mounting |",
         "|---:|---|---|---|",
     ]
     owner = {i: g for g in groups for i in g.sessions}
-    for index, file in enumerate(files):
-        sensor, mounting = owner[index].sensor_id, owner[index].mounting_id
+    for number, file in files:
+        sensor, mounting = owner[number].sensor_id, owner[number].mounting_id
         lines.append(
-            f"| {index} | `{file}` | {sensor or UNSPECIFIED} | {mounting or UNSPECIFIED} |"
+            f"| {number} | `{file}` | {sensor or UNSPECIFIED} | {mounting or UNSPECIFIED} |"
         )
     return "\n".join(lines) + "\n"
 
 
-def batch_blueprint(groups: list[_Group]) -> rrb.Blueprint:
-    """One tab per group (a plot per parameter and the group report), overview first."""
-    tabs = [rrb.TextDocumentView(origin="/report", name="sessions")]
-    for group in groups:
-        plots = [
+class _GlobalSessionAxis:
+    """All sessions on the shared x-axis, room for the legend at the left (a blueprint part)."""
+
+    def __init__(self, first: int, last: int) -> None:
+        self.range = rrb.TimeRange(
+            start=rrb.TimeRangeBoundary.absolute(seq=first - 2),
+            end=rrb.TimeRangeBoundary.absolute(seq=last + 1),
+        )
+
+    def _log_to_stream(self, stream) -> None:
+        stream.log(GLOBAL_VIEW_PATH, rrb.TimeAxis(view_range=self.range))
+
+
+def _family(name: str) -> int:
+    """The row a parameter's plot goes in: gains, offsets, the bench (tilt, mounting, radius)."""
+    return min(_parameter_rank(name), 2)
+
+
+def _parameter_rows(group: _Group, names: list[str]) -> rrb.Vertical:
+    """One plot per parameter (estimate, ±σ, mean), a row per family (gains, offsets, …)."""
+    rows: dict[int, list[rrb.TimeSeriesView]] = {}
+    for i, name in enumerate(names):
+        # The spin's five in rows of three; the others a row per family.
+        row = 100 + i // 3 if per_session(name) else _family(name)
+        rows.setdefault(row, []).append(
             rrb.TimeSeriesView(
                 origin=f"/{group.path}/{rr.escape_entity_path_part(name)}",
-                name=name,
-                plot_legend=rrb.PlotLegend(visible=False),
-            )
-            for name in group.parameters
-        ]
-        tabs.append(
-            rrb.Horizontal(
-                rrb.Grid(*plots, grid_columns=3),
-                rrb.TextDocumentView(origin=f"/{group.path}/report", name="repeatability"),
-                column_shares=[3, 1],
-                name=group.title,
+                name=f"{name} (per session)" if per_session(name) else name,
+                axis_x=_LINKED,
+                plot_legend=rrb.PlotLegend(corner="LeftTop", visible=True),
             )
         )
+    return rrb.Vertical(*[rrb.Horizontal(*plots) for plots in rows.values()])
+
+
+def batch_blueprint(groups: list[_Group]) -> rrb.Blueprint:
+    """Per group a tab of its repeatable parameters and one of its spins; the overview first."""
+    tabs = [rrb.TextDocumentView(origin="/report", name="sessions")]
+    for group in groups:
+        repeatable = [name for name in group.parameters if not per_session(name)]
+        spin = [name for name in group.parameters if per_session(name)]
+        for names, title in (
+            (repeatable, group.title),
+            (spin, f"{group.title}: spin (per session)"),
+        ):
+            if not names:
+                continue
+            # A view lives in one container: each tab gets its own view of the report.
+            report = rrb.TextDocumentView(origin=f"/{group.path}/report", name="repeatability")
+            tabs.append(
+                rrb.Horizontal(
+                    _parameter_rows(group, names), report, column_shares=[2, 1], name=title
+                )
+            )
     return rrb.Blueprint(
         rrb.Tabs(*tabs, active_tab=1 if groups else 0),
-        rrb.TimePanel(timeline=SESSION_TIMELINE),
+        rrb.TimePanel(timeline=SESSION_TIMELINE, play_state="paused", state="collapsed"),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
     )
 
 
-def write_batch_rrd(path: str | os.PathLike, sessions: Sequence[Mapping]) -> Path:
+def write_batch_rrd(
+    path: str | os.PathLike, sessions: Sequence[Mapping], numbers: Sequence[int] | None = None
+) -> Path:
     """Write the batch ``.rrd`` (see the module docstring) atomically.
 
     Parameters
@@ -242,8 +322,10 @@ def write_batch_rrd(path: str | os.PathLike, sessions: Sequence[Mapping]) -> Pat
     path:
         Destination ``.rrd``; its directory must exist.
     sessions:
-        Calibration dictionaries (``calibration_dict`` / loaded JSON), in
-        the order that numbers them on the ``session`` timeline.
+        Calibration dictionaries (``calibration_dict`` / loaded JSON).
+    numbers:
+        The sessions' numbers on the ``session`` timeline, as ``report.md``
+        numbers them (default 1, 2, … in the order given).
 
     Returns
     -------
@@ -253,13 +335,19 @@ def write_batch_rrd(path: str | os.PathLike, sessions: Sequence[Mapping]) -> Pat
     Raises
     ------
     ValueError
-        If ``sessions`` is empty or an entry lacks ``parameters``.
+        If ``sessions`` is empty, an entry lacks ``parameters``, or the
+        numbers are not one distinct integer per session.
     """
     if not sessions:
         raise ValueError(f"{path}: no sessions to show")
-    groups, files = _groups(sessions)
+    numbers = list(range(1, len(sessions) + 1)) if numbers is None else [int(n) for n in numbers]
+    if len(numbers) != len(sessions) or len(set(numbers)) != len(numbers):
+        raise ValueError(f"{path}: need one distinct number per session, got {numbers}")
+    groups, files = _groups(sessions, numbers)
     with rrd_file(path, APPLICATION_ID, Path(path).stem) as stream:
-        stream.send_blueprint(batch_blueprint(groups))
+        # The shared x-range lives on the blueprint's global view (not a public part).
+        axis = _GlobalSessionAxis(min(numbers), max(numbers))
+        send_blueprint_chunks(stream, blueprint_chunks(batch_blueprint(groups), axis))
         stream.log(
             "report",
             rr.TextDocument(_overall_report(groups, files), media_type=rr.MediaType.MARKDOWN),
@@ -267,9 +355,7 @@ def write_batch_rrd(path: str | os.PathLike, sessions: Sequence[Mapping]) -> Pat
         )
         for group in groups:
             for name, entries in group.parameters.items():
-                _log_parameter(
-                    stream, f"{group.path}/{rr.escape_entity_path_part(name)}", name, entries
-                )
+                _log_parameter(stream, f"{group.path}/{rr.escape_entity_path_part(name)}", entries)
             stream.log(
                 f"{group.path}/report",
                 rr.TextDocument(_group_report(group), media_type=rr.MediaType.MARKDOWN),

@@ -3,88 +3,86 @@
 What is in the file (entity paths; ``<set>`` names a residual set — ``fit``
 for this calibration, more can be added, see below; ``<a>`` is an axis):
 
-* ``/signal/raw`` — v(t) over the whole recording, m/s², three series x, y, z
-  (one row of three scalars per sample, timeline ``time``);
-* ``/signal/model`` — o + Γ R a(t) (eq. 6) over the fitted window, same layout;
+* ``/signal`` — the data v(t) over the whole recording and the model
+  o + Γ R a(t) (eq. 6) over the fitted window, m/s²: one row per sample on
+  ``time`` with two components, ``Signal:data_mps2`` and ``Signal:model_mps2``,
+  each a struct {x, y, z} (the model's null outside the window);
 * ``/window`` — state lane *before* / *free spin* / *after* on ``time``: the
-  free-spin window (also pre-selected in the time panel, so it is shaded in
-  every time plot);
-* ``/residual/<set>`` — data − model, m/s², x, y, z per row, on **both**
-  timelines ``time`` and ``wheel_angle_mdeg`` (the same rows);
-* ``/residual_angle_mean/<a>/<set>`` — static bar chart: the residual averaged
-  in 72 bins of 5° of ϑ mod 360°, abscissa in degrees;
-* ``/spin/omega_radps`` — ω(t) of eq. (2) over the window, rad/s (the cubic,
-  plus the spline of a gyro-aided fit; at most :data:`OMEGA_POINTS` samples);
-* ``/spin/omega_gyro_radps`` — with a gyroscope, ω as it measures it,
-  (ω_meas − b)·w/|w|² (its scale and bias from the calibration's gyro block);
+  free-spin window (also selected in the time panel);
+* ``/residual/<set>`` — data − model, m/s², a struct {x, y, z} per row on
+  ``time`` (:data:`~wheelcal.viz.session_blueprint.XYZ_COMPONENT`);
+* ``/residual_angle_mean/<a>/<set>`` — static bar chart: the residual's mean
+  in 72 bins of 5° of ϑ mod 360°, abscissa in degrees (a real angle axis);
+  ``/residual_angle_mean/<a>/band_2sigma`` — ±2σ of each bin's mean
+  (:mod:`wheelcal.viz.angle_profile`; each bin twice, up and down), grey:
+  noise alone stays inside;
+* ``/spin/omega_radps`` — ω(t) of the model, eq. (2), over the window
+  (the cubic, plus the spline of a gyro-aided fit; at most
+  :data:`OMEGA_POINTS` samples);
+* ``/spin/omega_measured_radps`` — ω as measured: by the gyroscope when the
+  recording has one, else per turn from the accelerometer
+  (:mod:`wheelcal.viz.measured_rate`; the legend says which);
 * ``/report`` — static markdown: source, window, fit summary, every parameter
-  with value, statistical σ and systematic σ, the warnings.
+  with value, statistical σ and systematic σ, the warnings;
+* with a closed-loop diagnosis that added effects (:meth:`SessionRrd.log_diagnosis`):
+  ``/closed_loop/angle/<a>/paper_model`` and ``…/with_effects`` (the
+  residual's mean per 5° of ϑ before and after),
+  ``/closed_loop/trend/paper_model`` and ``…/with_effects`` (its mean per
+  2 s, {x, y, z} rows on ``time``) and ``/closed_loop/report`` (the effects
+  added with their score tests; parameters before and after).
 
-Timelines:
+The recording properties carry the recording's own start time (its first
+sample's Unix time) and name.
 
-* ``time`` — a duration timeline, seconds since the recording's epoch
-  (``Recording.epoch_unix_ns``): the clock of ``source.window_s`` in the
-  calibration JSON.  Times are rounded to whole nanoseconds here (Rerun's own
-  float conversion truncates: 0.005 s would become 4 999 999 ns).
-* ``wheel_angle_mdeg`` — a sequence timeline whose "time" is the wheel angle
-  ϑ(t) mod 360° in millidegrees (integers 0 … 359 999: Rerun sequence
-  timelines are integers, and the unit travels in the name).
+Timeline ``time``: a duration, seconds since the recording's epoch
+(``Recording.epoch_unix_ns``): the clock of ``source.window_s`` in the
+calibration JSON.  Times are rounded to whole nanoseconds here (Rerun's own
+float conversion truncates: 0.005 s would become 4 999 999 ns).
 
-Why the angle gets two views.  Effects the model leaves out — an unbalanced
-wheel (ω ripple once per turn), a sensor off the assumed radius, cross-axis
+Why the wheel angle.  Effects the model leaves out — an unbalanced wheel (ω
+ripple once per turn), a sensor off the assumed radius, cross-axis
 sensitivity — are periodic in ϑ, not in t: against time they hide in the
-noise, folded on ϑ they line up.  Rerun 0.41 plots scalars only against the
-timeline selected in the time panel (one for all views; per-view timelines
-are an open feature request), so
+noise, folded on ϑ they line up.  Averaging ≈ 240 samples per 5° bin (90 s
+at 200 Hz) lowers the noise ≈ 15×, so a ϑ-periodic pattern of a few mm/s²
+stands out of the grey band.  (Rerun 0.41 plots scalars against one timeline
+for all views, so an angle *timeline* would empty every time plot; the bars
+carry ϑ as their own abscissa.)
 
-1. the bar chart ``/residual_angle_mean`` has ϑ (degrees) as its own
-   abscissa and shows with any timeline; averaging ≈ 240 samples per bin
-   (90 s at 200 Hz) lowers the noise ≈ 15×, so a ϑ-periodic pattern of a
-   few mm/s² stands out;
-2. every residual sample also sits on the ``wheel_angle_mdeg`` timeline: the
-   view "residual vs ϑ" draws them as a scatter (colour = axis, marker = set)
-   once that timeline is selected (time plots are empty then, and the scatter
-   is empty on ``time``).
+The layout is :mod:`wheelcal.viz.session_blueprint`.
 
-Blueprint (:func:`session_blueprint`): left, three columns x / y / z — raw and
-model; the window lane across them; residual against time; mean residual per
-5° of ϑ (bar chart); right — the report, ω(t), the residual scatter against ϑ.
-The per-axis views show one series of the three-column entities through a
-view default (``SeriesLines.visible_series``; one blueprint entity per view,
-where a per-entity override took two).  Time plots share their x-axis zoom.
-The layout is converted to blueprint chunks once per process and residual-set
-list (:mod:`wheelcal.viz.blueprint_chunks`); each file adds only its time
-panel, with the free-spin window pre-selected.
-
-More residual sets (the closed loop's "before/after"): inside
-:func:`session_rrd`, call :meth:`SessionRrd.log_residuals`; the set lands in
-the same per-axis views (the blueprint is written last and knows every set)::
+More residual sets: inside :func:`session_rrd`, call
+:meth:`SessionRrd.log_residuals`; the set lands in the same per-axis views
+(the blueprint is written last and knows every set).  Other logging functions
+(e.g. the rests' Allan deviation under ``/allan``) register their view with
+:meth:`SessionRrd.add_view`::
 
     with session_rrd(path, result, recording, window) as rrd:
-        rrd.log_residuals("after", after.time_s, after.residual_mps2,
-                          wheel_angle_rad(after))
+        rrd.log_diagnosis(diagnosis)
+        rrd.add_view("time_series", "/allan", "Allan deviation of the rests")
 
 Speed: no data are decimated (except ω, which is a polynomial).  Rerun's
 cost grows with the number of *rows* (each carries a 16-byte row id and its
-time), so the three axes share a row (≈ 4× faster than one entity per axis):
-≈ 56 000 rows for a 90 s / 200 Hz session, ≈ 2.4 MB.  The rest is per
-message: each chunk costs ≈ 40–100 µs in Rerun (Arrow IPC schema,
-compression, hand-over between its threads), and the blueprint is ≈ 50 of
-them.  So the layout is built once per process (see above); the static rows
-(styles, the window lane's states, the bar charts' abscissa) are converted
-once per process and every entity group goes to Rerun as ready chunks in one
-``send_chunks`` call (:mod:`wheelcal.viz.arrow_chunks`: the sample columns
-are built from numpy directly, not through Rerun's generic converters).  Long
-series are cut into chunks of :data:`CHUNK_ROWS` rows, the size the viewer's
-store keeps anyway: one chunk of 18 001 rows made Rerun's file sink fetch
-fresh memory pages for every file (see :data:`CHUNK_ROWS`).  The file is written
-by Rerun's file sink on its own thread.  ``benchmarks/bench_rrd.py --ref
-<rev>`` measures a file against an earlier revision in the same process.
+time), so the three axes share a row (a struct; ≈ 4× faster than one entity
+per axis), and so do the data and the model: ≈ 36 000 rows for a 90 s /
+200 Hz session, ≈ 2.4 MB.  The rest is
+per message: each chunk costs ≈ 40–100 µs in Rerun (Arrow IPC schema,
+compression, hand-over between its threads), and the blueprint is ≈ 70 of
+them.  So the layout is built once per process; the static rows (the window
+lane's states, the bar charts' abscissa) are converted once per process and
+every entity group goes to Rerun as ready chunks in one ``send_chunks`` call
+(:mod:`wheelcal.viz.arrow_chunks`: the sample columns are built from numpy
+directly, not through Rerun's generic converters).  Long series are cut
+into chunks of :data:`CHUNK_ROWS` rows, the size the viewer's store keeps
+anyway: one chunk of 18 001 rows made Rerun's file sink fetch fresh memory
+pages for every file (see :data:`CHUNK_ROWS`).  The file is written by
+Rerun's file sink on its own thread.  ``benchmarks/bench_rrd.py --ref <rev>``
+measures a file against an earlier revision in the same process.
 """
 
 from __future__ import annotations
 
 import contextlib
+import datetime
 import functools
 import math
 import os
@@ -96,37 +94,43 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import rerun as rr
-import rerun.blueprint as rrb
 from rerun.chunk import Chunk
 
-from wheelcal.estimate.residual_profile import binned_mean_by_angle
 from wheelcal.estimate.result import CalibrationResult
 from wheelcal.estimate.window import FreeSpinWindow
 from wheelcal.model import predict
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
+from wheelcal.viz.angle_profile import angle_profile
 from wheelcal.viz.arrow_chunks import (
     ArrowColumn,
     column,
     duration_index,
     row_columns,
     scalars_column,
-    sequence_index,
     static_chunk,
     tensor_f64,
 )
-from wheelcal.viz.blueprint_chunks import (
-    blueprint_chunk,
-    blueprint_chunks,
-    blueprint_rows,
-    send_blueprint_chunks,
-)
+from wheelcal.viz.blueprint_chunks import send_blueprint_chunks
+from wheelcal.viz.measured_rate import MeasuredRate, gyro_rate, per_turn_rate
 from wheelcal.viz.rrd_file import rrd_file
+from wheelcal.viz.session_blueprint import (
+    AFTER_COLOR,
+    AXIS_COLORS,
+    BEFORE_COLOR,
+    SIGNAL_DATA,
+    SIGNAL_MODEL,
+    TIME_TIMELINE,
+    TREND_S,
+    XYZ_COMPONENT,
+    ExtraView,
+    Layout,
+    layout_chunks,
+    per_file_chunks,
+)
 
 APPLICATION_ID = "wheelcal"
-TIME_TIMELINE = "time"
-ANGLE_TIMELINE = "wheel_angle_mdeg"
 #: Bins of ϑ for the mean-residual bar chart (5° each).
 ANGLE_BINS = 72
 #: The residual set of the calibration itself.
@@ -140,11 +144,13 @@ OMEGA_POINTS = 1000
 #: 4096-row chunks (each in its own process; ≈ 1 650 against ≈ 520, and 9 % less CPU
 #: time, alternating both in one process).
 CHUNK_ROWS = 4096
+#: Entity name of the ±2σ band of the bin means (drawn under the bars).
+BAND_ENTITY = "band_2sigma"
+#: Space left of the first and right of the last sample in the time views, s.
+TIME_MARGIN_S = 0.5
 
 Rgb = tuple[int, int, int]
 
-_AXIS_COLORS: tuple[Rgb, Rgb, Rgb] = ((220, 50, 47), (40, 160, 60), (38, 110, 210))
-_RAW_COLORS: tuple[Rgb, Rgb, Rgb] = ((160, 160, 160),) * 3
 _SET_PALETTE: tuple[Rgb, ...] = (
     (38, 110, 210),
     (230, 120, 20),
@@ -153,8 +159,8 @@ _SET_PALETTE: tuple[Rgb, ...] = (
     (200, 40, 120),
     (120, 120, 40),
 )
+_BAND_COLOR = (150, 150, 150, 90)
 _WINDOW_STATES = ("before", "free spin", "after")
-_MARKERS = ("circle", "cross", "diamond", "plus", "square", "asterisk")
 
 
 def _time_ns(time_s: np.ndarray) -> np.ndarray:
@@ -162,48 +168,64 @@ def _time_ns(time_s: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(time_s, dtype=float) * 1e9).astype(np.int64)
 
 
-@functools.lru_cache(maxsize=64)
-def _series_style(
-    names: tuple[str, ...], colors: tuple[Rgb, ...] | None, width: float | None
-) -> tuple[ArrowColumn, ...]:
-    """Static ``rr.SeriesLines`` styling as one-row columns, built once per process."""
-    return row_columns(
-        rr.SeriesLines(
-            names=list(names),
-            colors=None if colors is None else list(colors),
-            widths=None if width is None else [width] * len(names),
-        )
-    )
+@functools.lru_cache(maxsize=4)
+def _descriptor(component: str) -> rr.ComponentDescriptor:
+    """The descriptor Rerun's ``DynamicArchetype`` gives ``Archetype:field``."""
+    archetype, name = component.split(":")
+    (batch,) = rr.DynamicArchetype.columns(archetype=archetype, components={name: np.zeros(1)})
+    return batch.component_descriptor()
 
 
-def _series_chunks(
-    path: str,
-    style: tuple[ArrowColumn, ...],
-    time_s: np.ndarray,
-    values: np.ndarray,
-    sequences: dict[str, np.ndarray] | None = None,
-) -> list[Chunk]:
-    """The static style and the temporal ``Scalars`` rows of one series entity.
+def xyz_column(
+    values: np.ndarray, component: str = XYZ_COMPONENT, valid: np.ndarray | None = None
+) -> ArrowColumn:
+    """One struct {x, y, z} (float64) per row of ``values`` (N, 3), e.g. :data:`XYZ_COMPONENT`.
 
-    The rows go in consecutive chunks of at most :data:`CHUNK_ROWS`, each on
-    the ``time`` timeline and on the sequence timelines of ``sequences``
-    (name → one integer per row).
+    Rows where ``valid`` (N,) is False are null: no value at that time.
     """
+    by_axis = np.ascontiguousarray(np.asarray(values, dtype=np.float64).T)  # one copy
+    struct = pa.StructArray.from_arrays([pa.array(f) for f in by_axis], names=list(AXES))
+    offsets = pa.array(np.arange(by_axis.shape[1] + 1, dtype=np.int32))
+    mask = None if valid is None else pa.array(~np.asarray(valid, dtype=bool))
+    return ArrowColumn(_descriptor(component), pa.ListArray.from_arrays(offsets, struct, mask=mask))
+
+
+def _row_chunks(path: str, time_s: np.ndarray, values: np.ndarray, make_column) -> list[Chunk]:
+    """Temporal rows on ``time`` in consecutive chunks of at most :data:`CHUNK_ROWS`."""
     time_ns = _time_ns(time_s)
-    chunks = [static_chunk(path, style)]
+    chunks = []
     for start in range(0, len(values), CHUNK_ROWS):
         rows = slice(start, start + CHUNK_ROWS)
-        indexes = [duration_index(TIME_TIMELINE, time_ns[rows])]
-        indexes += [sequence_index(name, seq[rows]) for name, seq in (sequences or {}).items()]
-        columns = [scalars_column(values[rows])]
-        chunks.append(Chunk.from_columns(path, indexes=indexes, columns=columns))
+        index = [duration_index(TIME_TIMELINE, time_ns[rows])]
+        chunks.append(Chunk.from_columns(path, indexes=index, columns=[make_column(values[rows])]))
     return chunks
 
 
-def angle_mdeg(theta_rad: np.ndarray) -> np.ndarray:
-    """ϑ mod 360° in whole millidegrees (0 … 359 999), the ``wheel_angle_mdeg`` values."""
-    mdeg = np.rint(np.rad2deg(np.mod(np.asarray(theta_rad, dtype=float), 2 * np.pi)) * 1e3)
-    return np.mod(mdeg.astype(np.int64), 360_000)
+def xyz_chunks(path: str, time_s: np.ndarray, values: np.ndarray) -> list[Chunk]:
+    """An entity of three-axis samples (N, 3): {x, y, z} rows on ``time``."""
+    return _row_chunks(path, time_s, values, xyz_column)
+
+
+@functools.lru_cache(maxsize=32)
+def _scalar_style(label: str, color: Rgb | None, points: bool) -> tuple[ArrowColumn, ...]:
+    """Static style of a one-series ``Scalars`` entity, as one-row columns (once per process)."""
+    colors = None if color is None else [color]
+    if points:
+        return row_columns(rr.SeriesPoints(names=[label], colors=colors, marker_sizes=[1.5]))
+    return row_columns(rr.SeriesLines(names=[label], colors=colors, widths=[2.0]))
+
+
+def scalar_chunks(
+    path: str,
+    time_s: np.ndarray,
+    values: np.ndarray,
+    label: str,
+    color: Rgb | None = None,
+    points: bool = False,
+) -> list[Chunk]:
+    """A one-series ``Scalars`` entity on ``time`` with its static legend label and style."""
+    style = static_chunk(path, _scalar_style(label, color, points))
+    return [style, *_row_chunks(path, time_s, np.asarray(values, dtype=float), scalars_column)]
 
 
 def set_color(name: str) -> Rgb:
@@ -223,23 +245,95 @@ def _check_series(time_s, values, what: str) -> tuple[np.ndarray, np.ndarray]:
     return t, v
 
 
+def _check_set_name(name: str) -> None:
+    if not name or "/" in name or name != name.strip():
+        raise ValueError(f"a residual set name must be one entity-path part, got {name!r}")
+
+
 def wheel_angle_rad(result: CalibrationResult) -> np.ndarray:
     """ϑ(t) of eq. (2) at the fitted samples (not wrapped), rad."""
     return wheel_kinematics(result.params, result.centred_time_s, result.layout.effects).theta_rad
 
 
-def log_signal(
-    stream: rr.RecordingStream,
-    name: str,
-    time_s: np.ndarray,
-    accel_mps2: np.ndarray,
-    colors: tuple[Rgb, Rgb, Rgb],
-    width: float = 1.0,
-) -> None:
-    """Log (N, 3) samples in m/s² as ``/signal/<name>``: three line series on ``time``."""
-    t, v = _check_series(time_s, accel_mps2, f"signal {name!r}")
-    style = _series_style(tuple(f"{name} {a}" for a in AXES), tuple(colors), width)
-    stream.send_chunks(_series_chunks(f"signal/{name}", style, t, v))
+def signal_chunks(
+    data_time_s: np.ndarray,
+    data_mps2: np.ndarray,
+    model_time_s: np.ndarray,
+    model_mps2: np.ndarray,
+) -> list[Chunk]:
+    """``/signal``: the data and the model in one row per time (module docstring).
+
+    The rows are the union of both sets of times (to the nanosecond; the model's
+    are the data's inside the window): a component is null where its series has
+    no sample.
+    """
+    t_data, v_data = _check_series(data_time_s, data_mps2, "signal 'data'")
+    t_model, v_model = _check_series(model_time_s, model_mps2, "signal 'model'")
+    ns_data, ns_model = _time_ns(t_data), _time_ns(t_model)
+    at = np.minimum(np.searchsorted(ns_data, ns_model), ns_data.size - 1)
+    if np.array_equal(ns_data[at], ns_model):
+        ns = ns_data  # the model's times are the data's (a window of the recording)
+    else:
+        ns = np.concatenate([ns_data, ns_model])
+        ns.sort()
+        ns = ns[np.concatenate([[True], np.diff(ns) != 0])]
+    series = []
+    for at, v in ((ns_data, v_data), (ns_model, v_model)):
+        rows = np.searchsorted(ns, at)
+        values = np.zeros((ns.size, 3))
+        values[rows] = v
+        valid = np.zeros(ns.size, dtype=bool)
+        valid[rows] = True
+        series.append((values, valid))
+    chunks = []
+    for start in range(0, ns.size, CHUNK_ROWS):
+        rows = slice(start, start + CHUNK_ROWS)
+        index = [duration_index(TIME_TIMELINE, ns[rows])]
+        columns = [
+            xyz_column(values[rows], component, None if valid[rows].all() else valid[rows])
+            for (values, valid), component in zip(series, (SIGNAL_DATA, SIGNAL_MODEL), strict=True)
+        ]
+        chunks.append(Chunk.from_columns("signal", indexes=index, columns=columns))
+    return chunks
+
+
+@functools.lru_cache(maxsize=16)
+def _bar_chart_shared(centres_deg: tuple[float, ...], rgba: tuple[int, ...]) -> tuple:
+    """A bar chart's abscissa (°), bar widths and colour, as one-row columns (once per process)."""
+    chart = rr.BarChart(
+        np.zeros(len(centres_deg)),
+        abscissa=np.array(centres_deg),
+        widths=np.full(len(centres_deg), 360.0 / ANGLE_BINS),
+        color=rgba,
+    )
+    values = rr.BarChart.descriptor_values()
+    return tuple(c for c in row_columns(chart) if c.component_descriptor() != values)
+
+
+def angle_bar_chunks(
+    base: str, name: str, theta_rad: np.ndarray, residual_mps2: np.ndarray, rgb: Rgb, band: bool
+) -> list[Chunk]:
+    """``<base>/<a>/<name>``: mean residual per 5° of ϑ per axis (and its ±2σ band if asked).
+
+    The bars are translucent (sets overlap in one view); the band, grey, sits
+    under them at ``<base>/<a>/band_2sigma``: each bin twice in its abscissa,
+    first up to +2σ, then down to −2σ.
+    """
+    profile = angle_profile(theta_rad, residual_mps2, ANGLE_BINS)
+    centres = tuple(profile.centres_deg.tolist())
+    values = rr.BarChart.descriptor_values()
+    shared = _bar_chart_shared(centres, (*rgb, 170))
+    chunks = []
+    for k, axis in enumerate(AXES):
+        bars = (column(values, tensor_f64(profile.mean_mps2[:, k])), *shared)
+        chunks.append(static_chunk(f"{base}/{axis}/{name}", bars))
+        if band:
+            # One chart, each bin twice: a bar up to +2σ and one down to −2σ.
+            two_sigma = np.nan_to_num(2 * profile.std_of_mean_mps2[:, k])
+            grey = _bar_chart_shared(centres + centres, _BAND_COLOR)
+            bars = (column(values, tensor_f64(np.concatenate([two_sigma, -two_sigma]))), *grey)
+            chunks.append(static_chunk(f"{base}/{axis}/{BAND_ENTITY}", bars))
+    return chunks
 
 
 def log_residuals(
@@ -249,13 +343,13 @@ def log_residuals(
     residual_mps2: np.ndarray,
     theta_rad: np.ndarray,
     color: Rgb | None = None,
+    band: bool = False,
 ) -> None:
     """Log one set of residuals against time and against the wheel angle ϑ.
 
-    Writes ``/residual/<name>`` (x, y, z per row, on the ``time`` and
-    ``wheel_angle_mdeg`` timelines) and the static bar charts
-    ``/residual_angle_mean/<axis>/<name>`` (mean per 5° of ϑ).  Prefer
-    :meth:`SessionRrd.log_residuals`, which also puts the set in the
+    Writes ``/residual/<name>`` ({x, y, z} rows on ``time``) and the static
+    bar charts ``/residual_angle_mean/<axis>/<name>`` (mean per 5° of ϑ).
+    Prefer :meth:`SessionRrd.log_residuals`, which also puts the set in the
     blueprint's per-axis views.
 
     Parameters
@@ -263,47 +357,28 @@ def log_residuals(
     stream:
         The session's stream.
     name:
-        Name of the set, one entity-path part (e.g. ``fit``, ``before``, ``after``).
+        Name of the set, one entity-path part (e.g. ``fit``, ``after``).
     time_s:
         Sample times (N,), seconds on the recording's clock (``time`` timeline).
     residual_mps2:
         Data − model (N, 3), m/s².
     theta_rad:
-        Wheel angle ϑ at each sample (N,), rad, wrapped or not.
+        Wheel angle ϑ at each sample (N,), rad, not wrapped (its turns give
+        the bins' σ, :mod:`wheelcal.viz.angle_profile`).
     color:
         RGB of this set; default :func:`set_color` of the name.
+    band:
+        Also log the ±2σ band of the bin means (the calibration's own set).
     """
-    if not name or "/" in name or name != name.strip():
-        raise ValueError(f"a residual set name must be one entity-path part, got {name!r}")
+    _check_set_name(name)
     t, r = _check_series(time_s, residual_mps2, f"residual set {name!r}")
     theta = np.asarray(theta_rad, dtype=float).reshape(-1)
     if theta.size != t.size or not np.all(np.isfinite(theta)):
         raise ValueError(f"residual set {name!r}: need {t.size} finite angles, got {theta.size}")
     rgb = set_color(name) if color is None else tuple(color)
-    style = _series_style(tuple(f"{name} {a}" for a in AXES), (rgb,) * 3, 1.0)
-    angles = {ANGLE_TIMELINE: angle_mdeg(theta)}
-    chunks = _series_chunks(f"residual/{name}", style, t, r, angles)
-    centres_deg, mean, _ = binned_mean_by_angle(theta, r, ANGLE_BINS)
-    # The axes share abscissa, widths and colour (one conversion per process).
-    shared = _bar_chart_shared(tuple(centres_deg.tolist()), rgb)
-    values = rr.BarChart.descriptor_values()
-    for k, axis in enumerate(AXES):
-        bars = (column(values, tensor_f64(mean[:, k])), *shared)
-        chunks.append(static_chunk(f"residual_angle_mean/{axis}/{name}", bars))
+    chunks = xyz_chunks(f"residual/{name}", t, r)
+    chunks += angle_bar_chunks("residual_angle_mean", name, theta, r, rgb, band)
     stream.send_chunks(chunks)
-
-
-@functools.lru_cache(maxsize=16)
-def _bar_chart_shared(centres_deg: tuple[float, ...], rgb: Rgb) -> tuple[ArrowColumn, ...]:
-    """A mean-residual bar chart's abscissa, bar widths and colour, as one-row columns."""
-    chart = rr.BarChart(
-        np.zeros(len(centres_deg)),
-        abscissa=np.array(centres_deg),
-        widths=np.full(len(centres_deg), 360.0 / ANGLE_BINS),
-        color=(*rgb, 170),  # translucent: several sets overlap in one view
-    )
-    values = rr.BarChart.descriptor_values()
-    return tuple(c for c in row_columns(chart) if c.component_descriptor() != values)
 
 
 @functools.lru_cache(maxsize=1)
@@ -313,9 +388,9 @@ def _window_configuration() -> tuple[ArrowColumn, ...]:
         rr.StateConfiguration(
             values=list(_WINDOW_STATES),
             labels=[
-                "before (rest, push; not fitted)",
+                "before",
                 "free spin (fitted)",
-                "after (brake, rest; not fitted)",
+                "after",
             ],
             colors=np.array([0x9E9E9EFF, 0x43A047FF, 0x9E9E9EFF], dtype=np.uint32),
         )
@@ -341,6 +416,64 @@ def log_window(
     stream.send_chunks([static_chunk("window", _window_configuration()), lane])
 
 
+def model_omega(result: CalibrationResult, shift_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """ω(t) of the model, eq. (2) (+ spline): ≤ :data:`OMEGA_POINTS` times, recording's clock."""
+    every = max(1, math.ceil(result.time_s.size / OMEGA_POINTS))
+    kin = wheel_kinematics(result.params, result.centred_time_s[::every], result.layout.effects)
+    return result.time_s[::every] + shift_s, kin.omega_radps
+
+
+def measured_omega(
+    result: CalibrationResult,
+    recording: Recording,
+    shift_s: float,
+    model_omega_radps: np.ndarray,
+    gyro_calibration=None,
+) -> MeasuredRate | None:
+    """ω measured over the fitted window: gyro if recorded, else per turn (accelerometer).
+
+    ``gyro_calibration`` (a ``GyroCalibration``) defaults to the result's own
+    (``result.assessment.gyro``); without either a recorded gyro is projected
+    on its principal axis (:func:`wheelcal.viz.measured_rate.gyro_rate`).
+    """
+    first, last = np.searchsorted(
+        recording.time_s, [result.time_s[0] + shift_s, result.time_s[-1] + shift_s]
+    )
+    inside = slice(int(first), int(min(last + 1, recording.time_s.size)))
+    sign = float(np.sign(np.median(model_omega_radps)))
+    gyro = getattr(recording, "gyro_radps", None)
+    if gyro is not None:
+        if gyro_calibration is None and result.assessment is not None:
+            gyro_calibration = result.assessment.gyro
+        rows = gyro[inside]
+        every = max(1, math.ceil(rows.shape[0] / OMEGA_POINTS))
+        measured = gyro_rate(
+            recording.time_s[inside][::every], rows[::every], gyro_calibration, sign
+        )
+        if measured is not None:
+            return measured
+    return per_turn_rate(recording.time_s[inside], recording.accel_mps2[inside], model_omega_radps)
+
+
+def spin_chunks(
+    result: CalibrationResult, recording: Recording, shift_s: float, gyro_calibration=None
+) -> list[Chunk]:
+    """``/spin/omega_radps`` (the model) and ``/spin/omega_measured_radps`` (module docstring)."""
+    t, omega = model_omega(result, shift_s)
+    chunks = scalar_chunks("spin/omega_radps", t, omega, "model", AXIS_COLORS[2])
+    measured = measured_omega(result, recording, shift_s, omega, gyro_calibration)
+    if measured is not None:
+        chunks += scalar_chunks(
+            "spin/omega_measured_radps",
+            measured.time_s,
+            measured.omega_radps,
+            f"measured: {measured.source}",
+            (60, 60, 60),
+            points=measured.source.startswith("per turn"),
+        )
+    return chunks
+
+
 def _fmt(x: float, digits: int) -> str:
     if not math.isfinite(x):
         return "∞ (not determined)" if x > 0 else str(x)
@@ -355,13 +488,34 @@ def _report_rank(name: str) -> int:
     return 9
 
 
+def _report_order(names) -> list[int]:
+    return sorted(range(len(names)), key=lambda i: (_report_rank(names[i]), i))
+
+
+def recorded_at(epoch_unix_ns: int) -> str:
+    """A Unix time in ns as UTC, ``2024-03-12 09:00:00.000 UTC`` ("—" for 0: no Unix epoch)."""
+    if not epoch_unix_ns:
+        return "— (times without a Unix epoch)"
+    seconds, ns = divmod(int(epoch_unix_ns), 1_000_000_000)
+    stamp = datetime.datetime.fromtimestamp(seconds, datetime.UTC)
+    return f"{stamp:%Y-%m-%d %H:%M:%S}.{ns // 1_000_000:03d} UTC"
+
+
 def report_markdown(
-    result: CalibrationResult, window: FreeSpinWindow | None, start_s: float, end_s: float
+    result: CalibrationResult,
+    window: FreeSpinWindow | None,
+    start_s: float,
+    end_s: float,
+    recording_epoch_unix_ns: int | None = None,
 ) -> str:
     """The text panel: source, window, fit summary, parameters ± σ, warnings, notes.
 
     Values are printed with 7 significant digits (``f"{value:.7g}"``), σ with 2.
+    ``recording_epoch_unix_ns`` (default: the result's epoch) is the recording's
+    first sample, printed as its start time.
     """
+    if recording_epoch_unix_ns is None:
+        recording_epoch_unix_ns = result.epoch_unix_ns
     info = result.info
     topic = f" (topic `{result.topic}`)" if result.topic else ""
     reason = window.reason if window is not None else "window given (not searched)"
@@ -372,6 +526,7 @@ def report_markdown(
         f"# wheelcal — {Path(result.source).name}",
         "",
         f"- **source**: `{result.source}`{topic}",
+        f"- **recorded**: {recorded_at(recording_epoch_unix_ns)} (first sample; time 0 s)",
         f"- **sensor**: `{info.sensor_id or '—'}` · **mounting**: `{info.mounting_id or '—'}`",
         f"- **window**: {start_s:.3f}–{end_s:.3f} s ({end_s - start_s:.1f} s) — {reason}",
         f"- **fit**: {result.time_s.size} samples, {status} after {result.iterations} iterations",
@@ -388,7 +543,7 @@ def report_markdown(
     budget = result.systematic
     sys_std = dict(zip(budget.names, budget.total_std, strict=True))
     std = result.std
-    for i in sorted(range(len(result.names)), key=lambda i: (_report_rank(result.names[i]), i)):
+    for i in _report_order(result.names):
         name = result.names[i]
         sys = float(sys_std.get(name, 0.0))
         # Parameters the unseen quantities do not move get round-off (~1e-14): print 0.
@@ -404,136 +559,105 @@ def report_markdown(
     return "\n".join(lines) + "\n"
 
 
-def _only_axis(k: int) -> list[bool]:
-    return [j == k for j in range(3)]
-
-
-def _session_root(residual_sets: tuple[str, ...]) -> rrb.Horizontal:
-    """The views of the session layout (module docstring), in their containers.
+def closed_loop_markdown(diagnosis) -> str:
+    """The closed-loop tab's text: the effects added, their tests, parameters before/after.
 
     Parameters
     ----------
-    residual_sets:
-        Names of the logged residual sets; each gets its per-axis overrides.
+    diagnosis:
+        A :class:`wheelcal.diagnose.closed_loop.Diagnosis`.
     """
-    linked = rrb.TimeAxis(link=rrb.components.LinkAxis.LinkToGlobal)
-
-    # A per-axis view shows one of the three series of every entity in it: a view
-    # default (one blueprint entity) rather than a per-entity override (two each).
-    def signal_view(k: int) -> rrb.TimeSeriesView:
-        return rrb.TimeSeriesView(
-            origin="/signal",
-            name=f"{AXES[k]}: raw and model (m/s²)",
-            axis_x=linked,
-            defaults=[rr.SeriesLines.from_fields(visible_series=_only_axis(k))],
+    base, final = diagnosis.base, diagnosis.final
+    rms = lambda r: ", ".join(f"{v:.4g}" for v in r.residual_rms_mps2)  # noqa: E731
+    lines = [
+        "# Closed loop: effects the paper's model lacks",
+        "",
+        f"Before: **the paper's model** (orange). After: **with the effects added** (blue). "
+        f"An effect is added when its score test is significant at α = {diagnosis.alpha:g} "
+        "(Bonferroni over the candidates of each step).",
+        "",
+        "| step | effect added | χ² | dof | p (corrected) |",
+        "|---:|---|---:|---:|---:|",
+    ]
+    for i, step in enumerate(diagnosis.steps, start=1):
+        test = step.test
+        lines.append(
+            f"| {i} | **{test.effect.label()}** (`{test.effect.name}`) | {test.statistic:.4g} "
+            f"| {test.dof} | {test.p_corrected:.2g} |"
         )
+    lines += [
+        "",
+        f"- **residual RMS** (x, y, z), before: {rms(base)} m/s²",
+        f"- **residual RMS** (x, y, z), after: {rms(final)} m/s²",
+        "",
+        "## Parameters before and after",
+        "",
+        "Δ/σ: (before − after) in units of the final σ stat — how far the paper's model "
+        "was biased.",
+        "",
+        "| parameter | before | after | σ after | Δ/σ |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    before = dict(zip(base.names, base.values, strict=True))
+    for i in _report_order(final.names):
+        name, value, std = final.names[i], float(final.values[i]), float(final.std[i])
+        if name in before:
+            b = float(before[name])
+            shift = _fmt((b - value) / std, 2) if std > 0 else "—"
+            lines.append(
+                f"| `{name}` | {_fmt(b, 7)} | {_fmt(value, 7)} | {_fmt(std, 2)} | {shift} |"
+            )
+        else:  # a parameter of an added effect
+            lines.append(f"| `{name}` (added) | — | {_fmt(value, 7)} | {_fmt(std, 2)} | — |")
+    return "\n".join(lines) + "\n"
 
-    def residual_view(k: int) -> rrb.TimeSeriesView:
-        return rrb.TimeSeriesView(
-            origin="/residual",
-            name=f"{AXES[k]}: residual, data − model (m/s²)",
-            axis_x=linked,
-            defaults=[rr.SeriesLines.from_fields(visible_series=_only_axis(k))],
+
+def trend(time_s: np.ndarray, values: np.ndarray, step_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Mean of ``values`` (N, 3) per ``step_s`` of time, at each step's mean time (empty: none)."""
+    t = np.asarray(time_s, dtype=float)
+    index = np.floor((t - t[0]) / step_s).astype(np.int64)
+    count = np.bincount(index).astype(float)
+    filled = count > 0
+    mean_t = np.bincount(index, weights=t)[filled] / count[filled]
+    columns = [np.bincount(index, weights=values[:, k])[filled] / count[filled] for k in range(3)]
+    return mean_t, np.column_stack(columns)
+
+
+def closed_loop_chunks(diagnosis, shift_s: float) -> list[Chunk]:
+    """The closed-loop tab's entities (module docstring): the paper's model against the final."""
+    base, final = diagnosis.base, diagnosis.final
+    base_shift_s = shift_s + (base.epoch_unix_ns - final.epoch_unix_ns) * 1e-9
+    chunks = []
+    for name, fit, rgb, fit_shift_s in (
+        ("paper_model", base, BEFORE_COLOR, base_shift_s),
+        ("with_effects", final, AFTER_COLOR, shift_s),
+    ):
+        chunks += angle_bar_chunks(
+            "closed_loop/angle", name, wheel_angle_rad(fit), fit.residual_mps2, rgb, band=False
         )
-
-    def mean_view(k: int) -> rrb.BarChartView:
-        return rrb.BarChartView(
-            origin=f"/residual_angle_mean/{AXES[k]}",
-            name=f"{AXES[k]}: mean residual per 5° of ϑ (deg; m/s²)",
-        )
-
-    # One scatter for all axes (axis colours; sets told apart by their marker).
-    scatter = rrb.TimeSeriesView(
-        origin="/residual",
-        name=f"residual vs ϑ: select timeline {ANGLE_TIMELINE}",
-        overrides={
-            f"/residual/{s}": rr.SeriesPoints(
-                colors=list(_AXIS_COLORS),
-                markers=[_MARKERS[j % len(_MARKERS)]] * 3,
-                marker_sizes=[1.5] * 3,
-            ).visualizer()
-            for j, s in enumerate(residual_sets)
-        },
-    )
-
-    left = rrb.Vertical(
-        rrb.Horizontal(*[signal_view(k) for k in range(3)]),
-        rrb.StateTimelineView(origin="/window", name="free-spin window", time_view=linked),
-        rrb.Horizontal(*[residual_view(k) for k in range(3)]),
-        rrb.Horizontal(*[mean_view(k) for k in range(3)]),
-        row_shares=[3, 0.6, 3, 3],
-    )
-    right = rrb.Vertical(
-        rrb.TextDocumentView(origin="/report", name="calibration"),
-        rrb.TimeSeriesView(origin="/spin", name="ω(t) (rad/s)", axis_x=linked),
-        scatter,
-        row_shares=[3, 1, 2],
-    )
-    return rrb.Horizontal(left, right, column_shares=[3, 1])
-
-
-def session_time_panel(start_s: float, end_s: float) -> rrb.TimePanel:
-    """The time panel on ``time`` with the free-spin window [start_s, end_s] pre-selected."""
-    selection = rrb.components.AbsoluteTimeRange(min=round(start_s * 1e9), max=round(end_s * 1e9))
-    return rrb.TimePanel(timeline=TIME_TIMELINE, time_selection=selection)
-
-
-def session_blueprint(
-    start_s: float, end_s: float, residual_sets: tuple[str, ...] = (FIT_SET,)
-) -> rrb.Blueprint:
-    """The session layout (module docstring); the free-spin window is pre-selected.
-
-    The files get the same blueprint through :func:`_layout_chunks` (built once
-    per process) and :func:`session_time_panel`.
-
-    Parameters
-    ----------
-    start_s, end_s:
-        The window on the ``time`` timeline, s.
-    residual_sets:
-        Names of the logged residual sets; each gets its per-axis overrides.
-    """
-    return rrb.Blueprint(_session_root(residual_sets), session_time_panel(start_s, end_s))
-
-
-@functools.lru_cache(maxsize=16)
-def _layout_chunks(residual_sets: tuple[str, ...]) -> tuple:
-    """The blueprint without its time panel as chunks, built once per process and set list."""
-    return blueprint_chunks(rrb.Blueprint(_session_root(residual_sets)))
-
-
-@functools.lru_cache(maxsize=1)
-def _time_panel_rows() -> tuple[str, bool, tuple[ArrowColumn, ...], ArrowColumn]:
-    """The time panel's entity, its columns and the one of them that varies (the selection)."""
-    ((path, static, columns),) = blueprint_rows(session_time_panel(0.0, 0.0))
-    (selection,) = [c for c in columns if c.component_descriptor().component.endswith("selection")]
-    return path, static, columns, selection
-
-
-def _time_panel_chunk(start_s: float, end_s: float) -> Chunk:
-    """:func:`session_time_panel` as a chunk; only the selection is converted per file."""
-    path, static, columns, selection = _time_panel_rows()
-    # ``rrb.components.AbsoluteTimeRange``: whole ns, as the panel rounds them.
-    ns = {"min": round(start_s * 1e9), "max": round(end_s * 1e9)}
-    value = pa.array([ns], type=selection.as_arrow_array().type.value_type)
-    varying = [column(c.component_descriptor(), value) if c is selection else c for c in columns]
-    return blueprint_chunk(path, static, varying)
-
-
-def send_session_blueprint(
-    stream: rr.RecordingStream, start_s: float, end_s: float, residual_sets: tuple[str, ...]
-) -> None:
-    """Send :func:`session_blueprint` into ``stream``, the layout from the per-process cache."""
-    panel = _time_panel_chunk(start_s, end_s)
-    send_blueprint_chunks(stream, (*_layout_chunks(tuple(residual_sets)), panel))
+        t, mean = trend(fit.time_s + fit_shift_s, fit.residual_mps2, TREND_S)
+        chunks += xyz_chunks(f"closed_loop/trend/{name}", t, mean)
+    report = rr.TextDocument(closed_loop_markdown(diagnosis), media_type=rr.MediaType.MARKDOWN)
+    chunks.append(static_chunk("closed_loop/report", row_columns(report)))
+    return chunks
 
 
 @dataclass
 class SessionRrd:
-    """A session file being written: its stream and the residual sets logged so far."""
+    """A session file being written: its stream, and what its blueprint must show."""
 
     stream: rr.RecordingStream
-    residual_sets: list[str] = field(default_factory=list)
+    #: (entity name, legend label, RGB) of the residual sets logged so far.
+    residual_sets: list[tuple[str, str, Rgb]] = field(default_factory=list)
+    closed_loop: bool = False
+    extra_views: list[ExtraView] = field(default_factory=list)
+    #: Shift from the calibration's clock to the recording's, s.
+    shift_s: float = 0.0
+
+    @property
+    def residual_set_names(self) -> list[str]:
+        """Names of the residual sets logged so far."""
+        return [name for name, _, _ in self.residual_sets]
 
     def log_residuals(
         self,
@@ -542,12 +666,59 @@ class SessionRrd:
         residual_mps2: np.ndarray,
         theta_rad: np.ndarray,
         color: Rgb | None = None,
+        label: str | None = None,
     ) -> None:
         """Add a residual set (see :func:`log_residuals`) to the file and its blueprint."""
-        if name in self.residual_sets:
+        if name in self.residual_set_names:
             raise ValueError(f"residual set {name!r} is already in this file")
-        log_residuals(self.stream, name, time_s, residual_mps2, theta_rad, color)
-        self.residual_sets.append(name)
+        rgb = set_color(name) if color is None else tuple(color)
+        band = not self.residual_sets  # the first set: the calibration's own
+        log_residuals(self.stream, name, time_s, residual_mps2, theta_rad, rgb, band)
+        self.residual_sets.append((name, label or name, rgb))
+
+    def log_diagnosis(self, diagnosis) -> None:
+        """The closed loop's before/after (module docstring), if it added effects.
+
+        Parameters
+        ----------
+        diagnosis:
+            A :class:`wheelcal.diagnose.closed_loop.Diagnosis` whose final fit
+            is this file's calibration.
+        """
+        if diagnosis is None or not diagnosis.steps or self.closed_loop:
+            return
+        self.stream.send_chunks(closed_loop_chunks(diagnosis, self.shift_s))
+        self.closed_loop = True
+
+    def add_view(self, kind: str, origin: str, name: str) -> None:
+        """Show ``origin`` in the calibration tab's right column.
+
+        Parameters
+        ----------
+        kind:
+            ``"time_series"``, ``"bar_chart"``, ``"text"`` or ``"spatial_2d"``.
+        origin:
+            Entity path the view shows, e.g. ``/allan``.
+        name:
+            The view's title.
+        """
+        view = ExtraView(kind, origin, name)
+        view.view()  # checks the kind
+        self.extra_views.append(view)
+
+    def layout(self) -> Layout:
+        """The blueprint's cache key for what was logged."""
+        return Layout(tuple(self.residual_sets), self.closed_loop, tuple(self.extra_views))
+
+
+def send_session_blueprint(
+    stream: rr.RecordingStream,
+    layout: Layout,
+    window_s: tuple[float, float],
+    shown_s: tuple[float, float],
+) -> None:
+    """Send the session blueprint: the layout from the per-process cache, this file's ranges."""
+    send_blueprint_chunks(stream, (*layout_chunks(layout), *per_file_chunks(window_s, shown_s)))
 
 
 @contextlib.contextmanager
@@ -557,6 +728,7 @@ def session_rrd(
     recording: Recording,
     window: FreeSpinWindow | None,
     durable: bool = True,
+    gyro_calibration=None,
 ) -> Iterator[SessionRrd]:
     """Log a session into a new file; the caller may add residual sets inside the block.
 
@@ -577,11 +749,15 @@ def session_rrd(
         was given (then the fitted samples' span is marked).
     durable:
         fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
+    gyro_calibration:
+        The gyroscope's calibration for the measured ω, when the result does
+        not carry it (a closed loop's final fit is assessed without it).
 
     Yields
     ------
     SessionRrd
-        ``.log_residuals(...)`` adds a set; ``.stream`` is the Rerun stream.
+        ``.log_residuals(...)``, ``.log_diagnosis(...)``, ``.add_view(...)``;
+        ``.stream`` is the Rerun stream.
     """
     # Plot on the recording's clock, whatever epoch the result counts from.
     shift_s = (result.epoch_unix_ns - recording.epoch_unix_ns) * 1e-9
@@ -590,52 +766,30 @@ def session_rrd(
         start_s, end_s = window.start_s, window.end_s
     else:
         start_s, end_s = float(fit_time_s[0]), float(fit_time_s[-1])
+    first_s, last_s = float(recording.time_s[0]), float(recording.time_s[-1])
     name = Path(result.source).name or Path(path).stem
     with rrd_file(path, APPLICATION_ID, name, durable=durable) as stream:
-        if recording.epoch_unix_ns:
+        if recording.epoch_unix_ns:  # 0: times without a Unix epoch (no start time to give)
             stream.send_recording_start_time_nanos(recording.epoch_unix_ns)
-        log_signal(stream, "raw", recording.time_s, recording.accel_mps2, _RAW_COLORS)
         model = predict(result.params, result.centred_time_s, result.layout)  # Eq. (6)
-        log_signal(stream, "model", fit_time_s, model, _AXIS_COLORS, width=1.5)
-        log_window(stream, start_s, end_s, float(recording.time_s[0]), float(recording.time_s[-1]))
-        every = max(1, math.ceil(fit_time_s.size / OMEGA_POINTS))
-        omega_t = result.centred_time_s[::every]
-        kin = wheel_kinematics(result.params, omega_t, result.layout.effects)  # Eq. (2) (+ spline)
-        chunks = _series_chunks(
-            "spin/omega_radps",
-            _series_style(("ω (model)",), None, None),
-            fit_time_s[::every],
-            kin.omega_radps,
-        )
-        chunks += _gyro_rate_chunks(result, recording, shift_s, every)
-        markdown = report_markdown(result, window, start_s, end_s)
+        stream.send_chunks(signal_chunks(recording.time_s, recording.accel_mps2, fit_time_s, model))
+        log_window(stream, start_s, end_s, first_s, last_s)
+        chunks = spin_chunks(result, recording, shift_s, gyro_calibration)
+        markdown = report_markdown(result, window, start_s, end_s, recording.epoch_unix_ns)
         report = rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN)
         chunks.append(static_chunk("report", row_columns(report)))
         stream.send_chunks(chunks)
-        rrd = SessionRrd(stream)
-        rrd.log_residuals(FIT_SET, fit_time_s, result.residual_mps2, wheel_angle_rad(result))
+        rrd = SessionRrd(stream, shift_s=shift_s)
+        rrd.log_residuals(
+            FIT_SET,
+            fit_time_s,
+            result.residual_mps2,
+            wheel_angle_rad(result),
+            label="data − model",
+        )
         yield rrd
-        send_session_blueprint(stream, start_s, end_s, tuple(rrd.residual_sets))
-
-
-def _gyro_rate_chunks(result, recording, shift_s: float, every: int) -> list[Chunk]:
-    """``/spin/omega_gyro_radps``: ω as the gyro measures it, (ω_meas − b)·w/|w|²."""
-    gyro = getattr(recording, "gyro_radps", None)
-    block = None if result.assessment is None else result.assessment.gyro
-    if gyro is None or block is None:
-        return []
-    w = block.scale * block.axis
-    fitted = np.searchsorted(recording.time_s, result.time_s + shift_s)[::every]
-    fitted = fitted[fitted < recording.time_s.size]
-    rows = gyro[fitted]
-    ok = np.all(np.isfinite(rows), axis=1)
-    omega = (rows[ok] - block.bias_radps) @ w / (w @ w)
-    return _series_chunks(
-        "spin/omega_gyro_radps",
-        _series_style(("ω (gyro)",), None, None),
-        recording.time_s[fitted][ok],
-        omega,
-    )
+        shown_s = (first_s - TIME_MARGIN_S, last_s + TIME_MARGIN_S)
+        send_session_blueprint(stream, rrd.layout(), (start_s, end_s), shown_s)
 
 
 def write_session_rrd(
@@ -644,6 +798,8 @@ def write_session_rrd(
     recording: Recording,
     window: FreeSpinWindow | None,
     durable: bool = True,
+    diagnosis=None,
+    gyro_calibration=None,
 ) -> Path:
     """Write the session's ``.rrd`` (see the module docstring) atomically.
 
@@ -659,12 +815,17 @@ def write_session_rrd(
         The searched free-spin window, or ``None`` if it was given.
     durable:
         fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
+    diagnosis:
+        The closed loop's :class:`~wheelcal.diagnose.closed_loop.Diagnosis`
+        whose final fit is ``result``: its before/after tab when it added effects.
+    gyro_calibration:
+        See :func:`session_rrd`.
 
     Returns
     -------
     Path
         ``path``.
     """
-    with session_rrd(path, result, recording, window, durable=durable):
-        pass
+    with session_rrd(path, result, recording, window, durable, gyro_calibration) as rrd:
+        rrd.log_diagnosis(diagnosis)
     return Path(path)
