@@ -106,7 +106,8 @@ def test_the_batch_lists_gate_and_fix_of_a_refused_session(tmp_path, session_fil
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     (failed,) = report["failed"]
     assert failed["gate"] in ("gain_range", "unit")
-    assert "radius" in failed["error"] and "--radius 0.28" in failed["fix"]
+    assert "radius" in failed["error"] and "measure the radius" in failed["fix"]
+    assert "0.28" in failed["error"] and "0.28" not in failed["fix"]
 
 
 def test_pipeline_gates_are_honoured(tmp_path, session_file):
