@@ -23,6 +23,9 @@ def register(sub) -> None:
     )
     p.add_argument("source", metavar="IN.csv")
     p.add_argument("destination", metavar="OUT.mcap")
+    p.add_argument(
+        "--force", action="store_true", help="replace OUT.mcap if it exists (default: refuse)"
+    )
     p.add_argument("--time-column", help="header name or 0-based index (default: recognised)")
     p.add_argument(
         "--accel-columns",
@@ -70,7 +73,14 @@ def _column(text: str | None) -> str | int | None:
 def run(args: argparse.Namespace) -> int:
     """Convert and report."""
     from wheelcal.cli.errors import UsageError
+    from wheelcal.io.atomic import OutputExistsError, refuse_existing
     from wheelcal.io.csv_convert import CsvLayout, convert_csv
+
+    if not args.force:
+        try:
+            refuse_existing(args.destination)  # before reading the CSV
+        except OutputExistsError as exc:
+            raise UsageError(str(exc)) from None
 
     def triple(values):
         return None if values is None else tuple(_column(c) for c in values)
@@ -101,7 +111,12 @@ def run(args: argparse.Namespace) -> int:
         if v is not None
     }
     result = convert_csv(
-        args.source, args.destination, layout, encoding=args.format, session=session
+        args.source,
+        args.destination,
+        layout,
+        encoding=args.format,
+        session=session,
+        replace=args.force,
     )
     used = ", ".join(f"{role} {cols}" for role, cols in result.columns.items() if cols is not None)
     print(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -17,6 +18,9 @@ def register(sub) -> None:
     p.add_argument("calibration", metavar="CAL.json")
     p.add_argument("--format", choices=("yaml", "c"), required=True)
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
+    p.add_argument(
+        "--force", action="store_true", help="replace the --out file if it exists (default: refuse)"
+    )
     p.add_argument("--prefix", default="WHEELCAL", help="C identifier prefix")
     p.add_argument(
         "--allow-partial",
@@ -30,12 +34,14 @@ def register(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Export."""
     from wheelcal.cli.errors import UsageError
-    from wheelcal.io.atomic import atomic_write_text
+    from wheelcal.io.atomic import OutputExistsError, atomic_write_text
     from wheelcal.io.calibration_json import load_calibration
     from wheelcal.io.export_formats import to_c_header, to_yaml
 
     if args.out and Path(args.out).is_dir():
         raise UsageError(f"--out {args.out} is a folder; give the file to write")
+    if args.out and not args.force and os.path.lexists(args.out):
+        raise UsageError(str(OutputExistsError(args.out)))
     calibration = load_calibration(args.calibration, allow_partial=args.allow_partial)
     try:
         text = (
@@ -44,7 +50,10 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     if args.out:
-        atomic_write_text(args.out, text)
+        try:
+            atomic_write_text(args.out, text, replace=args.force)
+        except OutputExistsError as exc:  # created meanwhile by someone else
+            raise UsageError(str(exc)) from None
     else:
         sys.stdout.write(text)
     return 0

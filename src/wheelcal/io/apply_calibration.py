@@ -7,6 +7,7 @@ import os
 
 import numpy as np
 
+from wheelcal.io.atomic import refuse_existing
 from wheelcal.io.calibration_json import load_calibration, load_correction_from
 from wheelcal.io.mcap_reader import read_recording
 from wheelcal.io.mcap_writer import accel_channel, copy_with_channels, recording_stamps_ns
@@ -23,6 +24,7 @@ def apply_calibration(
     out_topic: str | None = None,
     encoding: str | None = None,
     allow_partial: bool = False,
+    replace: bool = False,
 ) -> tuple[str, int]:
     """Add ``<topic>/calibrated`` (corrected samples, same stamps) to a copy of ``source``.
 
@@ -30,8 +32,13 @@ def apply_calibration(
     ``wheelcal.calibration``.  Returns the new topic and the number of samples.
     Samples the reader repaired or dropped (NaNs, duplicates, clipping) are
     handled as in calibration and listed in the recording's notes.  A
-    calibration with undetermined parameters needs ``allow_partial``.
+    calibration with undetermined parameters needs ``allow_partial``.  An
+    existing ``destination`` is refused unless ``replace``
+    (:class:`~wheelcal.io.atomic.OutputExistsError`, before any work and again
+    at the atomic install).
     """
+    if not replace:
+        refuse_existing(destination)
     calibration = load_calibration(calibration_path, allow_partial=allow_partial)
     correction = load_correction_from(calibration)
     topic = topic or calibration.get("source", {}).get("topic") or None
@@ -61,5 +68,5 @@ def apply_calibration(
             "calibration_json": json.dumps(calibration),
         }
     }
-    copy_with_channels(source, destination, [channel], metadata)
+    copy_with_channels(source, destination, [channel], metadata, replace=replace)
     return new_topic, recording.samples

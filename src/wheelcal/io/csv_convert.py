@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from wheelcal.io.atomic import refuse_existing
 from wheelcal.io.errors import InputError
 from wheelcal.io.mcap_writer import Compression, Encoding, write_accel_mcap
 from wheelcal.io.sample_checks import rest_level
@@ -469,6 +470,7 @@ def convert_csv(
     topic: str | None = None,
     session: Mapping[str, str] | None = None,
     compression: Compression = "zstd",
+    replace: bool = False,
 ) -> CsvConversion:
     """Convert a CSV IMU log into a contract MCAP file.
 
@@ -494,6 +496,10 @@ def convert_csv(
         ``wheelcal.session`` values to store, e.g. ``{"radius_m": "0.28"}``.
     compression:
         Chunk compression.
+    replace:
+        Replace an existing ``mcap_path`` (default ``False``: refused with
+        :class:`~wheelcal.io.atomic.OutputExistsError` before the CSV is read,
+        and again at the atomic install).
 
     Returns
     -------
@@ -510,6 +516,8 @@ def convert_csv(
     """
     layout = layout or CsvLayout()
     path = str(csv_path)
+    if not replace:
+        refuse_existing(mcap_path)
     try:
         text = Path(csv_path).read_text(encoding="utf-8-sig")
     except FileNotFoundError:
@@ -619,6 +627,7 @@ def convert_csv(
         gyro=gyro,
         gyro_unit=gyro_unit,
         temperature_c=temperature,
+        replace=replace,
     )
     names = {
         "time": cols.time,

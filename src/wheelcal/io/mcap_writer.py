@@ -251,13 +251,16 @@ def write_channels(
     profile: str = "",
     compression: Compression = "zstd",
     chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+    replace: bool = True,
 ) -> None:
     """Write channels and metadata records to a new MCAP file, atomically.
 
     Channels are merged by log time; each channel keeps its own message order.
+    ``replace=False`` refuses an existing ``path``
+    (:class:`~wheelcal.io.atomic.OutputExistsError`).
     """
     _compression(compression)  # fail before creating anything
-    with atomic_output(path) as stream:
+    with atomic_output(path, replace=replace) as stream:
         writer = _new_writer(stream, compression, chunk_bytes)
         writer.start(profile=profile, library=_library())
         ids = [_register(writer, channel) for channel in channels]
@@ -320,6 +323,7 @@ def write_accel_mcap(
     gyro_unit: str = "rad/s",
     temperature_c: np.ndarray | None = None,
     temperature_stride: int = 1,
+    replace: bool = True,
 ) -> None:
     """Write raw stamps and samples as a contract MCAP (no validation of the data).
 
@@ -344,6 +348,9 @@ def write_accel_mcap(
         Optional per-sample temperature (N,), °C: the batches' ``temperature_c``
         (JSON), or a ``sensor_msgs/msg/Temperature`` topic (ROS 2) with every
         ``temperature_stride``-th reading.
+    replace:
+        ``False`` refuses an existing ``path``
+        (:class:`~wheelcal.io.atomic.OutputExistsError`).
     """
     ros2 = encoding == "ros2"
     channels = [
@@ -374,6 +381,7 @@ def write_accel_mcap(
         {SESSION_METADATA_NAME: values} if values else None,
         profile="ros2" if encoding == "ros2" else "",
         compression=compression,
+        replace=replace,
     )
 
 
@@ -440,6 +448,7 @@ def copy_with_channels(
     *,
     compression: Compression = "zstd",
     chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+    replace: bool = True,
 ) -> None:
     """Copy an MCAP file, keeping every record, and add channels and metadata.
 
@@ -462,6 +471,9 @@ def copy_with_channels(
         Metadata records to add, ``{name: {key: value}}``.
     compression, chunk_bytes:
         Chunk compression and size of the copy.
+    replace:
+        ``False`` refuses an existing ``destination``
+        (:class:`~wheelcal.io.atomic.OutputExistsError`).
     """
     from mcap.exceptions import McapError
     from mcap.records import Attachment, Channel, Message, Metadata, Schema
@@ -476,7 +488,7 @@ def copy_with_channels(
             raise ValueError(f"{source}: topic {channel.topic!r} already exists; choose another")
         existing.add(channel.topic)
     _compression(compression)
-    with atomic_output(destination) as stream:
+    with atomic_output(destination, replace=replace) as stream:
         writer = _new_writer(stream, compression, chunk_bytes)
         writer.start(profile=scan.profile, library=scan.library)
         schema_ids: dict[int, int] = {0: 0}
