@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.allan import AllanSums
 from wheelcal.estimate.columns import centred_rows, column_means
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.recording import Recording
@@ -43,6 +44,9 @@ class RestSegment:
     mean_std_mps2: np.ndarray  # (3,) σ of the mean (coloured noise included)
     noise_std_mps2: np.ndarray  # (3,) marginal noise std
     noise_dof: float  # effective samples behind noise_std (for its uncertainty)
+    #: The overlapping Allan sums of the segment (:mod:`wheelcal.estimate.allan`), pooled
+    #: over the rests for the noise density, bias instability and random walk.
+    allan: AllanSums | None = None
 
     @property
     def mid_s(self) -> float:
@@ -92,7 +96,7 @@ def find_rests(
         i0, i1 = first * block, (last + 1) * block
         if t[i1 - 1] - t[i0] < min_duration_s:
             continue
-        segments.append(_segment(t[i0:i1], v[i0:i1]))
+        segments.append(_segment(t[i0:i1], v[i0:i1], rate))
     return tuple(segments)
 
 
@@ -107,7 +111,7 @@ def block_statistics(v: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]
     return blocks.mean(axis=2).T, blocks.std(axis=2, ddof=1).T
 
 
-def _segment(t: np.ndarray, v: np.ndarray) -> RestSegment:
+def _segment(t: np.ndarray, v: np.ndarray, rate_hz: float | None = None) -> RestSegment:
     mean = column_means(v)
     centred = centred_rows(v, mean)  # (3, n)
     noise = NoiseModel.estimate(centred.T, max_order=6)
@@ -122,6 +126,7 @@ def _segment(t: np.ndarray, v: np.ndarray) -> RestSegment:
         mean_std_mps2=mean_std,
         noise_std_mps2=np.array([np.std(row, ddof=1) for row in centred]),
         noise_dof=float(n * np.min(noise.effective_sample_fraction)),
+        allan=AllanSums.of(v, rate_hz or float(1.0 / np.median(np.diff(t)))),
     )
 
 

@@ -329,14 +329,16 @@ def encode_imu_messages(
     accel_mps2: np.ndarray,
     frame_id: str,
     gyro_radps: np.ndarray | None = None,
+    accel_covariance_mps2sq: np.ndarray | None = None,
 ) -> list[bytes]:
     """CDR little-endian ``Imu`` payloads with ``linear_acceleration`` (and the gyro) filled.
 
     Orientation is marked "not provided" by setting element 0 of its
     covariance to −1 (the convention the message definition documents); so is
     ``angular_velocity`` when ``gyro_radps`` is ``None``, or on the rows of
-    ``gyro_radps`` that are NaN (left out).  Other covariances are all zero
-    ("unknown").
+    ``gyro_radps`` that are NaN (left out).  ``linear_acceleration_covariance``
+    is ``accel_covariance_mps2sq`` (3 × 3, (m/s²)², row-major in the message)
+    when given; other covariances are all zero ("unknown").
 
     Parameters
     ----------
@@ -348,6 +350,8 @@ def encode_imu_messages(
         ``header.frame_id`` for every message.
     gyro_radps:
         Angular velocity (N, 3) in rad/s, or ``None``.
+    accel_covariance_mps2sq:
+        The samples' noise covariance (3, 3), or ``None`` (zeros: unknown).
 
     Returns
     -------
@@ -392,6 +396,11 @@ def encode_imu_messages(
         rec["gyro"] = np.where(absent[:, None], 0.0, rate)
         rec["gyro_cov"][absent, 0] = -1.0
     rec["accel"] = accel
+    if accel_covariance_mps2sq is not None:
+        cov = np.asarray(accel_covariance_mps2sq, dtype=float).reshape(3, 3)
+        if not np.all(np.isfinite(cov)):
+            raise ValueError("the acceleration covariance must be finite")
+        rec["accel_cov"] = cov.reshape(-1)
     raw = rec.tobytes()
     size = dtype.itemsize
     return [raw[i : i + size] for i in range(0, len(raw), size)]

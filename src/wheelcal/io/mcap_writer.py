@@ -23,6 +23,7 @@ intact.
 from __future__ import annotations
 
 import heapq
+import json
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -121,6 +122,7 @@ def accel_channel(
     gyro: np.ndarray | None = None,
     gyro_unit: str = "rad/s",
     temperature_c: np.ndarray | None = None,
+    accel_covariance_mps2sq: np.ndarray | None = None,
 ) -> ChannelData:
     """An accelerometer channel (with an optional gyro) in one of the contract's encodings.
 
@@ -149,6 +151,10 @@ def accel_channel(
     temperature_c:
         Per-sample temperature (N,) in °C — JSON only (``"temperature_c"``);
         ROS 2 carries it on its own topic (:func:`temperature_channel`).
+    accel_covariance_mps2sq:
+        The samples' noise covariance (3, 3) in (m/s²)², written as every ROS 2
+        message's ``linear_acceleration_covariance`` (``None``: zeros, unknown);
+        JSON stores it as the channel metadata ``accel_covariance_mps2sq``.
     """
     if unit not in UNITS:
         raise ValueError(f"unit must be one of {UNITS}, got {unit!r}")
@@ -167,7 +173,7 @@ def accel_channel(
             raise ValueError(
                 "ROS 2 carries the temperature on its own topic: temperature_channel()"
             )
-        payloads = encode_imu_messages(time_ns, accel, frame_id, gyro)
+        payloads = encode_imu_messages(time_ns, accel, frame_id, gyro, accel_covariance_mps2sq)
         return ChannelData(
             topic=topic or DEFAULT_TOPICS["ros2"],
             schema_name=IMU_SCHEMA_NAME,
@@ -180,6 +186,9 @@ def accel_channel(
         metadata = {UNIT_KEY: unit}
         if gyro is not None:
             metadata[GYRO_UNIT_KEY] = gyro_unit
+        if accel_covariance_mps2sq is not None:
+            cov = np.asarray(accel_covariance_mps2sq, dtype=float).reshape(3, 3)
+            metadata["accel_covariance_mps2sq"] = json.dumps(cov.tolist())
         return ChannelData(
             topic=topic or DEFAULT_TOPICS["json"],
             schema_name=ACCEL_BATCH_SCHEMA_NAME,
