@@ -31,7 +31,8 @@ def apply_calibration(
     The calibration JSON is also stored as an MCAP metadata record named
     ``wheelcal.calibration``.  Each calibrated ``sensor_msgs/msg/Imu`` carries
     the samples' noise covariance M diag(σ²) Mᵀ as its
-    ``linear_acceleration_covariance`` (:func:`corrected_covariance`).  Returns the new topic and the number of samples.
+    ``linear_acceleration_covariance`` (:func:`corrected_covariance`).
+    Returns the new topic and the number of samples.
     Samples the reader repaired or dropped (NaNs, duplicates, clipping) are
     handled as in calibration and listed in the recording's notes.  A
     calibration with undetermined parameters needs ``allow_partial``.  An

@@ -1,4 +1,4 @@
-"""Calibration exports: Kalibr's ``imu.yaml``, ``imu_calib``'s file, and a C header.
+r"""Calibration exports: Kalibr's ``imu.yaml``, ``imu_calib``'s file, and a C header.
 
 All carry the contract's correction, a = M (v − b) in the sensor frame, with
 b in m/s² and M dimensionless (row-major).  A session's calibration
