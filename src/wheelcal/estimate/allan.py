@@ -24,14 +24,15 @@ Read-outs (IEEE Std 952, the terms of Kalibr's ``imu.yaml``):
   then extrapolated along the −½ slope from the longest τ (flagged);
 * **bias instability** B (m/s²): the flat floor :math:`\sigma_{min} =
   \sqrt{2\ln 2/\pi}\,B \approx 0.664\,B`.  When the deviation is still
-  falling at the longest τ the minimum is not a floor and B is an upper
-  bound (flagged);
+  falling at the longest τ — no later τ above the minimum by two of its
+  own σ — the minimum is not a floor and B is an upper bound (flagged).  Only τ with ≥ 8 whole intervals of data behind them are
+  searched: the last octaves rest on one or two and scatter by a factor 2–3;
 * **random walk** K (m/s³/√Hz, Kalibr's ``accelerometer_random_walk``):
   :math:`\sigma(\tau) = K\sqrt{\tau/3}`.  The Allan variances of independent
   processes add, so :math:`K^2 \tau / 3 \le \sigma^2(\tau)` at every τ and
   :math:`K \le \min_\tau \sigma(\tau)\sqrt{3/\tau}`: that bound is reported,
   and called an estimate only when the deviation rises along the +½ slope
-  at the longest τ (rests are usually too short for that).
+  over the longest τ (a least-squares slope over the last 16× of τ above 0.35) (rests are usually too short for that).
 """
 
 from __future__ import annotations
@@ -46,6 +47,11 @@ BIAS_INSTABILITY_FACTOR = float(np.sqrt(2.0 * np.log(2.0) / np.pi))
 WHITE_NOISE_TAU_S = 1.0
 #: Slope (log σ per log τ) above which the long-τ end counts as a random walk's rise.
 RANDOM_WALK_SLOPE = 0.35
+#: The long-τ end whose slope is judged: τ within this factor of the longest usable.
+LONG_TAU_SPAN = 16.0
+#: A τ is usable for the floor and the random walk with this many whole intervals of
+#: data behind it (the last octaves rest on one or two: σ off by a factor of 2–3).
+MIN_INTERVALS = 8
 
 
 def octave_factors(samples: int, rate_hz: float | None = None) -> np.ndarray:
@@ -166,18 +172,37 @@ class AllanDeviation:
             return np.exp((1 - w) * np.log(adev[lo]) + w * np.log(adev[hi])), True
         return adev[-1] * np.sqrt(tau[-1] / WHITE_NOISE_TAU_S), False
 
+    def _usable(self) -> np.ndarray:
+        """τ with ≥ MIN_INTERVALS intervals of data behind them (at least the shortest τ)."""
+        usable = self.tau_s * MIN_INTERVALS <= self.duration_s
+        usable[0] = True
+        return usable
+
     def bias_instability(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(B per axis, the τ of the minimum, whether that minimum is a floor, not a bound)."""
-        at = np.argmin(self.adev, axis=0)
-        axes = np.arange(self.adev.shape[1])
-        value = self.adev[at, axes] / BIAS_INSTABILITY_FACTOR
-        return value, self.tau_s[at], at < self.tau_s.size - 1
+        usable = self._usable()
+        tau, adev = self.tau_s[usable], self.adev[usable]
+        at = np.argmin(adev, axis=0)
+        axes = np.arange(adev.shape[1])
+        lowest = adev[at, axes]
+        # A floor: the deviation rises again beyond the minimum by more than two of its own σ
+        # (relative σ of an overlapping ADEV ≈ 1/√(2·edf), edf ≈ 1.5·T/τ for white noise).
+        rel_sigma = 1.0 / np.sqrt(3.0 * self.duration_s / tau)
+        above = adev > lowest * (1.0 + 2.0 * rel_sigma[:, None])
+        later = np.arange(tau.size)[:, None] > at
+        return lowest / BIAS_INSTABILITY_FACTOR, tau[at], np.any(above & later, axis=0)
 
     def random_walk(self) -> tuple[np.ndarray, np.ndarray]:
         """(K per axis — m/s³/√Hz for data in m/s² — and whether the rise is seen, not a bound)."""
-        bound = np.min(self.adev * np.sqrt(3.0 / self.tau_s[:, None]), axis=0)
-        seen = np.zeros(self.adev.shape[1], dtype=bool)
-        if self.tau_s.size >= 2:
-            slope = np.log(self.adev[-1] / self.adev[-2]) / np.log(self.tau_s[-1] / self.tau_s[-2])
+        usable = self._usable()
+        tau, adev = self.tau_s[usable], self.adev[usable]
+        bound = np.min(adev * np.sqrt(3.0 / tau[:, None]), axis=0)
+        seen = np.zeros(adev.shape[1], dtype=bool)
+        tail = tau >= tau[-1] / LONG_TAU_SPAN
+        if np.count_nonzero(tail) >= 2:
+            # the log-log slope over the long-τ end (least squares: the last points are noisy)
+            x = np.log(tau[tail])
+            x = x - x.mean()
+            slope = x @ np.log(adev[tail]) / (x @ x)
             seen = slope > RANDOM_WALK_SLOPE
         return bound, seen
