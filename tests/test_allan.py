@@ -59,7 +59,7 @@ def test_white_noise_gives_its_density_at_one_second():
     edf = _edf_white(n + 1, round(RATE_HZ))
     assert np.all(np.abs(density / (sigma_d / np.sqrt(RATE_HZ)) - 1) < 4 / np.sqrt(2 * edf))
     # white noise has no floor within the data: the minimum is at the longest τ, a bound
-    bias, tau, is_floor = curve.bias_instability()
+    bias, _, is_floor = curve.bias_instability()
     usable = curve.tau_s * 8 <= curve.duration_s  # ≥ 8 intervals behind a τ
     assert not np.any(is_floor)
     np.testing.assert_allclose(bias * BIAS_INSTABILITY_FACTOR, curve.adev[usable].min(axis=0))

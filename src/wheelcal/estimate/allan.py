@@ -25,14 +25,16 @@ Read-outs (IEEE Std 952, the terms of Kalibr's ``imu.yaml``):
 * **bias instability** B (m/s²): the flat floor :math:`\sigma_{min} =
   \sqrt{2\ln 2/\pi}\,B \approx 0.664\,B`.  When the deviation is still
   falling at the longest τ — no later τ above the minimum by two of its
-  own σ — the minimum is not a floor and B is an upper bound (flagged).  Only τ with ≥ 8 whole intervals of data behind them are
-  searched: the last octaves rest on one or two and scatter by a factor 2–3;
+  own σ — the minimum is not a floor and B is an upper bound (flagged).
+  Only τ with ≥ 8 whole intervals of data behind them are searched: the last
+  octaves rest on one or two and scatter by a factor 2–3;
 * **random walk** K (m/s³/√Hz, Kalibr's ``accelerometer_random_walk``):
   :math:`\sigma(\tau) = K\sqrt{\tau/3}`.  The Allan variances of independent
   processes add, so :math:`K^2 \tau / 3 \le \sigma^2(\tau)` at every τ and
   :math:`K \le \min_\tau \sigma(\tau)\sqrt{3/\tau}`: that bound is reported,
   and called an estimate only when the deviation rises along the +½ slope
-  over the longest τ (a least-squares slope over the last 16× of τ above 0.35) (rests are usually too short for that).
+  over the longest τ (a least-squares slope above 0.35 over the last 16× of
+  τ; rests are usually too short for that).
 """
 
 from __future__ import annotations
