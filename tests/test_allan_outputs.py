@@ -34,7 +34,7 @@ def test_session_rrd_plots_the_rests_allan_deviation(tmp_path):
         np.testing.assert_allclose(marks[0], [0.0, np.log10(density[k])], rtol=1e-6)
     (text,) = static(chunks, "/allan/readouts", "TextDocument:text")
     assert all(f"| {a} | {d:.3g} |" in text for a, d in zip("xyz", density, strict=True))
-    assert ("Spatial2DView", "rests: Allan deviation (log10 τ, log10 σ)", "/allan") in [
+    assert ("2D", "rests: Allan deviation (log10 τ, log10 σ)", "/allan") in [
         tuple(v) for v in blueprint_views(path)
     ]
 
