@@ -71,3 +71,25 @@ def test_report_md_shows_the_pooled_allan_read_outs(batch_out):
     section = report[report.index("(Allan deviation)") :]
     for value in allan["white_noise_density_mps2_rthz"] + allan["random_walk_mps3_rthz"]:
         assert f"{value:.3g}" in section
+
+
+def test_one_loader_reads_the_sensor_calibration_and_the_session_ones(batch_out):
+    """Issue 28: ``Calibration.from_json`` loads the batch's main deliverable too."""
+    import wheelcal
+
+    (sensor_file,) = (batch_out / "sensors").glob("*.calibration.json")
+    doc = json.loads(sensor_file.read_text())
+    cal = wheelcal.Calibration.from_json(sensor_file)
+    assert cal.kind == "sensor" and cal.sensor_id == doc["sensor_id"]
+    np.testing.assert_array_equal(cal.gain, doc["sensor"]["gain"])
+    np.testing.assert_array_equal(cal.offset_std_mps2, doc["sensor"]["offset_std_mps2"])
+    np.testing.assert_array_equal(cal.systematic_gain_std, doc["systematic"]["gain_std"])
+    v = np.random.default_rng(0).normal(0, 9.8, (20, 3))
+    m, b = np.array(doc["correction"]["matrix"]), np.array(doc["correction"]["bias_mps2"])
+    np.testing.assert_allclose(cal.apply(v), (v - b) @ m.T, rtol=1e-12)
+    assert cal.value("gain_x") == doc["parameters"]["gain_x"]["value"]
+    assert "pooled from 2 sessions" in cal.summary() and "pooled from 2" in repr(cal)
+    with pytest.raises(ValueError, match="radius_m: a sensor's pooled calibration"):
+        _ = cal.radius_m
+    session = wheelcal.Calibration.from_json(batch_out / "r0.calibration.json")
+    assert session.kind == "session" and session.radius_m == pytest.approx(0.28)
