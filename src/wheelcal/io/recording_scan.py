@@ -1,11 +1,11 @@
-"""Which reader a recording needs, by its first bytes: MCAP, ROS 1 bag or rosbag2.
+r"""Which reader a recording needs, by its first bytes: MCAP, ROS 1 bag or rosbag2.
 
 Every reader gives the same :class:`~wheelcal.io.mcap_scan.McapScan` (schemas,
 channels, metadata, per-channel message blocks consumed by sinks), so the
 topic choice, the decoders and the sample checks of
 :func:`~wheelcal.io.mcap_reader.read_recording` are one path for all:
 
-* ``\\x89MCAP0\\r\\n`` — MCAP (:func:`~wheelcal.io.mcap_scan.scan_mcap`), ROS 2 CDR,
+* ``\x89MCAP0\r\n`` — MCAP (:func:`~wheelcal.io.mcap_scan.scan_mcap`), ROS 2 CDR,
   ROS 1 (``mcap convert``) or wheelcal's JSON messages;
 * ``#ROSBAG V2.0`` — a ROS 1 bag (:func:`~wheelcal.io.rosbag1_scan.scan_rosbag1`);
 * ``SQLite format 3`` — a rosbag2 ``.db3`` (:func:`~wheelcal.io.rosbag2_scan.scan_rosbag2`),

@@ -1,6 +1,6 @@
-"""ROS 1 bags (``.bag``, format 2.0) as an MCAP-like scan, vectorised over the bag's index.
+r"""ROS 1 bags (``.bag``, format 2.0) as an MCAP-like scan, vectorised over the bag's index.
 
-The format (ROS wiki, "Bags/Format/2.0"): after ``#ROSBAG V2.0\\n`` come
+The format (ROS wiki, "Bags/Format/2.0"): after ``#ROSBAG V2.0\n`` come
 records, each ``uint32 header_len``, header fields (``uint32 len`` +
 ``name=value``), ``uint32 data_len``, data.  The *bag header* gives
 ``index_pos``, where the *connection* records (topic, type, message
