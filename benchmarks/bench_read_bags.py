@@ -31,10 +31,10 @@ import numpy as np
 from _timing import interleaved_times
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from robot_logs import imu_messages, write_bag, write_db3, write_ros1_mcap  # noqa: E402
-from wheelcal.io import read_recording, write_recording  # noqa: E402
-from wheelcal.runtime import tune_allocator  # noqa: E402
-from wheelcal.simulate import Scenario, simulate, table2  # noqa: E402
+from robot_logs import imu_messages, write_bag, write_db3, write_ros1_mcap
+from wheelcal.io import read_recording, write_recording
+from wheelcal.runtime import tune_allocator
+from wheelcal.simulate import Scenario, simulate, table2
 
 SAMPLES = 18_000
 
