@@ -29,12 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from _timing import interleaved_times
+from bench_read import table2_recording
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from robot_logs import imu_messages, write_bag, write_db3, write_ros1_mcap
 from wheelcal.io import read_recording, write_recording
 from wheelcal.runtime import tune_allocator
-from wheelcal.simulate import Scenario, simulate, table2
 
 SAMPLES = 18_000
 
@@ -56,11 +56,7 @@ def main() -> None:
     args = parser.parse_args()
     tune_allocator()
     clock = time.perf_counter if args.wall else time.process_time
-    base = table2(rng=np.random.default_rng(1))
-    scenario = Scenario(
-        truth=base.truth, duration_s=(SAMPLES - 1) / base.rate_hz, rate_hz=base.rate_hz
-    )
-    recording = simulate(scenario, np.random.default_rng(2)).recording
+    recording = table2_recording(SAMPLES)
     time_ns = recording.epoch_unix_ns + np.rint(recording.time_s * 1e9).astype(np.int64)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from batch_inputs import pipeline_file, simulated_recordings
 from test_viz_rrd import blueprint_views, read_store, static
 from wheelcal.cli.main import main
 from wheelcal.estimate.allan import AllanSums
@@ -41,16 +42,8 @@ def test_session_rrd_plots_the_rests_allan_deviation(tmp_path):
 
 @pytest.fixture(scope="module")
 def batch_out(tmp_path_factory):
-    d = tmp_path_factory.mktemp("allanbatch")
-    for i in range(2):
-        assert main(["simulate", str(d / f"r{i}.mcap"), "--seed", str(90 + i)]) == 0
-    pipeline = d / "p.toml"
-    pipeline.write_text(
-        f'[pipeline]\nname = "a"\noutput = "{d / "out"}"\n'
-        f'[inputs]\nglobs = ["{d}/*.mcap"]\n[defaults]\nradius_m = 0.28\n'
-        "[executor]\nworkers = 1\n"
-    )
-    assert main(["batch", str(pipeline)]) == 0
+    d = simulated_recordings(tmp_path_factory.mktemp("allanbatch"), ["r0", "r1"], 90, False)
+    assert main(["batch", str(pipeline_file(d / "p.toml", d / "out", f"{d}/*.mcap"))]) == 0
     return d / "out"
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 import wheelcal.batch.session as session_module
+from batch_inputs import pipeline_file, simulated_recordings
 from wheelcal.batch.pipeline import PipelineError, load_pipeline
 from wheelcal.batch.runner import run_batch
 from wheelcal.cli.main import main
@@ -30,21 +31,11 @@ WHEELCAL = [sys.executable, "-m", "wheelcal.cli.main"]
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
     """Three free-spin recordings (the simulate defaults)."""
-    d = tmp_path_factory.mktemp("inputs")
-    for i in range(3):
-        args = ["simulate", str(d / f"r{i}.mcap"), "--seed", str(40 + i), "--free-spin-only"]
-        assert main(args) == 0
-    return d
+    return simulated_recordings(tmp_path_factory.mktemp("inputs"), ["r0", "r1", "r2"], seed=40)
 
 
 def _pipeline(tmp_path, globs, workers=1, extra=""):
-    path = tmp_path / "p.toml"
-    path.write_text(
-        f'[pipeline]\nname = "h"\noutput = "{tmp_path / "out"}"\n'
-        f'[inputs]\nglobs = ["{globs}"]\n[defaults]\nradius_m = 0.28\n'
-        f"[executor]\nworkers = {workers}\n{extra}"
-    )
-    return path
+    return pipeline_file(tmp_path / "p.toml", tmp_path / "out", globs, workers, extra)
 
 
 def _blow_up_on(monkeypatch, name, exc):

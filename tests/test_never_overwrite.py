@@ -9,6 +9,8 @@ import hashlib
 import numpy as np
 import pytest
 
+import wheelcal
+from batch_inputs import simulated_recordings
 from wheelcal.cli.main import main
 from wheelcal.io import read_recording
 from wheelcal.io.atomic import OutputExistsError, atomic_output, atomic_write_text
@@ -20,10 +22,9 @@ def _digest(path) -> str:
 
 @pytest.fixture(scope="module")
 def spin(tmp_path_factory):
-    d = tmp_path_factory.mktemp("spin")
+    d = simulated_recordings(tmp_path_factory.mktemp("spin"), ["spin"], seed=5)
     rec = d / "spin.mcap"
-    assert main(["simulate", str(rec), "--seed", "5", "--free-spin-only"]) == 0
-    assert main(["calibrate", str(rec), "--out", str(d), "--quiet"]) == 0
+    wheelcal.calibrate(rec).to_json(d / "spin.calibration.json")
     return rec, d / "spin.calibration.json"
 
 

@@ -11,10 +11,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
+from batch_inputs import pipeline_file, simulated_recordings
 from wheelcal.batch.pipeline import load_pipeline
 from wheelcal.batch.runner import run_batch
 from wheelcal.batch.workers import START_METHOD_ENV, exit_with_parent, start_method
-from wheelcal.cli.main import main
 
 _AVAILABLE = multiprocessing.get_all_start_methods()
 METHODS = [m for m in ("fork", "spawn", "forkserver") if m in _AVAILABLE]
@@ -47,11 +47,7 @@ def test_the_start_method_is_explicit_and_the_environment_overrides_it(monkeypat
 
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
-    d = tmp_path_factory.mktemp("rec")
-    for i in range(3):
-        args = ["simulate", str(d / f"s{i}.mcap"), "--seed", str(70 + i), "--free-spin-only"]
-        assert main(args) == 0
-    return d
+    return simulated_recordings(tmp_path_factory.mktemp("rec"), ["s0", "s1", "s2"], seed=70)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -59,12 +55,7 @@ def test_a_two_worker_batch_calibrates_every_session_under_each_start_method(
     tmp_path, recordings, monkeypatch, method
 ):
     monkeypatch.setenv(START_METHOD_ENV, method)
-    path = tmp_path / "p.toml"
-    path.write_text(
-        f'[pipeline]\nname = "m"\noutput = "{tmp_path / "out"}"\n'
-        f'[inputs]\nglobs = ["{recordings}/*.mcap"]\n[defaults]\nradius_m = 0.28\n'
-        "[executor]\nworkers = 2\n"
-    )
+    path = pipeline_file(tmp_path / "p.toml", tmp_path / "out", f"{recordings}/*.mcap", workers=2)
     outcome = run_batch(load_pipeline(path))
     assert [r.error for r in outcome.records] == [None, None, None]
     assert sorted(p.name for p in (tmp_path / "out").glob("*.calibration.json")) == [

@@ -453,19 +453,17 @@ def allan_markdown(sensors: Sequence[Mapping]) -> list[str]:
         if not allan:
             continue
         read = "read at τ = 1 s" if allan["white_noise_read_at_1s"] else "extrapolated (−½ slope)"
-        lines += [
-            f"## Noise at rest — sensor `{s['sensor_id'] or '-'}` (Allan deviation)",
-            "",
+        intro = (
             f"Overlapping Allan deviation of {allan['rests_s']:.3g} s of rests (the sensor still "
             f"before the push and after the stop) at {allan['rate_hz']:.6g} Hz, pooled over the "
             "sessions. White-noise density N = σ(1 s)·√1 s (Kalibr's "
             "`accelerometer_noise_density`); bias instability B = σ_min / 0.664; random walk "
             "K ≤ min σ(τ)·√(3/τ) (Kalibr's `accelerometer_random_walk`). *bound*: the rests are "
-            "too short to show a floor or a rise, so the value is an upper bound.",
-            "",
-            "| axis | N (m/s²/√Hz) | B (m/s²) | at τ (s) | K (m/s³/√Hz) |",
-            "|---|---:|---:|---:|---:|",
-        ]
+            "too short to show a floor or a rise, so the value is an upper bound."
+        )
+        title = f"## Noise at rest — sensor `{s['sensor_id'] or '-'}` (Allan deviation)"
+        head = ("axis", "N (m/s²/√Hz)", "B (m/s²)", "at τ (s)", "K (m/s³/√Hz)")
+        lines += [title, "", intro, "", _row(*head), _row("---", *["---:"] * 4)]
         for k, axis in enumerate(AXES):
             floor = allan["bias_instability_is_floor"][k]
             seen = allan["random_walk_seen"][k]
@@ -478,7 +476,7 @@ def allan_markdown(sensors: Sequence[Mapping]) -> list[str]:
                     f"{allan['random_walk_mps3_rthz'][k]:.3g}" + ("" if seen else " (bound)"),
                 )
             )
-        lines += ["", "| τ (s) | σ_x (m/s²) | σ_y (m/s²) | σ_z (m/s²) |", "|---:|---:|---:|---:|"]
+        lines += ["", _row("τ (s)", *(f"σ_{a} (m/s²)" for a in AXES)), _row(*["---:"] * 4)]
         for tau, adev in zip(allan["tau_s"], allan["adev_mps2"], strict=True):
             lines.append(_row(f"{tau:.3g}", *(f"{v:.3g}" for v in adev)))
         lines.append("")
