@@ -73,6 +73,17 @@ def plain_json(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.array(stamps, dtype=np.int64), np.array(accel)
 
 
+def table2_recording(samples: int = SAMPLES):
+    """The benchmarks' recording: a table II bench at 200 Hz, ``samples`` samples, fixed seeds."""
+    base = table2(rng=np.random.default_rng(1))
+    scenario = Scenario(
+        truth=base.truth, duration_s=(samples - 1) / base.rate_hz, rate_hz=base.rate_hz
+    )
+    recording = simulate(scenario, np.random.default_rng(2)).recording
+    assert recording.samples == samples
+    return recording
+
+
 def best_time(fn, repeat: int, clock) -> float:
     fn()  # warm-up (imports, caches)
     times = []
@@ -103,12 +114,7 @@ def main() -> None:
         tune_allocator()
     clock = time.perf_counter if args.wall else time.process_time
 
-    base = table2(rng=np.random.default_rng(1))
-    scenario = Scenario(
-        truth=base.truth, duration_s=(SAMPLES - 1) / base.rate_hz, rate_hz=base.rate_hz
-    )
-    recording = simulate(scenario, np.random.default_rng(2)).recording
-    assert recording.samples == SAMPLES
+    recording = table2_recording()
     variants = [
         ("ROS 2 Imu, 1 sample/msg", "ros2", 1, plain_ros2),
         ("JSON, 1 sample/msg", "json", 1, plain_json),

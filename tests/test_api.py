@@ -21,7 +21,7 @@ def test_the_readme_python_example_runs(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     exec(compile(example, "README.md", "exec"), {})  # the README's own code
     out = capsys.readouterr().out
-    assert "gain_range" in out and "--radius 0.283" in out
+    assert "gain_range" in out and "measure the radius" in out and "0.283" not in out
     assert (tmp_path / "spin.calibration.json").exists()
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 import wheelcal.batch.session as session_module
+from batch_inputs import pipeline_file, simulated_recordings
 from wheelcal.batch.pipeline import PipelineError, load_pipeline
 from wheelcal.batch.runner import run_batch
 from wheelcal.cli.main import main
@@ -30,21 +31,11 @@ WHEELCAL = [sys.executable, "-m", "wheelcal.cli.main"]
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
     """Three free-spin recordings (the simulate defaults)."""
-    d = tmp_path_factory.mktemp("inputs")
-    for i in range(3):
-        args = ["simulate", str(d / f"r{i}.mcap"), "--seed", str(40 + i), "--free-spin-only"]
-        assert main(args) == 0
-    return d
+    return simulated_recordings(tmp_path_factory.mktemp("inputs"), ["r0", "r1", "r2"], seed=40)
 
 
 def _pipeline(tmp_path, globs, workers=1, extra=""):
-    path = tmp_path / "p.toml"
-    path.write_text(
-        f'[pipeline]\nname = "h"\noutput = "{tmp_path / "out"}"\n'
-        f'[inputs]\nglobs = ["{globs}"]\n[defaults]\nradius_m = 0.28\n'
-        f"[executor]\nworkers = {workers}\n{extra}"
-    )
-    return path
+    return pipeline_file(tmp_path / "p.toml", tmp_path / "out", globs, workers, extra)
 
 
 def _blow_up_on(monkeypatch, name, exc):
@@ -59,6 +50,8 @@ def _blow_up_on(monkeypatch, name, exc):
         return real(path, options)
 
     monkeypatch.setattr(session_module, "compute_session", compute)
+    # The patch reaches pool workers only through fork (forkserver and spawn import afresh).
+    monkeypatch.setenv("WHEELCAL_START_METHOD", "fork")
 
 
 @pytest.mark.parametrize("exc", [MemoryError(), RecursionError("maximum recursion depth")])
@@ -334,12 +327,36 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+def _descendants(pid: int) -> list[int]:
+    found, frontier = [], [pid]
+    while frontier:
+        children = [c for p in frontier for c in _children(p)]
+        found += children
+        frontier = children
+    return found
+
+
+def _pool_workers(pid: int) -> list[int]:
+    """The batch's pool workers: descendants with no children of their own, past the helpers."""
+    workers = []
+    for p in _descendants(pid):
+        try:
+            cmdline = Path(f"/proc/{p}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if b"resource_tracker" not in cmdline and not _children(p) and _alive(p):
+            workers.append(p)
+    return workers
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
-def test_workers_exit_when_the_batch_parent_is_killed(tmp_path, inputs):
+@pytest.mark.parametrize("method", ["fork", "forkserver", "spawn"])
+def test_workers_exit_when_the_batch_parent_is_killed(tmp_path, inputs, method):
+    # Under forkserver a worker's parent is the fork server, not the batch (issue 28).
     path = _pipeline(tmp_path, f"{inputs}/*.mcap", workers=2)
     proc = subprocess.Popen(
         [*WHEELCAL, "batch", str(path)],
-        env={**os.environ, "PYTHONPATH": SRC},
+        env={**os.environ, "PYTHONPATH": SRC, "WHEELCAL_START_METHOD": method},
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
@@ -348,15 +365,16 @@ def test_workers_exit_when_the_batch_parent_is_killed(tmp_path, inputs):
         workers = []
         while time.monotonic() < deadline and len(workers) < 2:
             time.sleep(0.1)
-            workers = [p for p in _children(proc.pid) if _alive(p)]
+            workers = _pool_workers(proc.pid)
         assert len(workers) == 2, "the batch did not start its two workers"
+        everything = _descendants(proc.pid)
         time.sleep(0.5)  # inside their first sessions
         proc.send_signal(signal.SIGKILL)
         proc.wait()
         deadline = time.monotonic() + 5
-        while time.monotonic() < deadline and any(map(_alive, workers)):
+        while time.monotonic() < deadline and any(map(_alive, everything)):
             time.sleep(0.1)
-        left = [p for p in workers if _alive(p)]
+        left = [p for p in everything if _alive(p)]
     finally:
         proc.kill()
     for pid in left:  # do not leave them to the next test

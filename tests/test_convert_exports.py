@@ -125,7 +125,7 @@ def test_implausible_time_units_are_refused_and_ties_broken(session, tmp_path):
     # ... unless the values are a Unix time in one unit only (1.7e9 s; as ms it is 1970).
     epoch = [f"{1_712_345_678 + 0.5 * i:.1f}" for i in range(300)]
     _write_csv(tmp_path / "epoch.csv", ["time", "ax", "ay", "az"], [epoch, *rows])
-    result = convert_csv(tmp_path / "epoch.csv", out, CsvLayout(accel_unit="m/s^2"))
+    result = convert_csv(tmp_path / "epoch.csv", out, CsvLayout(accel_unit="m/s^2"), replace=True)
     assert result.time_unit == "s" and result.rate_hz == pytest.approx(2.0)
     # Counters that advance by ~1e7 per sample with a name saying µs: 0.1 Hz, refused.
     ticks = [str(10_000_000 * i) for i in range(300)]
@@ -156,7 +156,8 @@ def test_stated_acceleration_unit_is_checked_against_gravity(session, tmp_path):
     _write_csv(csv, ["t", "ax", "ay", "az"], [session.time_s.tolist(), *in_mg])
     with pytest.raises(InputError, match=r"look like mg"):
         convert_csv(csv, tmp_path / "g.mcap", CsvLayout(accel_unit="g"))
-    convert_csv(csv, tmp_path / "g.mcap", CsvLayout(accel_unit="g", check_units=False))
+    layout = CsvLayout(accel_unit="g", check_units=False)
+    convert_csv(csv, tmp_path / "g.mcap", layout, replace=True)
 
 
 @pytest.mark.parametrize("encoding", ["json", "ros2"])
@@ -180,7 +181,9 @@ def test_gyro_and_temperature_columns(session, tmp_path, encoding):
     back = read_recording(out)
     np.testing.assert_allclose(back.gyro_radps, session.gyro_radps, rtol=1e-14, atol=1e-15)
     np.testing.assert_allclose(back.temperature_c, session.temperature_c, atol=1e-12)
-    assert main([*base, "--no-gyro"]) == 0
+    assert main([*base, "--no-gyro"]) == 2  # never overwrites (issue 28) ...
+    assert read_recording(out).gyro_radps is not None  # ... the first file is intact
+    assert main([*base, "--no-gyro", "--force"]) == 0
     assert read_recording(out, info_overrides={"radius_m": 0.28}).gyro_radps is None
     # Columns given by name (any case) when their names are not recognised.
     renamed = ["Time", "Acc_X", "Acc_Y", "Acc_Z", "wx", "wy", "wz", "T_board"]
@@ -195,7 +198,7 @@ def test_gyro_and_temperature_columns(session, tmp_path, encoding):
         "--temperature-column",
         "t_board",
     ]
-    assert main([*base, *args]) == 0
+    assert main([*base, *args, "--force"]) == 0
     np.testing.assert_allclose(
         read_recording(out, info_overrides={"radius_m": 0.28}).gyro_radps,
         session.gyro_radps,

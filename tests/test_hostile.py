@@ -14,6 +14,7 @@ A *confident wrong answer* — accepted without a warning naming the cause and
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -63,8 +64,12 @@ def test_a_radius_in_the_wrong_unit_is_refused_naming_the_radius(clean_session, 
     rec = clean_session.recording
     rec = replace(rec, info=rec.info.merged(radius_m=0.28 * factor))
     error = _refused(rec, ("gain_range", "unit"), "radius")
-    # the message gives the radius the data imply (the true 0.28 m, to the gains' spread)
-    assert "0.28" in error.reason
+    # the reason names the radius the data imply (the true 0.28 m, to the gains' spread) as a
+    # diagnosis; the fix asks for a measured radius and never offers that number to copy
+    # (issue 28: copying 0.283 for a true 0.280 biases every gain by 1 %)
+    assert "0.28" in error.reason and "only if the gains were exactly 1" in error.reason
+    assert "measure the radius" in error.fix
+    assert not re.search(r"--radius\s+[0-9]", error.fix) and not re.search(r"0\.2[0-9]", error.fix)
 
 
 def test_a_radius_7_percent_off_is_accepted_with_a_warning_naming_the_radius(clean_session):

@@ -368,7 +368,7 @@ def test_csv_conversion(session, tmp_path):
     convert_csv(
         plain,
         tmp_path / "plain.mcap",
-        CsvLayout(0, (1, 2, 3), epoch_unix_ns=1_700_000_000_000_000_000),
+        CsvLayout(0, (1, 2, 3), accel_unit="m/s^2", epoch_unix_ns=1_700_000_000_000_000_000),
     )
     back = read_recording(tmp_path / "plain.mcap")
     assert back.epoch_unix_ns == 1_700_000_000_000_000_000

@@ -10,6 +10,17 @@ work across machines on NFS, which a Dask cluster's shared folder usually is.
 The kernel drops a lock when its process dies, so a killed batch never leaves
 a session locked.  Where ``fcntl`` does not exist (Windows) the locks do
 nothing.
+
+Classic POSIX record locks belong to the *process*: closing any descriptor of
+the lock file in that process — another lock's, or any code that opened the
+file — silently releases them all, and two threads of one process never
+exclude each other.  On Linux the locks are therefore *open file description*
+locks (``F_OFD_SETLKW``, Linux ≥ 3.15, also honoured over NFS): each lock
+belongs to its own descriptor and lives exactly as long as it, whatever else
+the process opens or closes.  Where they are missing, the process keeps one
+descriptor per lock file for as long as any of its locks is held (never
+closing it under a held lock) and a thread lock per byte, so the guarantee is
+the same within what POSIX locks allow.
 """
 
 from __future__ import annotations
@@ -17,6 +28,8 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import struct
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -35,20 +48,78 @@ def _offset(stem: str) -> int:
     return 1 + int.from_bytes(digest[:4], "big") % (2**31 - 2)
 
 
+#: Linux's open file description locks (Python exposes the constants on Linux only).
+_OFD_SETLKW = getattr(fcntl, "F_OFD_SETLKW", None) if fcntl is not None else None
+
+
+def _flock(kind: int, offset: int) -> bytes:
+    """A ``struct flock`` for one byte at ``offset`` (l_type, l_whence, l_start, l_len, l_pid).
+
+    Layout of Linux's ``struct flock`` on every 64-bit ABI: two shorts, two
+    off_t and an int (pid 0: required for OFD locks), padded to 32 bytes.
+    """
+    return struct.pack("hhqqi4x", kind, os.SEEK_SET, offset, 1, 0)
+
+
+@contextlib.contextmanager
+def _ofd_locked(path: Path, offset: int) -> Iterator[None]:
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+    try:
+        fcntl.fcntl(fd, _OFD_SETLKW, _flock(fcntl.F_WRLCK, offset))
+        yield  # closing fd (below) releases the lock; nothing else can
+    finally:
+        os.close(fd)
+
+
+class _SharedDescriptors:
+    """One descriptor per lock file for the whole process (POSIX record-lock fallback)."""
+
+    def __init__(self) -> None:
+        self._guard = threading.Lock()
+        self._files: dict[str, list[int]] = {}  # real path -> [fd, users]
+        self._bytes: dict[tuple[str, int], threading.Lock] = {}
+
+    @contextlib.contextmanager
+    def locked(self, path: Path, offset: int) -> Iterator[None]:
+        key = os.path.realpath(path)
+        with self._guard:
+            byte = self._bytes.setdefault((key, offset), threading.Lock())
+        with byte:  # threads of this process exclude each other here
+            with self._guard:
+                entry = self._files.get(key)
+                if entry is None:
+                    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+                    entry = self._files[key] = [fd, 0]
+                entry[1] += 1
+            try:
+                fcntl.lockf(entry[0], fcntl.LOCK_EX, 1, offset)
+                try:
+                    yield
+                finally:
+                    fcntl.lockf(entry[0], fcntl.LOCK_UN, 1, offset)
+            finally:
+                with self._guard:
+                    entry[1] -= 1
+                    if entry[1] == 0:  # no lock of this process on the file any more
+                        del self._files[key]
+                        os.close(entry[0])
+
+
+_SHARED = _SharedDescriptors()
+
+
 @contextlib.contextmanager
 def _locked(out_dir: str | os.PathLike, offset: int) -> Iterator[None]:
     if fcntl is None:  # pragma: no cover
         yield
         return
-    fd = os.open(Path(out_dir) / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o666)
-    try:
-        fcntl.lockf(fd, fcntl.LOCK_EX, 1, offset)
-        try:
+    path = Path(out_dir) / LOCK_FILE
+    if _OFD_SETLKW is not None:
+        with _ofd_locked(path, offset):
             yield
-        finally:
-            fcntl.lockf(fd, fcntl.LOCK_UN, 1, offset)
-    finally:
-        os.close(fd)
+    else:  # pragma: no cover - not Linux
+        with _SHARED.locked(path, offset):
+            yield
 
 
 def session_lock(out_dir: str | os.PathLike, stem: str):

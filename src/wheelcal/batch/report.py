@@ -385,6 +385,7 @@ def report_markdown(report: dict, title: str = "Repeatability report") -> str:
     """``report.md`` for people: what to apply first, then the evidence."""
     lines = [f"# {title}", "", counts_sentence(report) + ".", ""]
     lines += apply_this_markdown(report.get("sensors", []))
+    lines += allan_markdown(report.get("sensors", []))
     lines += overview_markdown(report.get("overview"))
     lines += sessions_markdown(report.get("per_session", []))
     for g in report["groups"]:
@@ -501,6 +502,44 @@ def apply_this_markdown(sensors: Sequence[Mapping]) -> list[str]:
                 "the correction leaves that axis unchanged"
             )
         lines += [f"- ⚠ {w}" for w in s.get("warnings", [])]
+        lines.append("")
+    return lines
+
+
+def allan_markdown(sensors: Sequence[Mapping]) -> list[str]:
+    """Per sensor: the rests' overlapping Allan deviation and its read-outs (``fit.allan``)."""
+    lines = []
+    for s in sensors:
+        allan = s.get("allan")
+        if not allan:
+            continue
+        read = "read at τ = 1 s" if allan["white_noise_read_at_1s"] else "extrapolated (−½ slope)"
+        intro = (
+            f"Overlapping Allan deviation of {allan['rests_s']:.3g} s of rests (the sensor still "
+            f"before the push and after the stop) at {allan['rate_hz']:.6g} Hz, pooled over the "
+            "sessions. White-noise density N = σ(1 s)·√1 s (Kalibr's "
+            "`accelerometer_noise_density`); bias instability B = σ_min / 0.664; random walk "
+            "K ≤ min σ(τ)·√(3/τ) (Kalibr's `accelerometer_random_walk`). *bound*: the rests are "
+            "too short to show a floor or a rise, so the value is an upper bound."
+        )
+        title = f"## Noise at rest — sensor `{s['sensor_id'] or '-'}` (Allan deviation)"
+        head = ("axis", "N (m/s²/√Hz)", "B (m/s²)", "at τ (s)", "K (m/s³/√Hz)")
+        lines += [title, "", intro, "", _row(*head), _row("---", *["---:"] * 4)]
+        for k, axis in enumerate(AXES):
+            floor = allan["bias_instability_is_floor"][k]
+            seen = allan["random_walk_seen"][k]
+            lines.append(
+                _row(
+                    axis,
+                    f"{allan['white_noise_density_mps2_rthz'][k]:.3g} ({read})",
+                    f"{allan['bias_instability_mps2'][k]:.3g}" + ("" if floor else " (bound)"),
+                    f"{allan['bias_instability_tau_s'][k]:.3g}",
+                    f"{allan['random_walk_mps3_rthz'][k]:.3g}" + ("" if seen else " (bound)"),
+                )
+            )
+        lines += ["", _row("τ (s)", *(f"σ_{a} (m/s²)" for a in AXES)), _row(*["---:"] * 4)]
+        for tau, adev in zip(allan["tau_s"], allan["adev_mps2"], strict=True):
+            lines.append(_row(f"{tau:.3g}", *(f"{v:.3g}" for v in adev)))
         lines.append("")
     return lines
 

@@ -49,7 +49,7 @@ from wheelcal.batch.session import (
     failed_outcome,
 )
 from wheelcal.batch.stems import unique_stems
-from wheelcal.batch.workers import exit_with_parent
+from wheelcal.batch.workers import exit_with_parent, worker_context
 from wheelcal.io.atomic import OutputFolderError, prepare_output_folder
 from wheelcal.io.calibration import Calibration
 from wheelcal.recording import RecordingError
@@ -367,7 +367,10 @@ def _run_pool(
     """Run tasks on a process pool; returns the tasks lost to a broken pool (not reported)."""
     broken = []
     with ProcessPoolExecutor(
-        workers, initializer=exit_with_parent, initargs=(os.getpid(),)
+        workers,
+        mp_context=worker_context(),
+        initializer=exit_with_parent,
+        initargs=(os.getpid(),),
     ) as pool:
         futures = {}
         for i, task in enumerate(tasks):

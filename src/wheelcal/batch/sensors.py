@@ -47,6 +47,7 @@ class SensorDeliverable:
             "correction": self.doc["correction"],
             "systematic": {k: v for k, v in self.doc["systematic"].items() if k != "note"},
             "warnings": self.doc["fit"]["warnings"],
+            **({"allan": self.doc["fit"]["allan"]} if self.doc["fit"].get("allan") else {}),
         }
 
 

@@ -19,6 +19,9 @@ def register(sub) -> None:
     p.add_argument("calibration", metavar="CAL.json")
     p.add_argument("source", metavar="IN.mcap")
     p.add_argument("destination", metavar="OUT.mcap")
+    p.add_argument(
+        "--force", action="store_true", help="replace OUT.mcap if it exists (default: refuse)"
+    )
     p.add_argument("--topic", help="accelerometer topic to correct (default: the calibration's)")
     p.add_argument("--out-topic", help="name of the calibrated topic (default <topic>/calibrated)")
     p.add_argument("--format", choices=("ros2", "json"), help="encoding of the calibrated topic")
@@ -35,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.batch.session import describe_error
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.io.apply_calibration import apply_calibration
+    from wheelcal.io.atomic import OutputExistsError
     from wheelcal.io.file_kind import special_file_kind
 
     for what, path in (("CAL.json", args.calibration), ("IN.mcap", args.source)):
@@ -46,6 +50,8 @@ def run(args: argparse.Namespace) -> int:
     if os.path.exists(args.source) and os.path.exists(args.destination):
         if os.path.samefile(args.source, args.destination):
             raise UsageError(f"OUT.mcap {args.destination} is IN.mcap itself; give a new file")
+    if not args.force and os.path.lexists(args.destination):
+        raise UsageError(str(OutputExistsError(args.destination)))
     try:
         topic, samples = apply_calibration(
             args.calibration,
@@ -55,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
             args.out_topic,
             args.format,
             allow_partial=args.allow_partial,
+            replace=args.force,
         )
     except Exception as exc:  # incl. MemoryError, RecursionError: named, never a traceback
         if getattr(args, "debug", False):

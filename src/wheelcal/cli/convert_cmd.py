@@ -18,11 +18,18 @@ def register(sub) -> None:
             "gx/gyr_x/Gyr_X/gyro_x, temp/temperature; any case) unless given, an Excel "
             "'sep=,' line and a trailing empty column are skipped, a wrapping 32-bit counter is "
             "unwrapped, and the time unit is inferred when not given (refused when the "
-            "sampling rate it implies is implausible). Only the units must be stated."
+            "sampling rate it implies is implausible); Arduino's millis/micros are ms/µs. The "
+            "acceleration unit comes from the header when it states one (phyphox: "
+            "'Acceleration x (m/s^2)'), else it must be given; raw counts need "
+            "--counts-per-g. Decimal commas (9,81) are read in ;-separated files. An existing "
+            "OUT.mcap is never replaced unless --force."
         ),
     )
     p.add_argument("source", metavar="IN.csv")
     p.add_argument("destination", metavar="OUT.mcap")
+    p.add_argument(
+        "--force", action="store_true", help="replace OUT.mcap if it exists (default: refuse)"
+    )
     p.add_argument("--time-column", help="header name or 0-based index (default: recognised)")
     p.add_argument(
         "--accel-columns",
@@ -36,7 +43,18 @@ def register(sub) -> None:
         help="default: from the column name, else inferred from the sampling rate",
     )
     p.add_argument(
-        "--accel-unit", choices=("m/s^2", "g"), required=True, help="unit of the acceleration"
+        "--accel-unit",
+        choices=("m/s^2", "g", "mg", "counts"),
+        help="unit of the acceleration (default: as the header states it, e.g. "
+        "'Acceleration x (m/s^2)'; needed when it states none); counts = raw integers, "
+        "with --counts-per-g",
+    )
+    p.add_argument(
+        "--counts-per-g",
+        type=float,
+        metavar="N",
+        help="raw counts per g with --accel-unit counts (e.g. 16384 for a 16-bit sensor at "
+        "±2 g, 4096 at ±8 g)",
     )
     p.add_argument(
         "--gyro-columns",
@@ -45,20 +63,46 @@ def register(sub) -> None:
         help="header names or indices of the gyro (default: recognised if present)",
     )
     p.add_argument(
-        "--gyro-unit", choices=("rad/s", "deg/s"), help="unit of the gyro (needed with a gyro)"
+        "--gyro-unit",
+        choices=("rad/s", "deg/s"),
+        help="unit of the gyro (default: as the header states it; needed with a gyro otherwise)",
     )
     p.add_argument("--no-gyro", action="store_true", help="leave gyro columns out")
     p.add_argument("--temperature-column", help="°C column (default: recognised if present)")
     p.add_argument("--delimiter", help="default: an Excel sep= line, else detect , ; or tab")
     p.add_argument("--epoch-unix-ns", type=int, default=0, help="added to every time stamp")
     p.add_argument("--format", choices=("json", "ros2"), default="json", help="message encoding")
-    p.add_argument("--radius", type=float, help="store radius_m in the session metadata")
+    p.add_argument(
+        "--radius",
+        type=radius_metres,
+        metavar="M",
+        help="the sensor's distance from the axle in metres (e.g. 0.28), stored as radius_m",
+    )
     p.add_argument("--sensor-id")
     p.add_argument("--mounting-id")
     p.add_argument(
         "--gyro-full-scale-dps", type=float, help="store gyro_full_scale_dps (the gyro's range)"
     )
     p.set_defaults(handler=run)
+
+
+#: No wheel puts its sensor farther from the axle than this (m): 280 is millimetres.
+MAX_RADIUS_M = 2.0
+
+
+def radius_metres(text: str) -> float:
+    """An argparse type: a radius in metres, positive and at most :data:`MAX_RADIUS_M`."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number (metres)") from None
+    if not (value > 0 and value <= MAX_RADIUS_M):
+        hint = f" (in millimetres? {value / 1000:g} m)" if value > MAX_RADIUS_M else ""
+        raise argparse.ArgumentTypeError(
+            f"{text} m is not a sensor–axle distance: give metres, above 0 and at most "
+            f"{MAX_RADIUS_M:g}{hint}"
+        )
+    return value
 
 
 def _column(text: str | None) -> str | int | None:
@@ -70,7 +114,14 @@ def _column(text: str | None) -> str | int | None:
 def run(args: argparse.Namespace) -> int:
     """Convert and report."""
     from wheelcal.cli.errors import UsageError
+    from wheelcal.io.atomic import OutputExistsError, refuse_existing
     from wheelcal.io.csv_convert import CsvLayout, convert_csv
+
+    if not args.force:
+        try:
+            refuse_existing(args.destination)  # before reading the CSV
+        except OutputExistsError as exc:
+            raise UsageError(str(exc)) from None
 
     def triple(values):
         return None if values is None else tuple(_column(c) for c in values)
@@ -81,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
             accel_columns=triple(args.accel_columns),
             time_unit=args.time_unit,
             accel_unit=args.accel_unit,
+            counts_per_g=args.counts_per_g,
             delimiter=args.delimiter,
             epoch_unix_ns=args.epoch_unix_ns,
             gyro_columns=triple(args.gyro_columns),
@@ -101,7 +153,12 @@ def run(args: argparse.Namespace) -> int:
         if v is not None
     }
     result = convert_csv(
-        args.source, args.destination, layout, encoding=args.format, session=session
+        args.source,
+        args.destination,
+        layout,
+        encoding=args.format,
+        session=session,
+        replace=args.force,
     )
     used = ", ".join(f"{role} {cols}" for role, cols in result.columns.items() if cols is not None)
     print(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -11,12 +12,21 @@ def register(sub) -> None:
     """Add the ``export`` parser."""
     p = sub.add_parser(
         "export",
-        help="export a calibration as ROS/Kalibr-style YAML or a C header",
-        description="Print (or write with --out) the bias and 3x3 correction of a calibration.",
+        help="export a calibration as Kalibr imu.yaml, an imu_calib file or a C header",
+        description=(
+            "Print (or write with --out) the bias and 3x3 correction of a calibration: "
+            "yaml = Kalibr's imu.yaml keys (accelerometer_noise_density and "
+            "accelerometer_random_walk from the rests' Allan deviation, update_rate, rostopic) "
+            "with wheelcal's imu0 block; imu_calib = the ROS imu_calib package's SM and bias; "
+            "c = a C header."
+        ),
     )
     p.add_argument("calibration", metavar="CAL.json")
-    p.add_argument("--format", choices=("yaml", "c"), required=True)
+    p.add_argument("--format", choices=("yaml", "imu_calib", "c"), required=True)
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
+    p.add_argument(
+        "--force", action="store_true", help="replace the --out file if it exists (default: refuse)"
+    )
     p.add_argument("--prefix", default="WHEELCAL", help="C identifier prefix")
     p.add_argument(
         "--allow-partial",
@@ -30,21 +40,29 @@ def register(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Export."""
     from wheelcal.cli.errors import UsageError
-    from wheelcal.io.atomic import atomic_write_text
+    from wheelcal.io.atomic import OutputExistsError, atomic_write_text
     from wheelcal.io.calibration_json import load_calibration
-    from wheelcal.io.export_formats import to_c_header, to_yaml
+    from wheelcal.io.export_formats import to_c_header, to_imu_calib, to_yaml
 
     if args.out and Path(args.out).is_dir():
         raise UsageError(f"--out {args.out} is a folder; give the file to write")
+    if args.out and not args.force and os.path.lexists(args.out):
+        raise UsageError(str(OutputExistsError(args.out)))
     calibration = load_calibration(args.calibration, allow_partial=args.allow_partial)
     try:
-        text = (
-            to_yaml(calibration) if args.format == "yaml" else to_c_header(calibration, args.prefix)
-        )
+        if args.format == "yaml":
+            text = to_yaml(calibration)
+        elif args.format == "imu_calib":
+            text = to_imu_calib(calibration)
+        else:
+            text = to_c_header(calibration, args.prefix)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     if args.out:
-        atomic_write_text(args.out, text)
+        try:
+            atomic_write_text(args.out, text, replace=args.force)
+        except OutputExistsError as exc:  # created meanwhile by someone else
+            raise UsageError(str(exc)) from None
     else:
         sys.stdout.write(text)
     return 0

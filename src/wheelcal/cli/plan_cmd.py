@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wheelcal.cli.convert_cmd import radius_metres
 from wheelcal.cli.errors import UsageError
 from wheelcal.cli.options import positive_float
 
@@ -30,10 +31,18 @@ def register(sub) -> None:
         help="what you will measure: the radius (default), the tilt, or a vertical wheel",
     )
     b.add_argument(
-        "--radius", type=positive_float, default=0.28, metavar="M", help="sensor–axle distance"
+        "--radius",
+        type=radius_metres,
+        default=0.28,
+        metavar="M",
+        help="the sensor's distance from the axle in metres (default 0.28)",
     )
     b.add_argument(
-        "--radius-std", type=float, default=1e-3, metavar="M", help="its uncertainty (radius mode)"
+        "--radius-std",
+        type=float,
+        default=1e-3,
+        metavar="M",
+        help="its uncertainty in metres (radius mode; default 0.001)",
     )
     b.add_argument(
         "--tilt-deg",

@@ -44,12 +44,20 @@ _OVERRIDES = {
 }
 
 
+def _plain(text: str) -> str:
+    """Docstring text for a terminal: ``literal`` and :role:`~a.b.c` markup as plain words."""
+    import re
+
+    text = re.sub(r":[a-z]+:`~?(?:[\w.]+\.)?([\w]+)`", r"\1", text)
+    return text.replace("``", "")
+
+
 def register(subparsers) -> None:
     """Add the ``study`` command."""
     p = subparsers.add_parser(
         "study",
         help="synthetic accuracy study (paper Table I, Fig. 7-8; static poses; duration)",
-        description=__doc__.split("\n\n", 1)[1],
+        description=_plain(__doc__.split("\n\n", 1)[1]),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--out", required=True, help="output directory (created if missing)")

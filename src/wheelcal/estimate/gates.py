@@ -11,7 +11,8 @@ driven rather than free.  Two bands (defaults justified in the README,
   or the reverse;
 * ``gain_range`` — a determined gain outside [0.5, 2]: no accelerometer is
   that far from nominal; by eq. (9) the radius is the likely culprit (the
-  message gives the radius the data imply if the gains average 1);
+  message names the factor and the radius the data would imply if the gains
+  were exactly 1, as a diagnosis, and asks for the radius to be measured);
 * ``offset_range`` — a determined offset above 0.3 g;
 * ``convergence`` — the fit did not converge in the directions the data
   determine;
@@ -206,9 +207,17 @@ def refuse_gain_scale(
     lo, hi = gates.gain_range
     g = STANDARD_GRAVITY_MPS2
     implied = radius_m * mean_gain
+    # A diagnosis, never a value to type: r·γ̄ equals the true radius only if the gains
+    # average exactly 1, and a sensor 1 % off would bias every gain by 1 % if it were copied.
     radius_text = (
-        f"with gains near 1 the data imply a radius of {implied:.4g} m, not the "
-        f"{radius_m:.4g} m given (by eq. (9) a radius error scales every gain)"
+        f"the {radius_m:.4g} m given is off by a factor of about {mean_gain:.3g}: by eq. (9) a "
+        f"radius error scales every gain, and the data would imply {implied:.4g} m only if "
+        "the gains were exactly 1"
+    )
+    measure = (
+        "measure the radius (axle centre to the sensor's centre, in metres) and give that "
+        "measured value with --radius; do not type the implied radius in: it hides the "
+        "sensor's own gain error"
     )
     head = f"{listing}: outside [{lo:g}, {hi:g}], which no accelerometer is"
     for factor, seen, stated, unit in ((1 / g, "g", "m/s²", "g"), (g, "m/s²", "g", "m/s^2")):
@@ -219,14 +228,9 @@ def refuse_gain_scale(
                 f"{head}. The gains are about {'1/' if factor < 1 else ''}{g:.2f}: the samples "
                 f"look like {seen} but are labelled {stated} — or {radius_text}",
                 f"state the unit (--accel-unit {unit}, or the channel's unit metadata), or "
-                f"check the radius (--radius {implied:.3g})",
+                f"{measure}",
             )
-    raise CalibrationRefused(
-        source,
-        "gain_range",
-        f"{head}: {radius_text}",
-        f"check the radius and its unit (metres): e.g. --radius {implied:.3g}",
-    )
+    raise CalibrationRefused(source, "gain_range", f"{head}: {radius_text}", measure)
 
 
 def _convergence_text(result: CalibrationResult) -> str:

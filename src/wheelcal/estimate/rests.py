@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.allan import AllanSums
 from wheelcal.estimate.columns import centred_rows, column_means
 from wheelcal.estimate.noise_model import NoiseModel
 from wheelcal.recording import Recording
@@ -43,6 +44,9 @@ class RestSegment:
     mean_std_mps2: np.ndarray  # (3,) σ of the mean (coloured noise included)
     noise_std_mps2: np.ndarray  # (3,) marginal noise std
     noise_dof: float  # effective samples behind noise_std (for its uncertainty)
+    #: The overlapping Allan sums of the segment (:mod:`wheelcal.estimate.allan`), pooled
+    #: over the rests for the noise density, bias instability and random walk.
+    allan: AllanSums | None = None
     #: The gyroscope's noise std per axis over the rest (rad/s), when there is a gyro.
     gyro_noise_std_radps: np.ndarray | None = None
 
@@ -95,7 +99,9 @@ def find_rests(
         if t[i1 - 1] - t[i0] < min_duration_s:
             continue
         gyro = getattr(recording, "gyro_radps", None)
-        segments.append(_segment(t[i0:i1], v[i0:i1], None if gyro is None else gyro[i0:i1]))
+        segments.append(
+            _segment(t[i0:i1], v[i0:i1], rate, None if gyro is None else gyro[i0:i1])
+        )
     return tuple(segments)
 
 
@@ -110,7 +116,9 @@ def block_statistics(v: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]
     return blocks.mean(axis=2).T, blocks.std(axis=2, ddof=1).T
 
 
-def _segment(t: np.ndarray, v: np.ndarray, gyro: np.ndarray | None = None) -> RestSegment:
+def _segment(
+    t: np.ndarray, v: np.ndarray, rate_hz: float | None = None, gyro: np.ndarray | None = None
+) -> RestSegment:
     mean = column_means(v)
     centred = centred_rows(v, mean)  # (3, n)
     noise = NoiseModel.estimate(centred.T, max_order=6)
@@ -125,6 +133,7 @@ def _segment(t: np.ndarray, v: np.ndarray, gyro: np.ndarray | None = None) -> Re
         mean_std_mps2=mean_std,
         noise_std_mps2=np.array([np.std(row, ddof=1) for row in centred]),
         noise_dof=float(n * np.min(noise.effective_sample_fraction)),
+        allan=AllanSums.of(v, rate_hz or float(1.0 / np.median(np.diff(t)))),
         gyro_noise_std_radps=_gyro_std(gyro),
     )
 

@@ -6,6 +6,13 @@ then moved over the destination with :func:`os.replace`; the directory is
 synced too so the rename survives a power cut.  If anything fails on the way,
 the temporary file is removed and the destination is left as it was — never a
 partial file.
+
+With ``replace=False`` an existing destination is never overwritten: the
+finished file is installed with :func:`os.link`, which fails atomically if the
+name exists (the check and the install are one system call, so a file created
+meanwhile by another process is not lost either), and
+:class:`OutputExistsError` names the file.  ``convert``, ``apply`` and
+``export`` write this way unless given ``--force``.
 """
 
 from __future__ import annotations
@@ -64,15 +71,51 @@ def _removed_on_error(tmp: Path) -> Iterator[None]:
         raise
 
 
-def _install(tmp: Path, target: Path) -> None:
-    """Give the finished temporary file the default mode and rename it over ``target``."""
+class OutputExistsError(FileExistsError):
+    """An output file that exists and may not be replaced (names the file)."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        super().__init__(
+            errno.EEXIST, "exists; not replaced (give --force to replace it)", str(path)
+        )
+
+    def __str__(self) -> str:
+        return f"{self.filename}: {self.strerror}"
+
+
+def refuse_existing(path: str | os.PathLike) -> None:
+    """Raise :class:`OutputExistsError` if ``path`` exists (a symbolic link counts too)."""
+    if os.path.lexists(path):
+        raise OutputExistsError(path)
+
+
+def _install(tmp: Path, target: Path, replace: bool = True) -> None:
+    """Give the finished temporary file the default mode and move it to ``target``.
+
+    ``replace=False`` refuses an existing ``target`` in the same step as the
+    install (a hard link fails with EEXIST); where the file system has no hard
+    links, the check and the rename are two steps.
+    """
     os.chmod(tmp, _default_mode())
-    os.replace(tmp, target)
+    if replace:
+        os.replace(tmp, target)
+        return
+    try:
+        os.link(tmp, target)
+    except FileExistsError:
+        raise OutputExistsError(target) from None
+    except OSError as exc:  # no hard links here (FAT, some network file systems)
+        if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EXDEV):
+            raise
+        refuse_existing(target)
+        os.replace(tmp, target)
+        return
+    tmp.unlink()
 
 
 @contextlib.contextmanager
 def atomic_output(
-    path: str | os.PathLike, binary: bool = True, durable: bool = True
+    path: str | os.PathLike, binary: bool = True, durable: bool = True, replace: bool = True
 ) -> Iterator[IO]:
     """Open a temporary file that replaces ``path`` when the ``with`` block succeeds.
 
@@ -88,6 +131,10 @@ def atomic_output(
         or a crashed process never sees a partial file) without the syncs; the
         batch runner uses it per session and syncs once at the end, because on
         a journalling file system each fsync flushes everything else pending.
+    replace:
+        ``True`` (default) replaces an existing ``path``; ``False`` refuses it
+        before writing and again, atomically, at the install
+        (:class:`OutputExistsError`).
 
     Yields
     ------
@@ -95,6 +142,8 @@ def atomic_output(
         The open temporary file.  On an exception inside the block it is closed
         and deleted, the exception propagates, and ``path`` is untouched.
     """
+    if not replace:
+        refuse_existing(path)  # before the work; the install checks again
     target, directory, fd, tmp = _temporary_beside(path)
     with _removed_on_error(tmp):
         mode = "wb" if binary else "w"
@@ -104,7 +153,7 @@ def atomic_output(
             stream.flush()
             if durable:
                 os.fsync(stream.fileno())
-        _install(tmp, target)
+        _install(tmp, target, replace)
     if durable:
         _fsync_directory(directory)
 
@@ -134,15 +183,19 @@ def atomic_path(path: str | os.PathLike, durable: bool = True) -> Iterator[Path]
         _fsync_directory(directory)
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes, durable: bool = True) -> None:
+def atomic_write_bytes(
+    path: str | os.PathLike, data: bytes, durable: bool = True, replace: bool = True
+) -> None:
     """Write ``data`` to ``path`` atomically (see :func:`atomic_output`)."""
-    with atomic_output(path, binary=True, durable=durable) as stream:
+    with atomic_output(path, binary=True, durable=durable, replace=replace) as stream:
         stream.write(data)
 
 
-def atomic_write_text(path: str | os.PathLike, text: str, durable: bool = True) -> None:
+def atomic_write_text(
+    path: str | os.PathLike, text: str, durable: bool = True, replace: bool = True
+) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`atomic_output`)."""
-    with atomic_output(path, binary=False, durable=durable) as stream:
+    with atomic_output(path, binary=False, durable=durable, replace=replace) as stream:
         stream.write(text)
 
 

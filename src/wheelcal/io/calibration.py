@@ -11,6 +11,17 @@ digging through dictionaries:
     cal.to_json("spin.calibration.json")
     Calibration.from_json("spin.calibration.json").summary()
 
+One loader reads both kinds of calibration document: a session's
+(``wheelcal.calibration/1``) and a sensor's pooled one
+(``wheelcal.sensor_calibration/1``, the batch's ``sensors/<id>.calibration.json``)::
+
+    cal = Calibration.from_json("out/sensors/mpu9250-A.calibration.json")
+    cal.kind                                         # "sensor" (or "session")
+    cal.gain, cal.correction, cal.apply(raw_samples), cal.summary()
+
+The sensor, correction, σ, parameters and warnings read alike; what only a
+session has (bench, window, residuals) raises a ``ValueError`` that says so.
+
 A calibration computed in this process also carries the full
 :class:`~wheelcal.estimate.result.CalibrationResult` (residuals, noise model,
 covariance) as ``result``; one read from a file carries only the document.
@@ -77,7 +88,7 @@ def read_only_document(calibration: Mapping) -> Mapping:
 
 @dataclass(frozen=True, eq=False)
 class Calibration(Mapping):
-    """One session's calibration: the contract document, typed.
+    """A calibration document — one session's or one sensor's pooled — typed.
 
     It is also a read-only mapping of the document's top-level keys (each
     value a fresh plain copy), so code written for the JSON reads it too.
@@ -85,7 +96,8 @@ class Calibration(Mapping):
     Parameters
     ----------
     document:
-        The contract dictionary (``wheelcal.calibration/1``); kept read-only.
+        The contract dictionary (``wheelcal.calibration/1`` or
+        ``wheelcal.sensor_calibration/1``); kept read-only.
     result:
         The in-process fit result, when the calibration was computed here.
     diagnosis:
@@ -97,11 +109,12 @@ class Calibration(Mapping):
     diagnosis: object | None = None
 
     def __post_init__(self) -> None:
-        from wheelcal.io.calibration_json import FORMAT, CalibrationFileError
+        from wheelcal.io.calibration_json import CORRECTION_FORMATS, CalibrationFileError
 
-        if self.document.get("format") != FORMAT:
+        if self.document.get("format") not in CORRECTION_FORMATS:
             raise CalibrationFileError(
-                f"not a {FORMAT} document (format {self.document.get('format')!r})"
+                f"not a {' or '.join(CORRECTION_FORMATS)} document "
+                f"(format {self.document.get('format')!r})"
             )
         if not isinstance(self.document, MappingProxyType):
             object.__setattr__(self, "document", _frozen(dict(self.document)))
@@ -165,6 +178,29 @@ class Calibration(Mapping):
         atomic_write_text(path, text, durable=durable)
         return Path(path)
 
+    # which document --------------------------------------------------------------
+    @property
+    def kind(self) -> str:
+        """``"session"`` (one recording) or ``"sensor"`` (pooled from a batch's sessions)."""
+        from wheelcal.io.calibration_json import SENSOR_CALIBRATION_FORMAT
+
+        return "sensor" if self.document["format"] == SENSOR_CALIBRATION_FORMAT else "session"
+
+    def _session_only(self, what: str) -> None:
+        if self.kind == "sensor":
+            sessions = self.document.get("pooling", {}).get("sessions", "?")
+            raise ValueError(
+                f"{what}: a sensor's pooled calibration (from {sessions} sessions) has none; "
+                "read a session's <stem>.calibration.json for it"
+            )
+
+    @property
+    def origin(self) -> str:
+        """Where it comes from: the recording, or the sensor and how many sessions."""
+        from wheelcal.io.export_formats import origin
+
+        return origin(self.to_dict())
+
     # the sensor ---------------------------------------------------------------------
     @property
     def gain(self) -> np.ndarray:
@@ -227,16 +263,19 @@ class Calibration(Mapping):
     @property
     def tilt_deg(self) -> float:
         """Bench tilt α."""
+        self._session_only("tilt_deg")
         return float(self.document["bench"]["tilt_deg"])
 
     @property
     def radius_m(self) -> float:
         """Sensor distance from the axle used (or fitted)."""
+        self._session_only("radius_m")
         return float(self.document["bench"]["radius_m"])
 
     @property
     def misalignment_matrix(self) -> np.ndarray:
         """R, bench → sensor."""
+        self._session_only("misalignment_matrix")
         return np.array(self.document["bench"]["misalignment_matrix"], dtype=float)
 
     @property
@@ -259,11 +298,13 @@ class Calibration(Mapping):
     @property
     def residual_rms_mps2(self) -> np.ndarray:
         """Residual RMS per axis."""
+        self._session_only("residual_rms_mps2")
         return _array(self.document["fit"]["residual_rms_mps2"])
 
     @property
     def source_file(self) -> str:
         """The recording this calibration came from."""
+        self._session_only("source_file")
         return str(self.document["source"]["file"])
 
     @property
@@ -273,12 +314,16 @@ class Calibration(Mapping):
 
     @property
     def mounting_id(self) -> str:
-        """The mounting's identifier (may be empty)."""
-        return str(self.document["source"].get("mounting_id", ""))
+        """The mounting's identifier (may be empty; a sensor's: its sessions' ids, comma-joined)."""
+        source = self.document["source"]
+        if "mounting_ids" in source:
+            return ", ".join(m for m in source["mounting_ids"] if m)
+        return str(source.get("mounting_id", ""))
 
     @property
     def window_s(self) -> tuple[float, float]:
         """The fitted free-spin window, s from the first sample."""
+        self._session_only("window_s")
         start, end = self.document["source"]["window_s"]
         return float(start), float(end)
 
@@ -310,7 +355,7 @@ class Calibration(Mapping):
 
     def summary(self) -> str:
         """A few lines for people: sensor ± σ (systematic σ), bench, fit, warnings."""
-        lines = [f"{self.source_file}: wheelcal calibration ({self.document['format']})"]
+        lines = [f"{self.origin}: wheelcal calibration ({self.document['format']})"]
         undetermined = {name for name, _ in self.undetermined}
         for i, axis in enumerate(AXES):
             parts = []
@@ -334,13 +379,18 @@ class Calibration(Mapping):
                         f"(sys {sys:.{digits}f}){unit}"
                     )
             lines.append(f"  {axis}: " + "   ".join(parts))
-        lines.append(f"  tilt {self.tilt_deg:.3f}°, radius {self.radius_m:.4g} m")
-        floor = self.noise_floor_mps2
-        rms = " ".join(f"{x:.4f}" for x in self.residual_rms_mps2)
-        lines.append(
-            f"  residual rms {rms} m/s²"
-            + ("" if floor is None else " vs noise floor " + " ".join(f"{x:.4f}" for x in floor))
-        )
+        if self.kind == "session":
+            lines.append(f"  tilt {self.tilt_deg:.3f}°, radius {self.radius_m:.4g} m")
+            floor = self.noise_floor_mps2
+            rms = " ".join(f"{x:.4f}" for x in self.residual_rms_mps2)
+            lines.append(
+                f"  residual rms {rms} m/s²"
+                + (
+                    ""
+                    if floor is None
+                    else " vs noise floor " + " ".join(f"{x:.4f}" for x in floor)
+                )
+            )
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -348,6 +398,6 @@ class Calibration(Mapping):
         gains = ", ".join(f"{g:.5g}" for g in self.gain)
         offsets = ", ".join(f"{o:.4g}" for o in self.offset_mps2)
         return (
-            f"Calibration({self.source_file!r}, gain=[{gains}], offset_mps2=[{offsets}], "
+            f"Calibration({self.origin!r}, gain=[{gains}], offset_mps2=[{offsets}], "
             f"warnings={len(self.warnings)})"
         )

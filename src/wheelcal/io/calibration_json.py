@@ -17,6 +17,7 @@ import numpy as np
 from wheelcal import __version__
 from wheelcal.estimate.residual_profile import residual_by_wheel_angle
 from wheelcal.estimate.result import CalibrationResult
+from wheelcal.io.allan_json import rests_allan
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.json_text import dumps_indented
 from wheelcal.model import EULER_CONVENTION
@@ -107,6 +108,7 @@ def calibration_dict(
             "file": result.source,
             "topic": result.topic,
             "samples": int(result.time_s.size),
+            "rate_hz": _rate_hz(result.time_s),
             # sample times are whole nanoseconds: written at that precision (93.645, not
             # 93.64500000000001 from the ns → s conversion)
             "window_s": [round(t, 9) for t in result.window_s],
@@ -228,6 +230,13 @@ def _covariance(result: CalibrationResult, undetermined: set[str]) -> list:
     return [[_num(c) for c in row] for row in cov]
 
 
+def _rate_hz(time_s: np.ndarray) -> float | None:
+    """The median sample rate, to 12 digits (``source.rate_hz``, additive: Kalibr's update_rate)."""
+    if time_s.size < 2:
+        return None
+    return float(f"{1.0 / np.median(np.diff(time_s)):.12g}")
+
+
 def _assessment(result: CalibrationResult) -> dict:
     """``fit`` keys from the gates: noise floor, unexplained residual, rest checks, thresholds."""
     a = result.assessment
@@ -238,6 +247,9 @@ def _assessment(result: CalibrationResult) -> dict:
         out["noise_floor_mps2"] = _vec(a.noise.floor_mps2)
         out["unexplained_mps2"] = _vec(a.noise.unexplained_mps2)
         out["noise_reference"] = _clean(a.noise.to_dict())
+        allan = rests_allan(a.noise.rests)
+        if allan is not None:
+            out["allan"] = allan
     if a.motion is not None:
         out["motion_check"] = _clean(a.motion.to_dict())
     out["rest_checks"] = [_clean(c.to_dict()) for c in a.rest_checks]

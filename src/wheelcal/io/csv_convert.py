@@ -25,9 +25,19 @@ phone app, a vendor's tool, a spreadsheet) are read as they come:
   the wrong unit).  A Unix epoch's magnitude breaks ties;
 * an integer time that wraps like a 32-bit counter (a drop by more than
   2³¹ counts, values in [0, 2³²)) is unwrapped;
-* the stated acceleration unit is checked against the data: at rest
-  (quiet stretches) |a| must be ≈ 1 g in that unit; the stated gyro unit
-  likewise (rad/s beyond 4000 °/s is deg/s).
+* the acceleration unit is as given, else as the header states it in
+  brackets (phyphox's ``Acceleration x (m/s^2)``; ``g``, ``mg``); a file that
+  states none needs it given.  Raw integer counts are read with
+  ``counts`` and their scale (``counts_per_g``, e.g. 16384 for a 16-bit
+  sensor at ±2 g), mg as g/1000; both are written as g;
+* the unit is checked against the data: at rest (quiet stretches) |a| must
+  be ≈ 1 g in that unit (integers that read like 16384 or 4096 at rest are
+  named as raw counts, with the option that reads them); the gyro unit
+  likewise (rad/s beyond 4000 °/s is deg/s), from the header too
+  (``Gyroscope x (rad/s)``);
+* decimal commas (``9,81``; phyphox's and Excel's semicolon CSV in many
+  locales) are read when the delimiter is not a comma;
+* Arduino's ``millis`` and ``micros`` columns are time in ms and µs.
 
 Times are converted to integer nanoseconds *exactly* from their decimal text
 (no float rounding of absolute Unix times); ``epoch_unix_ns`` is added, for
@@ -52,13 +62,35 @@ from pathlib import Path
 
 import numpy as np
 
+from wheelcal.io.atomic import refuse_existing
 from wheelcal.io.errors import InputError
 from wheelcal.io.mcap_writer import Compression, Encoding, write_accel_mcap
 from wheelcal.io.sample_checks import rest_level
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 
 TIME_UNITS_NS = {"s": 1_000_000_000, "ms": 1_000_000, "us": 1_000, "ns": 1}
-ACCEL_UNITS = ("m/s^2", "g")
+ACCEL_UNITS = ("m/s^2", "g", "mg", "counts")
+#: Raw counts per g of common MEMS ranges: 16-bit at ±2/4/8/16 g, 12- and 10-bit parts.
+COUNTS_PER_G = (16384, 8192, 4096, 2048, 1024, 512, 256)
+#: Units a header may state in brackets, e.g. phyphox's ``Acceleration x (m/s^2)``.
+_HEADER_ACCEL_UNITS = {
+    "m/s^2": "m/s^2",
+    "m/s²": "m/s^2",
+    "m/s2": "m/s^2",
+    "m/s/s": "m/s^2",
+    "m s^-2": "m/s^2",
+    "ms^-2": "m/s^2",
+    "g": "g",
+    "mg": "mg",
+}
+_HEADER_GYRO_UNITS = {
+    "rad/s": "rad/s",
+    "rad s^-1": "rad/s",
+    "deg/s": "deg/s",
+    "°/s": "deg/s",
+    "dps": "deg/s",
+}
+_DECIMAL_COMMA = re.compile(r"^\s*[+-]?\d*,\d+(?:[eE][+-]?\d+)?\s*$")
 GYRO_UNITS = ("rad/s", "deg/s")
 #: Sampling rates a time unit may imply; outside, the unit is almost surely wrong.
 PLAUSIBLE_RATE_HZ = (1.0, 100_000.0)
@@ -91,6 +123,8 @@ _TIME_NAMES = (  # by priority; the unit a name implies, or None
     ("time", None),
     ("timestamp", None),
     ("time_stamp", None),
+    ("millis", "ms"),  # Arduino's millis()
+    ("micros", "us"),  # Arduino's micros()
     ("sampletimefine", "us"),  # Xsens: 1 MHz ticks of the device clock, 32-bit
     ("sample_time_fine", "us"),
     ("seconds_elapsed", "s"),
@@ -115,14 +149,18 @@ class CsvLayout:
     Columns are header names, or 0-based indices for a file without a
     header; ``None`` recognises them by name (see the module docstring).
     ``time_unit=None`` infers it; ``delimiter=None`` detects one of
-    ``,`` ``;`` tab.  Gyro columns are read when given or recognised, unless
-    ``read_gyro=False``; their unit ``gyro_unit`` must then be stated.
+    ``,`` ``;`` tab.  ``accel_unit=None`` takes the unit the header states
+    (``Acceleration x (m/s^2)``) and refuses a file that states none;
+    ``"counts"`` needs ``counts_per_g`` (raw integers: 16384 for a 16-bit
+    sensor at ±2 g); ``"mg"`` is g/1000.  Gyro columns are read when given or
+    recognised, unless ``read_gyro=False``; their unit ``gyro_unit`` must then
+    be stated, or be in the header.
     """
 
     time_column: Column | None = None
     accel_columns: tuple[Column, Column, Column] | None = None
     time_unit: str | None = None
-    accel_unit: str = "m/s^2"
+    accel_unit: str | None = None
     delimiter: str | None = None
     epoch_unix_ns: int = 0
     gyro_columns: tuple[Column, Column, Column] | None = None
@@ -130,12 +168,22 @@ class CsvLayout:
     read_gyro: bool = True
     temperature_column: Column | None = None
     check_units: bool = True
+    counts_per_g: float | None = None
 
     def __post_init__(self) -> None:
         if self.time_unit is not None and self.time_unit not in TIME_UNITS_NS:
             raise ValueError(f"time_unit must be one of {list(TIME_UNITS_NS)}")
-        if self.accel_unit not in ACCEL_UNITS:
+        if self.accel_unit is not None and self.accel_unit not in ACCEL_UNITS:
             raise ValueError(f"accel_unit must be one of {list(ACCEL_UNITS)}")
+        if (self.accel_unit == "counts") != (self.counts_per_g is not None):
+            raise ValueError(
+                "raw counts need their scale: accel_unit 'counts' with counts_per_g "
+                "(--accel-unit counts --counts-per-g N), and counts_per_g only with counts"
+            )
+        if self.counts_per_g is not None and not (
+            np.isfinite(self.counts_per_g) and self.counts_per_g > 0
+        ):
+            raise ValueError(f"counts_per_g must be positive, got {self.counts_per_g!r}")
         if self.gyro_unit is not None and self.gyro_unit not in GYRO_UNITS:
             raise ValueError(f"gyro_unit must be one of {list(GYRO_UNITS)}")
         for name in ("accel_columns", "gyro_columns"):
@@ -421,28 +469,106 @@ def _choose_time_unit(
     )
 
 
-def _check_accel_unit(path: str, accel: np.ndarray, unit: str) -> str | None:
+def _g_in_unit(unit: str, counts_per_g: float | None) -> float:
+    """What 1 g (9.80665 m/s²) reads in ``unit``."""
+    return {"m/s^2": STANDARD_GRAVITY_MPS2, "g": 1.0, "mg": 1000.0}.get(unit) or float(
+        counts_per_g or 1.0
+    )
+
+
+def _unit_name(unit: str, counts_per_g: float | None) -> str:
+    return f"counts ({counts_per_g:g} per g)" if unit == "counts" else unit
+
+
+def _check_accel_unit(
+    path: str, accel: np.ndarray, unit: str, counts_per_g: float | None = None
+) -> str | None:
     """Refuse a stated unit the data contradict (|a| at rest ≈ 1 g); a note on what was seen."""
-    g_in_unit = STANDARD_GRAVITY_MPS2 if unit == "m/s^2" else 1.0
+    g_in_unit = _g_in_unit(unit, counts_per_g)
     rest = rest_level(accel)
     if rest is None:
         return "no quiet stretch to check the acceleration unit against (|a| at rest = 1 g)"
     ratio = rest / g_in_unit
     if 0.8 < ratio < 1.25:
         return None
-    guesses = {"g": 1.0, "m/s^2": STANDARD_GRAVITY_MPS2, "mg": 1000.0, "mm/s^2": 9806.65}
+    guesses = {"g": 1.0, "m/s^2": STANDARD_GRAVITY_MPS2, "mg": 1000.0}
+    fixes = {name: f"--accel-unit {name}" for name in guesses}
+    finite = accel[np.all(np.isfinite(accel), axis=1)]
+    if finite.size and np.all(finite == np.round(finite)):  # integers: raw ADC counts?
+        for n in COUNTS_PER_G:
+            guesses[f"raw counts at {n} per g"] = float(n)
+            fixes[f"raw counts at {n} per g"] = f"--accel-unit counts --counts-per-g {n}"
     guess = [name for name, level in guesses.items() if 0.8 < rest / level < 1.25]
-    looks = f": the data look like {guess[0]}" if guess else ""
-    fix = (
-        " (--accel-unit g)"
-        if guess == ["g"]
-        else (" (--accel-unit m/s^2)" if guess == ["m/s^2"] else "")
-    )
+    if guess:
+        options = "; or ".join(fixes[g] for g in guess)
+        looks = f": the data look like {' or '.join(guess)} ({options})"
+    else:
+        looks = (
+            "; raw integer counts? give their scale: --accel-unit counts --counts-per-g N "
+            "(N = counts per g of the sensor's range, e.g. 16384 for a 16-bit sensor at ±2 g)"
+        )
     raise InputError(
         path,
-        f"at rest the samples read |a| = {rest:.4g}, but 1 g is {g_in_unit:g} {unit}"
-        f"{looks}{fix}; the acceleration unit is stated wrongly",
+        f"at rest the samples read |a| = {rest:.4g}, but 1 g is {g_in_unit:g} "
+        f"{_unit_name(unit, counts_per_g)}{looks}; the acceleration unit is stated wrongly",
     )
+
+
+def _header_unit(
+    path: str, header: list[str], where: list[int], table: dict[str, str], what: str
+) -> str | None:
+    """The unit the headers of ``where`` state in brackets (all the same), or None."""
+    stated = [_normalise(header[i])[1] for i in where]
+    if not any(stated):
+        return None
+    units = {table.get(u) for u in stated}
+    if len(units) != 1 or None in units:
+        raise InputError(
+            path,
+            f"the {what} columns state units {stated} in their headers; state the unit with "
+            f"--{what}-unit",
+        )
+    return units.pop()
+
+
+def _accel_unit(path: str, header: list[str], cols, layout: CsvLayout, notes: list[str]) -> str:
+    """The acceleration unit: as given, else as the header states it; a conflict is refused."""
+    stated = (
+        None
+        if layout.by_index
+        else _header_unit(path, header, cols.accel, _HEADER_ACCEL_UNITS, "accel")
+    )
+    if layout.accel_unit is None:
+        if stated is None:
+            raise InputError(
+                path,
+                "the acceleration unit is not stated (neither in the header, e.g. "
+                "'Acceleration x (m/s^2)', nor given): give --accel-unit m/s^2, g, mg, or "
+                "counts with --counts-per-g N",
+            )
+        notes.append(f"acceleration unit {stated} from the header")
+        return stated
+    if stated is not None and stated != layout.accel_unit:
+        raise InputError(
+            path,
+            f"the header states the acceleration in {stated}, but {layout.accel_unit} was "
+            "given; remove one of the two",
+        )
+    return layout.accel_unit
+
+
+def _decimal_commas(rows: list[list[str]], delimiter: str, notes: list[str]) -> list[list[str]]:
+    """Cells like ``9,81`` or ``1,2E-2`` (decimal commas: phyphox's semicolon CSV) as ``9.81``."""
+    if delimiter == ",":
+        return rows
+    sample = [cell for row in rows[1:50] for cell in row]
+    if not any(_DECIMAL_COMMA.match(cell) for cell in sample):
+        return rows
+    notes.append("read decimal commas (9,81 as 9.81)")
+    return [
+        [cell.replace(",", ".") if _DECIMAL_COMMA.match(cell) else cell for cell in row]
+        for row in rows
+    ]
 
 
 def _check_gyro_unit(path: str, gyro: np.ndarray, unit: str) -> None:
@@ -469,6 +595,7 @@ def convert_csv(
     topic: str | None = None,
     session: Mapping[str, str] | None = None,
     compression: Compression = "zstd",
+    replace: bool = False,
 ) -> CsvConversion:
     """Convert a CSV IMU log into a contract MCAP file.
 
@@ -494,6 +621,10 @@ def convert_csv(
         ``wheelcal.session`` values to store, e.g. ``{"radius_m": "0.28"}``.
     compression:
         Chunk compression.
+    replace:
+        Replace an existing ``mcap_path`` (default ``False``: refused with
+        :class:`~wheelcal.io.atomic.OutputExistsError` before the CSV is read,
+        and again at the atomic install).
 
     Returns
     -------
@@ -510,6 +641,8 @@ def convert_csv(
     """
     layout = layout or CsvLayout()
     path = str(csv_path)
+    if not replace:
+        refuse_existing(mcap_path)
     try:
         text = Path(csv_path).read_text(encoding="utf-8-sig")
     except FileNotFoundError:
@@ -526,6 +659,7 @@ def convert_csv(
             f"line {_file_line(text, lines, reader.line_num)}: cannot be read as CSV ({exc}); "
             "no field of a sensor log is that long or quoted so (a damaged or foreign file?)",
         ) from None
+    rows = _decimal_commas(rows, delimiter, notes)
     header = rows[0]
     if not layout.by_index:
         while header and not header[-1].strip():
@@ -536,7 +670,12 @@ def convert_csv(
     if not body:
         raise InputError(path, "the CSV file has a header but no data rows")
     cols = _columns(path, header, layout)
-    if cols.gyro is not None and layout.gyro_unit is None:
+    gyro_unit = layout.gyro_unit
+    if cols.gyro is not None and gyro_unit is None and not layout.by_index:
+        gyro_unit = _header_unit(path, header, cols.gyro, _HEADER_GYRO_UNITS, "gyro")
+        if gyro_unit is not None:
+            notes.append(f"gyro unit {gyro_unit} from the header")
+    if cols.gyro is not None and gyro_unit is None:
         names = [header[i].strip() for i in cols.gyro] if not layout.by_index else cols.gyro
         raise InputError(
             path,
@@ -586,13 +725,17 @@ def convert_csv(
         dtype=np.int64,
     )
     accel = np.array(accel_rows, dtype=float)
-    accel_unit = layout.accel_unit
+    accel_unit = _accel_unit(path, header, cols, layout, notes)
     if layout.check_units:
-        seen = _check_accel_unit(path, accel, accel_unit)
+        seen = _check_accel_unit(path, accel, accel_unit, layout.counts_per_g)
         if seen:
             notes.append(seen)
+    if accel_unit in ("mg", "counts"):  # the contract carries g or m/s²
+        accel = accel / _g_in_unit(accel_unit, layout.counts_per_g)
+        notes.append(f"converted {_unit_name(accel_unit, layout.counts_per_g)} to g")
+        accel_unit = "g"
     gyro = np.array(gyro_rows, dtype=float) if cols.gyro else None
-    gyro_unit = layout.gyro_unit or "rad/s"
+    gyro_unit = gyro_unit or "rad/s"
     if gyro is not None and layout.check_units:
         _check_gyro_unit(path, gyro, gyro_unit)
     temperature = np.array(temps, dtype=float) if cols.temperature is not None else None
@@ -619,6 +762,7 @@ def convert_csv(
         gyro=gyro,
         gyro_unit=gyro_unit,
         temperature_c=temperature,
+        replace=replace,
     )
     names = {
         "time": cols.time,

@@ -1,17 +1,31 @@
-"""Calibration exports: ROS/Kalibr-style YAML and a C header for firmware.
+r"""Calibration exports: Kalibr's ``imu.yaml``, ``imu_calib``'s file, and a C header.
 
-Both carry the contract's correction, a = M (v − b) in the sensor frame,
-with b in m/s² and M dimensionless (row-major), plus the statistical and
-systematic σ of offsets and gains as comments/fields.  A session's calibration
+All carry the contract's correction, a = M (v − b) in the sensor frame, with
+b in m/s² and M dimensionless (row-major).  A session's calibration
 (``wheelcal.calibration/1``) and a sensor's pooled one
 (``wheelcal.sensor_calibration/1``) export alike.
 
-Numbers are written at their shortest faithful precision: the shortest decimal
-that reads back to the same double in YAML (Python's ``repr``), and to the same
-``float`` in C (the C constants are single precision).
+* ``yaml``: Kalibr's ``imu.yaml`` keys at the top level —
+  ``accelerometer_noise_density`` and ``accelerometer_random_walk`` from the
+  rests' Allan deviation (``fit.allan``; ``null`` when the recording has no
+  rest), ``update_rate`` and ``rostopic`` — and wheelcal's ``imu0`` block
+  (``accelerometer.bias_mps2``, ``matrix``, statistical and systematic σ, the
+  per-axis Allan read-outs);
+* ``imu_calib``: the ROS ``imu_calib`` package's ``SM`` (9, row-major) and
+  ``bias``, for a = SM v − bias;
+* ``c``: a C header with ``<prefix>_accel_correct()``.
+
+YAML is written by PyYAML (strings quoted and escaped as YAML requires, so a
+sensor id like ``lab "A"`` or ``rig\new`` reads back unchanged); comment lines
+are escaped so no name can end them.  Numbers are written at their shortest
+faithful precision: the shortest decimal that reads back to the same double in
+YAML (Python's ``repr``), and to the same ``float`` in C (the C constants are
+single precision).
 """
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 
@@ -22,26 +36,12 @@ from wheelcal.io.calibration_json import (
 )
 
 
-def _shortest(value: float) -> str:
-    """The shortest decimal that reads back as the same double (``1`` for 1.0, as before)."""
-    text = repr(float(value))
-    return text[:-2] if text.endswith(".0") else text
-
-
-def _floats(values) -> str:
-    return ", ".join(_shortest(v) for v in np.asarray(values, dtype=float).reshape(-1))
-
-
 def _c_float(value: float) -> str:
     """A C float literal, shortest that gives the same float (``0.0f``, never ``0f``)."""
     text = np.format_float_positional(np.float32(value), unique=True, trim="0")
     if len(text) > 12:  # tiny or huge: scientific is shorter
         text = np.format_float_scientific(np.float32(value), unique=True, trim="0")
     return text + "f"
-
-
-def _stds(values) -> str:
-    return ", ".join("null" if v is None else _shortest(v) for v in values)
 
 
 def origin(calibration: dict) -> str:
@@ -52,10 +52,6 @@ def origin(calibration: dict) -> str:
         method = str(pooling.get("method", "pooled")).replace("_", " ")
         return f"sensor {calibration.get('sensor_id', '?')}, pooled from {n} sessions ({method})"
     return str(calibration.get("source", {}).get("file", "?"))
-
-
-def _values(values) -> str:
-    return ", ".join("null" if v is None else _shortest(v) for v in values)
 
 
 def _partial_note(calibration: dict) -> list[str]:
@@ -69,34 +65,158 @@ def _partial_note(calibration: dict) -> list[str]:
     ]
 
 
-def to_yaml(calibration: dict) -> str:
-    """ROS/Kalibr-style YAML of a loaded calibration dictionary."""
+def _comment(text: str) -> str:
+    """``text`` made safe for one comment line (YAML ``#`` or C ``/* */``): escapes, no breaks."""
+    line = json.dumps(str(text), ensure_ascii=True)[1:-1]  # \n, \u2028, quotes … escaped
+    return line.replace("*/", "*\\/")
+
+
+def _yaml_number(value) -> float | None:
+    return None if value is None or not np.isfinite(value) else float(value)
+
+
+def _kalibr_noise(calibration: dict) -> tuple[dict, list[str]]:
+    """Kalibr's accelerometer keys, and comment lines saying where each comes from."""
+    fit = calibration.get("fit", {})
+    allan = fit.get("allan")
+    rate = calibration.get("source", {}).get("rate_hz") or (allan or {}).get("rate_hz")
+    keys = {
+        "accelerometer_noise_density": None,
+        "accelerometer_random_walk": None,
+        "update_rate": _yaml_number(rate),
+    }
+    if not allan:
+        notes = [
+            "accelerometer_noise_density, accelerometer_random_walk: null — the recording has "
+            "no rest (the sensor still before the push or after the stop) to read an Allan "
+            "deviation from; record ≥ 10 s of rest, or fill them in from your sensor's own",
+        ]
+        return keys, notes
+    density = max(allan["white_noise_density_mps2_rthz"])
+    walk = max(allan["random_walk_mps3_rthz"])
+    keys["accelerometer_noise_density"] = _yaml_number(density)
+    keys["accelerometer_random_walk"] = _yaml_number(walk)
+    read = (
+        "read at tau = 1 s"
+        if allan["white_noise_read_at_1s"]
+        else ("extrapolated along the -1/2 slope: the rests do not reach tau = 1 s")
+    )
+    seen = all(allan["random_walk_seen"])
+    notes = [
+        f"from the overlapping Allan deviation of {allan['rests_s']:.3g} s of rests at "
+        f"{allan['rate_hz']:.6g} Hz (largest axis; per axis under imu0.accelerometer.allan):",
+        f"  accelerometer_noise_density [m/s^2/sqrt(Hz)]: white noise, {read}",
+        "  accelerometer_random_walk [m/s^3/sqrt(Hz)]: "
+        + (
+            "from the +1/2 slope at the longest tau"
+            if seen
+            else "an UPPER BOUND, min over tau of sigma(tau)*sqrt(3/tau): the rests are too "
+            "short to show the random walk"
+        ),
+    ]
+    return keys, notes
+
+
+def yaml_document(calibration: dict) -> dict:
+    """The exported YAML's content: Kalibr's ``imu.yaml`` keys and wheelcal's ``imu0`` block."""
     corr = load_correction_from(calibration)
     src = calibration.get("source", {})
     sensor = calibration.get("sensor", {})
     systematic = calibration.get("systematic", {})
-    noise = calibration.get("fit", {}).get("noise_std_mps2", [None] * 3)
-    lines = [
-        f"# wheelcal calibration ({calibration['format']}) of {origin(calibration)}",
-        "# corrected specific force, sensor frame: a = matrix @ (v - bias)  [m/s^2]",
-        *[f"# {line}" for line in _partial_note(calibration)],
-        "imu0:",
-        f"  rostopic: {src.get('topic') or '/imu/data_raw'}",
-        f'  sensor_id: "{src.get("sensor_id", "")}"',
-        "  accelerometer:",
-        f"    bias_mps2: [{_floats(corr.bias_mps2)}]",
-        "    matrix:",
-        *[f"      - [{_floats(row)}]" for row in corr.matrix],
-        f"    offset_mps2: [{_values(sensor.get('offset_mps2', corr.bias_mps2))}]",
-        f"    offset_std_mps2: [{_stds(sensor.get('offset_std_mps2', [None] * 3))}]",
-        f"    gain: [{_values(sensor.get('gain', 1 / np.diag(corr.matrix)))}]",
-        f"    gain_std: [{_stds(sensor.get('gain_std', [None] * 3))}]",
-        f"    systematic_offset_std_mps2: [{_stds(systematic.get('offset_std_mps2', [None] * 3))}]",
-        f"    systematic_gain_std: [{_stds(systematic.get('gain_std', [None] * 3))}]",
-        f"    noise_std_mps2: [{_stds(noise)}]",
-        '  calibration_equation: "a = matrix @ (v - bias)"',
+    fit = calibration.get("fit", {})
+    noise = fit.get("noise_std_mps2", [None] * 3)
+    kalibr, _ = _kalibr_noise(calibration)
+    accelerometer = {
+        "bias_mps2": [float(v) for v in corr.bias_mps2],
+        "matrix": [[float(v) for v in row] for row in corr.matrix],
+        "offset_mps2": _list(sensor.get("offset_mps2", corr.bias_mps2)),
+        "offset_std_mps2": _list(sensor.get("offset_std_mps2", [None] * 3)),
+        "gain": _list(sensor.get("gain", 1 / np.diag(corr.matrix))),
+        "gain_std": _list(sensor.get("gain_std", [None] * 3)),
+        "systematic_offset_std_mps2": _list(systematic.get("offset_std_mps2", [None] * 3)),
+        "systematic_gain_std": _list(systematic.get("gain_std", [None] * 3)),
+        "noise_std_mps2": _list(noise),
+    }
+    allan = fit.get("allan")
+    if allan:
+        accelerometer["allan"] = {
+            key: allan[key]
+            for key in (
+                "rests_s",
+                "white_noise_density_mps2_rthz",
+                "white_noise_read_at_1s",
+                "bias_instability_mps2",
+                "bias_instability_is_floor",
+                "random_walk_mps3_rthz",
+                "random_walk_seen",
+            )
+        }
+    topic = src.get("topic") or "/imu/data_raw"
+    return {
+        **{k: v for k, v in kalibr.items() if k != "update_rate"},
+        "rostopic": topic,
+        "update_rate": kalibr["update_rate"],
+        "imu0": {
+            "rostopic": topic,
+            "sensor_id": str(src.get("sensor_id") or calibration.get("sensor_id") or ""),
+            "accelerometer": accelerometer,
+            "calibration_equation": "a = matrix @ (v - bias)",
+        },
+    }
+
+
+def _list(values) -> list:
+    return [_yaml_number(v) for v in values]
+
+
+def to_yaml(calibration: dict) -> str:
+    """Kalibr ``imu.yaml`` keys plus wheelcal's ``imu0`` block, written by PyYAML.
+
+    Every string (topic, sensor id, file names in the comments) goes through
+    the YAML library or is escaped, so hostile names read back unchanged.
+    """
+    import yaml
+
+    _, notes = _kalibr_noise(calibration)
+    header = [
+        f"wheelcal calibration ({calibration['format']}) of {origin(calibration)}",
+        "corrected specific force, sensor frame: a = matrix @ (v - bias)  [m/s^2]",
+        *_partial_note(calibration),
+        "Kalibr imu.yaml keys at the top level (gyroscope_* are not measured by wheelcal);",
+        *notes,
     ]
-    return "\n".join(lines) + "\n"
+    body = yaml.safe_dump(
+        yaml_document(calibration),
+        sort_keys=False,
+        default_flow_style=None,  # [x, y, z] rows, nested maps in block style
+        allow_unicode=False,
+        width=1_000_000,
+    )
+    return "".join(f"# {_comment(line)}\n" for line in header) + body
+
+
+def to_imu_calib(calibration: dict) -> str:
+    """The ``imu_calib`` ROS package's calibration file (``SM``, ``bias``), by PyYAML.
+
+    ``imu_calib`` corrects ``a = SM · v − bias`` (``apply_calib``); the
+    contract's ``a = M (v − b)`` is the same with ``SM = M`` (row-major, 9
+    values) and ``bias = M b``.
+    """
+    import yaml
+
+    corr = load_correction_from(calibration)
+    matrix = np.asarray(corr.matrix, dtype=float)
+    doc = {
+        "SM": [float(v) for v in matrix.reshape(-1)],
+        "bias": [float(v) for v in matrix @ np.asarray(corr.bias_mps2, dtype=float)],
+    }
+    header = [
+        f"wheelcal calibration ({calibration['format']}) of {origin(calibration)}",
+        "imu_calib layout: a = SM * v - bias  (SM row-major; bias = SM * wheelcal's bias_mps2)",
+        *_partial_note(calibration),
+    ]
+    body = yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=1_000_000)
+    return "".join(f"# {_comment(line)}\n" for line in header) + body
 
 
 def to_c_header(calibration: dict, prefix: str = "WHEELCAL") -> str:
@@ -108,15 +228,17 @@ def to_c_header(calibration: dict, prefix: str = "WHEELCAL") -> str:
     guard = f"{prefix}_ACCEL_CALIBRATION_H"
     rows = ",\n".join("    {" + ", ".join(map(_c_float, row)) + "}" for row in corr.matrix)
     bias = ", ".join(map(_c_float, corr.bias_mps2))
-    where = "  ".join(
-        [
-            origin(calibration),
-            f"topic: {src.get('topic', '?')}",
-            f"sensor: {src.get('sensor_id', '')}",
-        ]
+    where = _comment(
+        "  ".join(
+            [
+                origin(calibration),
+                f"topic: {src.get('topic', '?')}",
+                f"sensor: {src.get('sensor_id', '')}",
+            ]
+        )
     )
     fn = prefix.lower()
-    partial = "".join(f"\n * {line}" for line in _partial_note(calibration))
+    partial = "".join(f"\n * {_comment(line)}" for line in _partial_note(calibration))
     return f"""/* Accelerometer calibration generated by wheelcal ({calibration["format"]}).
  * Source: {where}
  * a = M (v - b): v raw sample [m/s^2], a corrected specific force [m/s^2], sensor frame.{partial}

@@ -153,8 +153,13 @@ def decode_imu_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, ...
     return _decode(blocks, gyro=False)[:3]
 
 
-def decode_imu_with_gyro(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, ...]:
+def decode_imu_with_gyro(
+    blocks: tuple[MessageBlock, ...], decode_block=None
+) -> tuple[np.ndarray, ...]:
     """As :func:`decode_imu_blocks`, plus ``angular_velocity``.
+
+    ``decode_block`` decodes one block (default: CDR; ROS 1:
+    :func:`wheelcal.io.imu_ros1.decode_ros1_block`).
 
     Returns
     -------
@@ -166,7 +171,7 @@ def decode_imu_with_gyro(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, 
         ``None`` when every message does.  (A channel of exact zeros is the
         caller's to judge: it is absent too, by convention of many drivers.)
     """
-    return _decode(blocks, gyro=True)
+    return _decode(blocks, gyro=True, decode_block=decode_block)
 
 
 @dataclass(frozen=True)
@@ -244,15 +249,10 @@ def _decode_block(block: MessageBlock, gyro: bool, first_message: int = 0) -> tu
                 f"message {first_message + at}'s size does not match the "
                 f"sensor_msgs/msg/Imu layout ({actual} bytes, expected {expected})"
             )
-        accel[sel] = _gather(arr, body + q + _ACCEL_AT, endian + "f8", 3)
+        tail = body + q
+        accel[sel] = _gather(arr, tail + _ACCEL_AT, endian + "f8", 3)
         if gyro:
-            # Covariance element 0 == -1: "no estimate" (the message definition).
-            present = _gather(arr, body + q + _GYRO_COV_AT, endian + "f8") != -1.0
-            if np.any(present):
-                if rate is None:
-                    rate = np.full((off.size, 3), np.nan)
-                rows = sel[present]
-                rate[rows] = _gather(arr, body[present] + q[present] + _GYRO_AT, endian + "f8", 3)
+            rate = imu_gyro_rows(arr, tail, endian, sel, off.size, rate)
     late = nsec >= 1_000_000_000
     if np.any(late):
         raise ImuLayoutError(
@@ -261,14 +261,38 @@ def _decode_block(block: MessageBlock, gyro: bool, first_message: int = 0) -> tu
     return sec * 1_000_000_000 + nsec, block.log_time_ns, accel, rate
 
 
-def _decode(blocks: tuple[MessageBlock, ...], gyro: bool) -> tuple:
+def imu_gyro_rows(
+    arr: np.ndarray,
+    tail: np.ndarray,
+    endian: str,
+    sel: np.ndarray,
+    size: int,
+    rate: np.ndarray | None,
+) -> np.ndarray | None:
+    """``angular_velocity`` of messages ``sel`` into ``rate`` (NaN rows where absent).
+
+    ``tail`` is each message's byte position of ``orientation`` (the 296
+    fixed bytes after the header, the same in CDR and ROS 1); ``rate`` is
+    created (size × 3, NaN) at the first message that has a gyro reading.
+    Covariance element 0 == −1 means "no estimate" (the message definition).
+    """
+    present = _gather(arr, tail + _GYRO_COV_AT, endian + "f8") != -1.0
+    if np.any(present):
+        if rate is None:
+            rate = np.full((size, 3), np.nan)
+        rate[sel[present]] = _gather(arr, tail[present] + _GYRO_AT, endian + "f8", 3)
+    return rate
+
+
+def _decode(blocks: tuple[MessageBlock, ...], gyro: bool, decode_block=None) -> tuple:
     stamps, logs, accels, gyros = [], [], [], []
     any_gyro = False
     first = 0
+    decode_block = decode_block or _decode_block
     for block in blocks:
         if block.count == 0:
             continue
-        stamp, log, accel, rate = _decode_block(block, gyro, first)
+        stamp, log, accel, rate = decode_block(block, gyro, first)
         first += block.count
         stamps.append(stamp)
         logs.append(log)
@@ -291,11 +315,14 @@ class ImuSink:
     raised by :meth:`result`.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, decode_block=None) -> None:
         self.count = 0
         self.unstamped = 0
         self._columns = GrowingColumns()
         self._error: ImuLayoutError | None = None
+        #: ``(block, gyro, first_message) -> (stamp, log, accel, rate)``: CDR by default,
+        #: :func:`wheelcal.io.imu_ros1.decode_ros1_block` for ROS 1 messages.
+        self._decode_block = decode_block or _decode_block
 
     def add(self, block: MessageBlock) -> None:
         """Decode one block's messages into the columns."""
@@ -304,7 +331,7 @@ class ImuSink:
         if self._error is not None or block.count == 0:
             return
         try:
-            stamp, log, accel, rate = _decode_block(block, True, first)
+            stamp, log, accel, rate = self._decode_block(block, True, first)
         except ImuLayoutError as exc:
             self._error = exc
             return
@@ -329,14 +356,16 @@ def encode_imu_messages(
     accel_mps2: np.ndarray,
     frame_id: str,
     gyro_radps: np.ndarray | None = None,
+    accel_covariance_mps2sq: np.ndarray | None = None,
 ) -> list[bytes]:
     """CDR little-endian ``Imu`` payloads with ``linear_acceleration`` (and the gyro) filled.
 
     Orientation is marked "not provided" by setting element 0 of its
     covariance to −1 (the convention the message definition documents); so is
     ``angular_velocity`` when ``gyro_radps`` is ``None``, or on the rows of
-    ``gyro_radps`` that are NaN (left out).  Other covariances are all zero
-    ("unknown").
+    ``gyro_radps`` that are NaN (left out).  ``linear_acceleration_covariance``
+    is ``accel_covariance_mps2sq`` (3 × 3, (m/s²)², row-major in the message)
+    when given; other covariances are all zero ("unknown").
 
     Parameters
     ----------
@@ -348,6 +377,8 @@ def encode_imu_messages(
         ``header.frame_id`` for every message.
     gyro_radps:
         Angular velocity (N, 3) in rad/s, or ``None``.
+    accel_covariance_mps2sq:
+        The samples' noise covariance (3, 3), or ``None`` (zeros: unknown).
 
     Returns
     -------
@@ -392,6 +423,11 @@ def encode_imu_messages(
         rec["gyro"] = np.where(absent[:, None], 0.0, rate)
         rec["gyro_cov"][absent, 0] = -1.0
     rec["accel"] = accel
+    if accel_covariance_mps2sq is not None:
+        cov = np.asarray(accel_covariance_mps2sq, dtype=float).reshape(3, 3)
+        if not np.all(np.isfinite(cov)):
+            raise ValueError("the acceleration covariance must be finite")
+        rec["accel_cov"] = cov.reshape(-1)
     raw = rec.tobytes()
     size = dtype.itemsize
     return [raw[i : i + size] for i in range(0, len(raw), size)]

@@ -63,7 +63,14 @@ from wheelcal.io.imu_cdr import (
     ImuSink,
     decode_imu_with_gyro,
 )
-from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord, scan_mcap
+from wheelcal.io.imu_ros1 import (
+    ROS1_IMU_SCHEMA_NAME,
+    ROS1_MESSAGE_ENCODING,
+    ROS1_SCHEMA_ENCODING,
+    decode_ros1_block,
+)
+from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord
+from wheelcal.io.recording_scan import scan_recording
 from wheelcal.io.sample_checks import InputPolicy, clean_samples
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
 from wheelcal.io.temperature_align import temperature_at
@@ -74,7 +81,8 @@ from wheelcal.recording import Recording
 _IMU_NAMES = (IMU_SCHEMA_NAME, "sensor_msgs/Imu")
 _TEMPERATURE_NAMES = (TEMPERATURE_SCHEMA_NAME, "sensor_msgs/Temperature")
 _EXPECTED = (
-    f"{IMU_SCHEMA_NAME} ({ROS2_SCHEMA_ENCODING}/{CDR_MESSAGE_ENCODING}) or "
+    f"{IMU_SCHEMA_NAME} ({ROS2_SCHEMA_ENCODING}/{CDR_MESSAGE_ENCODING}), "
+    f"{ROS1_IMU_SCHEMA_NAME} ({ROS1_SCHEMA_ENCODING}/{ROS1_MESSAGE_ENCODING}) or "
     f"{ACCEL_BATCH_SCHEMA_NAME} ({JSON_SCHEMA_ENCODING}/{JSON_MESSAGE_ENCODING})"
 )
 
@@ -85,7 +93,7 @@ class AccelTopic:
 
     topic: str
     channel_id: int
-    encoding: str  # "ros2" or "json"
+    encoding: str  # "ros2", "ros1" or "json"
     messages: int
     unit: str  # as the file states it
 
@@ -104,6 +112,12 @@ def _kind_of(channel: ChannelRecord, schema: SchemaRecord | None) -> str | None:
     ):
         return "ros2"
     if (
+        schema.encoding == ROS1_SCHEMA_ENCODING
+        and schema.name in _IMU_NAMES
+        and channel.message_encoding == ROS1_MESSAGE_ENCODING
+    ):
+        return "ros1"  # a ROS 1 bag, or an MCAP written by `mcap convert` from one
+    if (
         schema.encoding == JSON_SCHEMA_ENCODING
         and schema.name == ACCEL_BATCH_SCHEMA_NAME
         and channel.message_encoding == JSON_MESSAGE_ENCODING
@@ -120,6 +134,9 @@ def _kind_of(channel: ChannelRecord, schema: SchemaRecord | None) -> str | None:
 
 class _CountSink:
     """Counts a channel's messages that the reader never decodes (their chunks can go)."""
+
+    #: A bag reader may count these channels' messages without fetching them.
+    decodes = False
 
     def __init__(self) -> None:
         self.count = 0
@@ -157,6 +174,8 @@ def _sink_for(channel: ChannelRecord, schema: SchemaRecord | None):
     kind = _kind_of(channel, schema)
     if kind == "ros2":
         return ImuSink()
+    if kind == "ros1":
+        return ImuSink(decode_ros1_block)
     if kind == "json":
         return AccelBatchSink()
     if kind == "temperature":
@@ -169,7 +188,7 @@ def accel_topics(scan: McapScan) -> list[AccelTopic]:
     out = []
     for channel in scan.channels.values():
         kind = _kind(scan, channel)
-        if kind not in ("ros2", "json"):
+        if kind not in ("ros2", "ros1", "json"):
             continue
         unit = channel.metadata.get(UNIT_KEY, "m/s^2") if kind == "json" else "m/s^2"
         out.append(
@@ -229,8 +248,8 @@ def choose_topic(scan: McapScan, topic: str | None) -> AccelTopic:
 
 
 def list_accel_topics(path: str | os.PathLike) -> list[AccelTopic]:
-    """The accelerometer topics of an MCAP file (for a CLI listing)."""
-    return accel_topics(scan_mcap(path))
+    """The accelerometer topics of a recording (for a CLI listing)."""
+    return accel_topics(scan_recording(path))
 
 
 @dataclass(frozen=True, eq=False)
@@ -251,12 +270,13 @@ def _decode(
     sink = scan.sinks.get(chosen.channel_id)
     notes: list[str] = []
     try:
-        if chosen.encoding == "ros2":
+        if chosen.encoding in ("ros2", "ros1"):
             if sink is not None and not blocks:
                 stamp, accel, rate = sink.result()
                 unstamped = sink.unstamped
             else:
-                stamp, log_time, accel, rate = decode_imu_with_gyro(blocks)
+                decoder = decode_ros1_block if chosen.encoding == "ros1" else None
+                stamp, log_time, accel, rate = decode_imu_with_gyro(blocks, decoder)
                 zero = stamp == 0
                 unstamped = int(zero.sum())
                 if unstamped:
@@ -413,7 +433,7 @@ def read_recording(
     policy = policy or InputPolicy()
     if gyro_unit is not None and gyro_unit not in GYRO_UNITS:
         raise InputError(path, f"gyro unit {gyro_unit!r} is not one of {list(GYRO_UNITS)}")
-    scan = scan_mcap(path, sink_for=_sink_for)
+    scan = scan_recording(path, sink_for=_sink_for)
     chosen = choose_topic(scan, topic)
     where = f"topic {chosen.topic}"
     records = [dict(values) for name, values in scan.metadata if name == SESSION_METADATA_NAME]
@@ -494,7 +514,7 @@ def read_recording(
 def _unit_remedy(chosen: AccelTopic, unit: str) -> str:
     """How to state the right accelerometer unit for this file's format."""
     other = "m/s^2" if unit == "g" else "g"
-    if chosen.encoding == "ros2":
+    if chosen.encoding in ("ros2", "ros1"):
         return (
             f"read it with --accel-unit {other} (Python: accel_unit={other!r}); "
             "sensor_msgs/msg/Imu carries m/s² by REP 103, so the driver that wrote "

@@ -23,6 +23,7 @@ intact.
 from __future__ import annotations
 
 import heapq
+import json
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -121,6 +122,7 @@ def accel_channel(
     gyro: np.ndarray | None = None,
     gyro_unit: str = "rad/s",
     temperature_c: np.ndarray | None = None,
+    accel_covariance_mps2sq: np.ndarray | None = None,
 ) -> ChannelData:
     """An accelerometer channel (with an optional gyro) in one of the contract's encodings.
 
@@ -149,6 +151,10 @@ def accel_channel(
     temperature_c:
         Per-sample temperature (N,) in °C — JSON only (``"temperature_c"``);
         ROS 2 carries it on its own topic (:func:`temperature_channel`).
+    accel_covariance_mps2sq:
+        The samples' noise covariance (3, 3) in (m/s²)², written as every ROS 2
+        message's ``linear_acceleration_covariance`` (``None``: zeros, unknown);
+        JSON stores it as the channel metadata ``accel_covariance_mps2sq``.
     """
     if unit not in UNITS:
         raise ValueError(f"unit must be one of {UNITS}, got {unit!r}")
@@ -167,7 +173,7 @@ def accel_channel(
             raise ValueError(
                 "ROS 2 carries the temperature on its own topic: temperature_channel()"
             )
-        payloads = encode_imu_messages(time_ns, accel, frame_id, gyro)
+        payloads = encode_imu_messages(time_ns, accel, frame_id, gyro, accel_covariance_mps2sq)
         return ChannelData(
             topic=topic or DEFAULT_TOPICS["ros2"],
             schema_name=IMU_SCHEMA_NAME,
@@ -180,6 +186,9 @@ def accel_channel(
         metadata = {UNIT_KEY: unit}
         if gyro is not None:
             metadata[GYRO_UNIT_KEY] = gyro_unit
+        if accel_covariance_mps2sq is not None:
+            cov = np.asarray(accel_covariance_mps2sq, dtype=float).reshape(3, 3)
+            metadata["accel_covariance_mps2sq"] = json.dumps(cov.tolist())
         return ChannelData(
             topic=topic or DEFAULT_TOPICS["json"],
             schema_name=ACCEL_BATCH_SCHEMA_NAME,
@@ -251,13 +260,16 @@ def write_channels(
     profile: str = "",
     compression: Compression = "zstd",
     chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+    replace: bool = True,
 ) -> None:
     """Write channels and metadata records to a new MCAP file, atomically.
 
     Channels are merged by log time; each channel keeps its own message order.
+    ``replace=False`` refuses an existing ``path``
+    (:class:`~wheelcal.io.atomic.OutputExistsError`).
     """
     _compression(compression)  # fail before creating anything
-    with atomic_output(path) as stream:
+    with atomic_output(path, replace=replace) as stream:
         writer = _new_writer(stream, compression, chunk_bytes)
         writer.start(profile=profile, library=_library())
         ids = [_register(writer, channel) for channel in channels]
@@ -320,6 +332,7 @@ def write_accel_mcap(
     gyro_unit: str = "rad/s",
     temperature_c: np.ndarray | None = None,
     temperature_stride: int = 1,
+    replace: bool = True,
 ) -> None:
     """Write raw stamps and samples as a contract MCAP (no validation of the data).
 
@@ -344,6 +357,9 @@ def write_accel_mcap(
         Optional per-sample temperature (N,), °C: the batches' ``temperature_c``
         (JSON), or a ``sensor_msgs/msg/Temperature`` topic (ROS 2) with every
         ``temperature_stride``-th reading.
+    replace:
+        ``False`` refuses an existing ``path``
+        (:class:`~wheelcal.io.atomic.OutputExistsError`).
     """
     ros2 = encoding == "ros2"
     channels = [
@@ -374,6 +390,7 @@ def write_accel_mcap(
         {SESSION_METADATA_NAME: values} if values else None,
         profile="ros2" if encoding == "ros2" else "",
         compression=compression,
+        replace=replace,
     )
 
 
@@ -440,6 +457,7 @@ def copy_with_channels(
     *,
     compression: Compression = "zstd",
     chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+    replace: bool = True,
 ) -> None:
     """Copy an MCAP file, keeping every record, and add channels and metadata.
 
@@ -462,6 +480,9 @@ def copy_with_channels(
         Metadata records to add, ``{name: {key: value}}``.
     compression, chunk_bytes:
         Chunk compression and size of the copy.
+    replace:
+        ``False`` refuses an existing ``destination``
+        (:class:`~wheelcal.io.atomic.OutputExistsError`).
     """
     from mcap.exceptions import McapError
     from mcap.records import Attachment, Channel, Message, Metadata, Schema
@@ -476,7 +497,7 @@ def copy_with_channels(
             raise ValueError(f"{source}: topic {channel.topic!r} already exists; choose another")
         existing.add(channel.topic)
     _compression(compression)
-    with atomic_output(destination) as stream:
+    with atomic_output(destination, replace=replace) as stream:
         writer = _new_writer(stream, compression, chunk_bytes)
         writer.start(profile=scan.profile, library=scan.library)
         schema_ids: dict[int, int] = {0: 0}

@@ -17,7 +17,8 @@ for the sensor, so ``export`` and ``apply`` read it the same way::
                   "between_session_std", "scale", "sessions_used"}}},
       "sessions": [{"file", "mounting_id", "calibration", "skipped": [{"parameter", "reason"}]}],
       "parameters": {name: {"value", "std", "systematic_std", "std_unscaled"}},
-      "fit": {"noise_std_mps2": [3], "covariance", "covariance_names", "warnings"}
+      "fit": {"noise_std_mps2": [3], "covariance", "covariance_names", "warnings",
+              "allan": {...}}   # the sessions' rests pooled (wheelcal.io.allan_json)
     }
 
 Values a session cannot determine are JSON ``null`` in its file; they are
@@ -43,6 +44,7 @@ from wheelcal.diagnose.pooling import (
     PooledSensor,
     SessionEstimate,
 )
+from wheelcal.io.allan_json import pooled_allan
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.calibration import read_only_document
 from wheelcal.io.calibration_json import SENSOR_CALIBRATION_FORMAT as FORMAT
@@ -200,6 +202,7 @@ def sensor_calibration_dict(
             "sensor_id": sensor_id,
             "topic": topics.pop() if len(topics) == 1 else None,
             "mounting_ids": sorted({str(s.get("mounting_id") or "") for s in sources}),
+            "rate_hz": _common_rate(sources),
             "files": [s.get("file") for s in sources],
         },
         "sensor": sensor,
@@ -253,8 +256,23 @@ def sensor_calibration_dict(
             "covariance": [_list(row) for row in pooled.covariance],
             "covariance_names": list(pooled.names),
             "warnings": list(pooled.warnings),
+            **_pooled_allan(calibrations),
         },
     }
+
+
+def _pooled_allan(calibrations: Sequence[Mapping]) -> dict:
+    """``fit.allan`` pooled over the sessions' rests (additive; absent without rests)."""
+    block = pooled_allan([c.get("fit", {}).get("allan") for c in calibrations])
+    return {} if block is None else {"allan": block}
+
+
+def _common_rate(sources: Sequence[Mapping]) -> float | None:
+    """The sessions' sample rate when they share one (within 0.1 %), else None."""
+    rates = [r for r in (s.get("rate_hz") for s in sources) if isinstance(r, int | float)]
+    if not rates or max(rates) > 1.001 * min(rates):
+        return None
+    return float(np.median(rates))
 
 
 def _identity_axes(pooled: PooledSensor) -> dict:

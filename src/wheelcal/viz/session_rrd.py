@@ -775,6 +775,8 @@ def session_rrd(
         stream.send_chunks(signal_chunks(recording.time_s, recording.accel_mps2, fit_time_s, model))
         log_window(stream, start_s, end_s, first_s, last_s)
         chunks = spin_chunks(result, recording, shift_s, gyro_calibration)
+        allan = allan_chunks(result)
+        chunks += allan
         markdown = report_markdown(result, window, start_s, end_s, recording.epoch_unix_ns)
         report = rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN)
         chunks.append(static_chunk("report", row_columns(report)))
@@ -787,9 +789,60 @@ def session_rrd(
             wheel_angle_rad(result),
             label="data − model",
         )
+        if allan:
+            rrd.add_view("spatial_2d", "/allan", "rests: Allan deviation (log10 τ, log10 σ)")
         yield rrd
         shown_s = (first_s - TIME_MARGIN_S, last_s + TIME_MARGIN_S)
         send_session_blueprint(stream, rrd.layout(), (start_s, end_s), shown_s)
+
+
+def allan_chunks(result: CalibrationResult) -> list[Chunk]:
+    """``/allan``: the rests' overlapping Allan deviation, log10 σ against log10 τ, per axis.
+
+    A log-log plot drawn as 2-D line strips (x = log10 τ/s, y = log10 σ/(m/s²)),
+    the white-noise density marked at τ = 1 s and the bias instability's
+    minimum, and the read-outs as text (``/allan/readouts``).  Nothing when the
+    recording has no rests.
+    """
+    from wheelcal.io.allan_json import rests_allan
+
+    noise = None if result.assessment is None else result.assessment.noise
+    block = None if noise is None else rests_allan(noise.rests)
+    if block is None:
+        return []
+    tau = np.log10(np.asarray(block["tau_s"]))
+    adev = np.log10(np.asarray(block["adev_mps2"]))
+    density = np.log10(np.asarray(block["white_noise_density_mps2_rthz"]))
+    bias = np.asarray(block["bias_instability_mps2"]) * 0.664  # back to σ_min on the curve
+    bias_tau = np.log10(np.asarray(block["bias_instability_tau_s"]))
+    chunks = []
+    for k, axis in enumerate(AXES):
+        strip = rr.LineStrips2D([np.column_stack([tau, adev[:, k]])], colors=[AXIS_COLORS[k]])
+        marks = rr.Points2D(
+            [[0.0, density[k]], [bias_tau[k], np.log10(bias[k])]],
+            colors=[AXIS_COLORS[k]] * 2,
+            radii=[0.02, 0.02],
+            labels=[f"N_{axis}", f"B_{axis}"],
+        )
+        chunks.append(static_chunk(f"allan/{axis}", row_columns(strip)))
+        chunks.append(static_chunk(f"allan/{axis}/readouts", row_columns(marks)))
+    lines = [
+        f"Allan deviation of {block['rests_s']:.3g} s of rests (x: log10 τ/s, y: log10 σ/(m/s²))",
+        "",
+        "| axis | N (m/s²/√Hz) | B (m/s²) | K (m/s³/√Hz) |",
+        "|---|---:|---:|---:|",
+    ]
+    for k, axis in enumerate(AXES):
+        lines.append(
+            f"| {axis} | {block['white_noise_density_mps2_rthz'][k]:.3g} | "
+            f"{block['bias_instability_mps2'][k]:.3g}"
+            f"{'' if block['bias_instability_is_floor'][k] else ' (bound)'} | "
+            f"{block['random_walk_mps3_rthz'][k]:.3g}"
+            f"{'' if block['random_walk_seen'][k] else ' (bound)'} |"
+        )
+    text = rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN)
+    chunks.append(static_chunk("allan/readouts", row_columns(text)))
+    return chunks
 
 
 def write_session_rrd(
