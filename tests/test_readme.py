@@ -10,8 +10,8 @@ import numpy as np
 from truth_bound import SENSOR_NAMES, scenario_noise
 from wheelcal.batch.pipeline import load_pipeline
 from wheelcal.cli.main import main
-from wheelcal.diagnose.sensor_fit import sensor_crlb
-from wheelcal.estimate.crlb import cramer_rao_bound
+from wheelcal.closedloop.sensor_fit import sensor_crlb
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
 from wheelcal.simulate import NoiseSpec, Quantiser, preset
 from wheelcal.simulate.session import simulate_session
 
