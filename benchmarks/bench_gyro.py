@@ -45,9 +45,26 @@ def _recordings(package: str) -> dict:
     }
 
 
-def _gyro_values(result) -> dict[str, tuple[float, float]]:
+def _gyro_block(outcome):
+    """The gyro block of a session (this tree) or of a reference's result (before 2026-11)."""
+    if hasattr(outcome, "assessment"):
+        return outcome.assessment.gyro
+    return outcome.result.assessment.gyro
+
+
+def _undetermined(outcome):
+    if hasattr(outcome, "assessment"):
+        return outcome.assessment.undetermined
+    return outcome.result.assessment.undetermined
+
+
+def _warnings(outcome):
+    return outcome.warnings if hasattr(outcome, "assessment") else outcome.result.warnings
+
+
+def _gyro_values(outcome) -> dict[str, tuple[float, float]]:
     """The gyro block's scale, axis and biases with σ, by name."""
-    g = result.assessment.gyro
+    g = _gyro_block(outcome)
     out = {"gyro.scale": (g.scale, g.scale_std)}
     for i, axis in enumerate("xyz"):
         out[f"gyro.axis_{axis}"] = (g.axis[i], g.axis_std[i])
@@ -69,15 +86,15 @@ def _differences(new, old) -> str:
     ]
     worst = max(abs(a.value_of(n) - b.value_of(n)) / a.std_of(n) for n in names)
     sigma = max(abs(a.std_of(n) / b.std_of(n) - 1) for n in names)
-    ga, gb = _gyro_values(a), _gyro_values(b)
+    ga, gb = _gyro_values(new), _gyro_values(old)
     gyro_worst = max(abs(ga[k][0] - gb[k][0]) / ga[k][1] for k in ga if ga[k][1] > 0)
     gyro_sigma = max(abs(ga[k][1] / gb[k][1] - 1) for k in ga if gb[k][1] > 0)
     return (
         f"    same parameter names: {same_names}; calibration ({len(names)} parameters, the wheel's "
         f"motion left out): largest change {worst:.2e} σ, of a σ "
         f"{sigma:.1e} (relative); gyro block: {gyro_worst:.2e} σ, of a σ {gyro_sigma:.1e}\n"
-        f"    same warnings: {a.warnings == b.warnings}; same undetermined: "
-        f"{a.assessment.undetermined == b.assessment.undetermined}; same window and notes: "
+        f"    same warnings: {_warnings(new) == _warnings(old)}; same undetermined: "
+        f"{_undetermined(new) == _undetermined(old)}; same window and notes: "
         f"{new.window.reason == old.window.reason}; same samples kept: "
         f"{a.time_s.size == b.time_s.size and np.array_equal(a.time_s, b.time_s)}"
     )

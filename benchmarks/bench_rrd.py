@@ -33,6 +33,7 @@ from bench_versus import reference_code
 from wheelcal.calibration.session_json import calibration_dict
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.runtime import tune_allocator
+from wheelcal.session.fit import session_of_fit
 from wheelcal.simulate import simulate, table1
 from wheelcal.viz.batch_rrd import write_batch_rrd
 from wheelcal.viz.session_rrd import write_session_rrd
@@ -53,21 +54,22 @@ def main() -> None:
         out.mkdir(parents=True, exist_ok=True)
         recording = simulate(table1(), np.random.default_rng(0)).recording
         result = JointFit().fit(recording)
+        session = session_of_fit(result, recording)
         fit = times(lambda: JointFit().fit(recording), args.repeats)
         path = out / "session.rrd"
-        write = times(lambda: write_session_rrd(path, result, recording, None), args.repeats)
+        write = times(lambda: write_session_rrd(path, session), args.repeats)
         write_batchlike = times(
-            lambda: write_session_rrd(path, result, recording, None, durable=False), args.repeats
+            lambda: write_session_rrd(path, session, durable=False), args.repeats
         )
         sessions = []
         for i in range(args.batch_sessions):
-            d = calibration_dict(result)
+            d = calibration_dict(session)
             d["source"]["sensor_id"] = f"imu{i % 3}"
             sessions.append(d)
         # Process CPU time (Rerun encodes on its own threads): robust to a busy machine.
         fit_cpu = times(lambda: JointFit().fit(recording), args.repeats, time.process_time)
         write_cpu = times(
-            lambda: write_session_rrd(path, result, recording, None),
+            lambda: write_session_rrd(path, session),
             args.repeats,
             time.process_time,
         )
@@ -90,10 +92,10 @@ def main() -> None:
             f"   ({batch_path.stat().st_size / 1e6:.2f} MB)"
         )
         if args.ref:
-            versus(args.ref, recording, result, out, args.repeats)
+            versus(args.ref, session, out, args.repeats)
 
 
-def versus(ref: str, recording, result, out: Path, repeats: int) -> None:
+def versus(ref: str, session, out: Path, repeats: int) -> None:
     """``write_session_rrd`` of ``ref`` and of this tree, interleaved; wall and CPU."""
     with reference_code(ref):
         from wheelcal_ref.estimate.joint import JointFit as RefJoint
@@ -105,7 +107,7 @@ def versus(ref: str, recording, result, out: Path, repeats: int) -> None:
         ref_result = RefJoint().fit(ref_recording)
         fns = {
             "ref": lambda: ref_write(out / "ref.rrd", ref_result, ref_recording, None),
-            "now": lambda: write_session_rrd(out / "now.rrd", result, recording, None),
+            "now": lambda: write_session_rrd(out / "now.rrd", session),
         }
         sizes = {}
         for clock, what in ((time.perf_counter, "wall"), (time.process_time, "CPU")):

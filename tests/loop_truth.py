@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from gyro_truth import gyro_truth_values
-from truth_bound import scenario_noise
+from truth_bound import scenario_noise, split_session
 from wheelcal.estimate.joint.crlb import Bound, cramer_rao_bound, cramer_rao_bound_with_gyro
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import SpinParams
@@ -127,12 +127,11 @@ def bound_in(session, result) -> Bound:
     return cramer_rao_bound(params, tc, noise, result.layout)
 
 
-def sigmas_from_truth(session, result, names=SENSOR) -> dict[str, float]:
+def sigmas_from_truth(session, fitted, names=SENSOR) -> dict[str, float]:
     """(estimate − truth) / σ_CRLB(truth) for the named parameters the result determined."""
+    result, undetermined = split_session(fitted)
     bound = bound_in(session, result)
     truth = dict(zip(bound.names, bound.values, strict=True))
     return {
-        n: (result.value_of(n) - truth[n]) / bound.std_of(n)
-        for n in names
-        if n not in result.undetermined
+        n: (result.value_of(n) - truth[n]) / bound.std_of(n) for n in names if n not in undetermined
     }

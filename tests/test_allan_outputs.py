@@ -10,7 +10,6 @@ from test_viz_rrd import blueprint_views, read_store, static
 from wheelcal.cli.main import main
 from wheelcal.estimate.allan import AllanSums
 from wheelcal.session.fit import SessionFit
-from wheelcal.session.window import find_free_spin
 from wheelcal.simulate import table2
 from wheelcal.simulate.session import simulate_session
 from wheelcal.viz.session_rrd import write_session_rrd
@@ -22,7 +21,7 @@ def test_session_rrd_plots_the_rests_allan_deviation(tmp_path):
     outcome = SessionFit().run(recording)
     assert outcome.rests, "the simulated session has rests"
     path = tmp_path / "s.rrd"
-    write_session_rrd(path, outcome.result, recording, find_free_spin(recording))
+    write_session_rrd(path, outcome)
     chunks = read_store(path)
     curve = AllanSums.combined([r.allan for r in outcome.rests]).deviation()
     for k, axis in enumerate("xyz"):

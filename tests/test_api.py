@@ -34,7 +34,7 @@ def test_calibrate_a_recording_in_memory_matches_the_truth(session):
     cal = wheelcal.calibrate(session.recording, radius_m=0.28)
     truth = session.truth.sensor
     assert np.all(np.abs(cal.gain - truth.gain) < 5 * cal.gain_std + 1e-4)
-    assert cal.result is not None and cal.result.assessment is not None
+    assert cal.result is not None and cal.assessment is not None
     corrected = cal.apply(session.recording.accel_mps2)
     assert corrected.shape == session.recording.accel_mps2.shape
 

@@ -10,6 +10,7 @@ from wheelcal.calibration import document as calibration_module
 from wheelcal.calibration.document import Calibration
 from wheelcal.calibration.session_json import write_calibration
 from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.session.fit import session_of_fit
 
 
 def _frozen_plain(value):
@@ -65,9 +66,9 @@ def test_freeze_and_thaw_are_the_plain_recursions():
 
 
 def test_from_document_is_from_json(table1_session, tmp_path):
-    path = write_calibration(
-        tmp_path / "s.calibration.json", JointFit().fit(table1_session.recording)
-    )
+    recording = table1_session.recording
+    session = session_of_fit(JointFit().fit(recording), recording)
+    path = write_calibration(tmp_path / "s.calibration.json", session)
     document = json.loads(path.read_text(encoding="utf-8"))
     read = Calibration.from_json(path)
     given = Calibration.from_document(document, path)

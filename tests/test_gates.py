@@ -44,7 +44,7 @@ def _accept_all(seeds):
     for seed in seeds:
         session = _session(seed)
         try:
-            result = SessionFit().run(session.recording).result
+            result = SessionFit().run(session.recording)
         except Exception as exc:  # counted and reported, not hidden
             refused.append((seed, str(exc)))
             continue
@@ -78,7 +78,7 @@ def test_the_papers_presets_pass_with_at_most_warnings(preset):
     rng = np.random.default_rng(31)
     scenario = table1() if preset == "table1" else table2(rng=rng)
     session = simulate_session(scenario, rng)
-    result = SessionFit().run(session.recording).result
+    result = SessionFit().run(session.recording)
     assert result.undetermined == ()
     assert max(sigmas_off(session, result).values()) < 5.0
     assert _kinds(result.warnings)["unexplained"] == 0
@@ -107,7 +107,7 @@ def test_the_rests_catch_an_offset_warmup_the_spin_residual_hides(seed):
     tau, centre = 25.0, 4.8 + 45.0  # the session puts the free spin's centre here
     values = _warmup_amplitude([0.08, -0.05, 0.1], tau, centre)
     session = _with_effect(OffsetWarmup(tau), values, seed)
-    result = SessionFit().run(session.recording).result
+    result = SessionFit().run(session.recording)
     kinds = _kinds(result.warnings)
     assert kinds["unexplained"] == 0, result.warnings
     assert kinds["rest"] >= 1, result.warnings
@@ -118,7 +118,7 @@ def test_the_rests_catch_an_offset_warmup_the_spin_residual_hides(seed):
 @pytest.mark.parametrize("seed", [51, 52, 53])
 def test_the_rests_catch_a_nonlinearity_the_spin_residual_hides(seed):
     session = _with_effect(QuadraticNonlinearity(2), [1e-3], seed)
-    result = SessionFit().run(session.recording).result
+    result = SessionFit().run(session.recording)
     kinds = _kinds(result.warnings)
     assert kinds["unexplained"] == 0, result.warnings
     assert kinds["rest"] >= 1, result.warnings
@@ -129,7 +129,7 @@ def test_rest_check_z_is_standard_normal_on_clean_sessions():
     # (40 seeds × 2 rests: std within ±25 %, mean within ±0.5).
     zs = []
     for seed in range(800, 840):
-        result = SessionFit().run(_session(seed).recording).result
+        result = SessionFit().run(_session(seed).recording)
         zs += [c.z for c in result.assessment.rest_checks]
     zs = np.array(zs)
     assert zs.size >= 60

@@ -251,9 +251,11 @@ def test_auto_keeps_the_accelerometer_answer_and_calibrates_the_gyro_as_a_by_pro
     path = tmp_path / "spin.mcap"
     write_recording(session.recording, path)
     recording = read_recording(path)
-    auto = SessionFit(gyro="auto").run(recording).result
+    auto = SessionFit(gyro="auto").run(recording)
     off = SessionFit(gyro="off").run(recording).result
-    np.testing.assert_array_equal(auto.values, off.values)  # exactly the accelerometer's answer
+    np.testing.assert_array_equal(
+        auto.result.values, off.values
+    )  # exactly the accelerometer's answer
     block = calibration_dict(auto)["gyro"]
     k, u = SPEC.wheel_axis_response(session.truth.bench.misalignment.matrix)
     assert abs(block["scale"] - k) < 5 * block["scale_std"] + 1e-4

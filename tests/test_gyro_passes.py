@@ -108,7 +108,7 @@ def test_a_final_step_leaves_the_parameters_no_sample_sees_alone():
     out = SessionFit(gyro="on").run(session.recording)
     assert "left out" in out.window.reason
     assert np.all(np.isfinite(out.result.values))
-    assert np.all(out.result.assessment.gyro.residual_rms_radps < 0.1)
+    assert np.all(out.gyro.residual_rms_radps < 0.1)
 
 
 def test_the_accelerometer_stream_without_the_gyro_rows_adds_up_the_same(fitted):

@@ -29,7 +29,7 @@ RIGHT_SIGMA = 5.0
 
 
 def _run(recording):
-    return SessionFit().run(recording).result
+    return SessionFit().run(recording)
 
 
 def _refused(recording, gate: str | tuple[str, ...], *words: str) -> CalibrationRefused:
@@ -102,7 +102,7 @@ def test_a_30_minute_free_spin_is_calibrated_right_on_a_window_the_cubic_describ
     out = SessionFit().run(session.recording)
     assert out.result.window_s[1] - out.result.window_s[0] <= 300.0
     assert "capped" in out.window.reason
-    _right(session, out.result)
+    _right(session, out)
 
 
 @pytest.mark.slow

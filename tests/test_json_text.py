@@ -8,6 +8,7 @@ import pytest
 from wheelcal.calibration.session_json import calibration_dict
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.io.json_text import dumps_indented
+from wheelcal.session.fit import session_of_fit
 
 
 def _random_value(rng, depth=0):
@@ -55,7 +56,8 @@ def test_random_documents_are_json_dumps_byte_for_byte():
 
 
 def test_a_calibration_is_json_dumps_byte_for_byte(table1_session):
-    doc = calibration_dict(JointFit().fit(table1_session.recording))
+    recording = table1_session.recording
+    doc = calibration_dict(session_of_fit(JointFit().fit(recording), recording))
     text = dumps_indented(doc)
     assert text == json.dumps(doc, indent=2, allow_nan=False)
     assert text.count("\n") > 100  # the covariance rows took the vector path

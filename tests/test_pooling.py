@@ -24,6 +24,7 @@ from wheelcal.closedloop.pooling import (
 )
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.model import SensorParams
+from wheelcal.session.fit import session_of_fit
 from wheelcal.simulate import simulate
 from wheelcal.simulate.presets import TABLE2_GAIN, TABLE2_OFFSET_MPS2, table2
 
@@ -159,8 +160,9 @@ def test_the_joint_fit_is_used_when_it_determines_everything_else_the_weighted_m
 
 
 def test_session_estimate_reads_nulls_and_the_covariance_block(table1_session):
-    result = JointFit().fit(table1_session.recording)
-    doc = calibration_dict(result)
+    recording = table1_session.recording
+    result = JointFit().fit(recording)
+    doc = calibration_dict(session_of_fit(result, recording))
     est = session_estimate(doc)
     np.testing.assert_allclose(est.value, [result.value_of(n) for n in POOLED_PARAMETERS])
     np.testing.assert_allclose(np.sqrt(np.diag(est.covariance)), est.std, rtol=1e-12)
@@ -184,7 +186,8 @@ def test_joint_estimate_from_a_real_sensor_fit():
         fits.append(JointFit().fit(rec))
     fit = SensorFit().fit(recs, fits)
     joint = joint_estimate(fit.as_dict())
-    pooled = pool_sessions([session_estimate(calibration_dict(f)) for f in fits], joint)
+    docs = [calibration_dict(session_of_fit(f, r)) for f, r in zip(fits, recs, strict=True)]
+    pooled = pool_sessions([session_estimate(d) for d in docs], joint)
     assert pooled.method == JOINT_FIT
     np.testing.assert_allclose(pooled.value, [fit.value_of(n) for n in POOLED_PARAMETERS])
     np.testing.assert_allclose(pooled.std_unscaled, [fit.std_of(n) for n in POOLED_PARAMETERS])
@@ -245,7 +248,8 @@ def _pooled_batches(seed: int, batches: int, sessions: int, jitter: float):
                     sensor=SensorParams(offset_mps2=true[3:], gain=true[:3])
                 ),
             )
-            docs.append(calibration_dict(JointFit().fit(simulate(s, rng).recording)))
+            recording = simulate(s, rng).recording
+            docs.append(calibration_dict(session_of_fit(JointFit().fit(recording), recording)))
         pooled = pool_sessions([session_estimate(d) for d in docs])
         values.append(pooled.value)
         stds.append(pooled.std)

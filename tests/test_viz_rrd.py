@@ -23,6 +23,7 @@ from rerun.chunk import Chunk, RrdReader
 from wheelcal.calibration.session_json import calibration_dict
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.residual_profile import binned_mean_by_angle
+from wheelcal.session.fit import session_of_fit
 from wheelcal.session.window import find_free_spin
 from wheelcal.simulate import table2
 from wheelcal.simulate.session import simulate_session
@@ -163,11 +164,16 @@ def session():
     return recording, window, result
 
 
+def judged(result, recording, window):
+    """The fit judged as a session (what the writers take)."""
+    return session_of_fit(result, recording, window)
+
+
 @pytest.fixture(scope="module")
 def session_file(session, tmp_path_factory):
     recording, window, result = session
     path = tmp_path_factory.mktemp("rrd") / "s1.rrd"
-    assert write_session_rrd(path, result, recording, window) == path
+    assert write_session_rrd(path, judged(result, recording, window)) == path
     return path, read_store(path)
 
 
@@ -189,6 +195,9 @@ def test_session_entity_paths(session_file):
         "/spin/omega_radps",
         "/spin/omega_measured_radps",
         "/report",
+        # the simulated session rests before and after: their Allan deviation
+        "/allan/readouts",
+        *(f"/allan/{a}{r}" for a in "xyz" for r in ("", "/readouts")),
     }
     assert set(chunks) - {"/__properties"} == expected
 
@@ -401,7 +410,7 @@ def test_the_file_carries_the_recording_start_time(tmp_path, session):
     start_ns = 1_710_234_000_000_000_000  # another start: the file must follow it
     moved = dataclasses.replace(recording, epoch_unix_ns=start_ns)
     fit = dataclasses.replace(result, epoch_unix_ns=start_ns)
-    path = write_session_rrd(tmp_path / "t.rrd", fit, moved, window)
+    path = write_session_rrd(tmp_path / "t.rrd", judged(fit, moved, window))
     rows = [
         row["RecordingInfo:start_time"][0]
         for chunk in read_store(path)["/__properties"]
@@ -675,7 +684,7 @@ def test_session_file_blueprint_is_what_send_blueprint_sends(session, tmp_path, 
     """A file's blueprint (cached layout, per-file ranges) equals Rerun's own send_blueprint."""
     recording, window, result = session
     path = tmp_path / "s.rrd"
-    with session_rrd(path, result, recording, window) as rrd:
+    with session_rrd(path, judged(result, recording, window)) as rrd:
         for name in extra_sets:
             rrd.log_residuals(name, result.time_s, result.residual_mps2, wheel_angle_rad(result))
         layout = rrd.layout()
@@ -714,9 +723,9 @@ def test_each_file_gets_its_own_time_selection_and_range(session, tmp_path):
     import dataclasses
 
     recording, window, result = session
-    write_session_rrd(tmp_path / "a.rrd", result, recording, window)
+    write_session_rrd(tmp_path / "a.rrd", judged(result, recording, window))
     shorter = recording.window(0.0, window.end_s + 1.0)
-    write_session_rrd(tmp_path / "b.rrd", result, shorter, None)
+    write_session_rrd(tmp_path / "b.rrd", judged(result, shorter, None))
     del dataclasses
     for name, (start, end), last in (
         ("a", (window.start_s, window.end_s), recording.time_s[-1]),
@@ -732,7 +741,7 @@ def test_each_file_gets_its_own_time_selection_and_range(session, tmp_path):
 
 def test_window_none_marks_the_fitted_span(session, tmp_path):
     recording, _, result = session
-    path = write_session_rrd(tmp_path / "given.rrd", result, recording, None)
+    path = write_session_rrd(tmp_path / "given.rrd", judged(result, recording, None))
     chunks = read_store(path)
     t_ns, states = temporal(chunks, "/window", "StateChange:state", "time")
     assert states[1] == ["free spin"]
@@ -745,7 +754,7 @@ def test_more_residual_sets(session, tmp_path):
     path = tmp_path / "loop.rrd"
     theta = wheel_angle_rad(result)
     after = result.residual_mps2 * 0.5
-    with session_rrd(path, result, recording, window) as rrd:
+    with session_rrd(path, judged(result, recording, window)) as rrd:
         rrd.log_residuals("after", result.time_s, after, theta, label="half")
         assert rrd.residual_set_names == ["fit", "after"]
         assert not path.exists()  # written when the block ends
@@ -768,14 +777,14 @@ def test_extra_views_join_the_layout(session, tmp_path):
     """A logging function (e.g. the rests' Allan deviation) registers its view."""
     recording, window, result = session
     path = tmp_path / "allan.rrd"
-    with session_rrd(path, result, recording, window) as rrd:
+    with session_rrd(path, judged(result, recording, window)) as rrd:
         rrd.stream.log("allan/x", rr.BarChart([1.0, 0.5, 0.3]), static=True)
         rrd.add_view("bar_chart", "/allan", "Allan deviation of the rests")
         with pytest.raises(ValueError, match="view kind"):
             rrd.add_view("pie", "/allan", "no such view")
     assert ("BarChart", "Allan deviation of the rests", "/allan") in blueprint_views(path)
     assert ("BarChart", "Allan deviation of the rests", "/allan") not in blueprint_views(
-        write_session_rrd(tmp_path / "plain.rrd", result, recording, window)
+        write_session_rrd(tmp_path / "plain.rrd", judged(result, recording, window))
     )
 
 
@@ -786,7 +795,7 @@ def test_exception_while_writing_leaves_no_file(session, tmp_path):
     recording, window, result = session
     path = tmp_path / "broken.rrd"
     with pytest.raises(RuntimeError, match="boom"):
-        with session_rrd(path, result, recording, window):
+        with session_rrd(path, judged(result, recording, window)):
             raise RuntimeError("boom")
     assert not path.exists() and no_leftovers(tmp_path)
 
@@ -796,10 +805,10 @@ def test_bad_data_leaves_no_file_and_keeps_the_old_one(session, tmp_path):
     path = tmp_path / "s.rrd"
     path.write_bytes(b"previous")
     with pytest.raises(ValueError, match="residual set 'after'"):
-        with session_rrd(path, result, recording, window) as rrd:
+        with session_rrd(path, judged(result, recording, window)) as rrd:
             rrd.log_residuals("after", result.time_s, result.residual_mps2[:-1], np.zeros(3))
     with pytest.raises(ValueError, match="already"):
-        with session_rrd(path, result, recording, window) as rrd:
+        with session_rrd(path, judged(result, recording, window)) as rrd:
             rrd.log_residuals("fit", result.time_s, result.residual_mps2, wheel_angle_rad(result))
     assert path.read_bytes() == b"previous" and no_leftovers(tmp_path)
 
@@ -809,7 +818,7 @@ def test_rerun_misuse_raises_instead_of_warning(session, tmp_path):
     recording, window, result = session
     path = tmp_path / "misuse.rrd"
     with pytest.raises(ValueError):
-        with session_rrd(path, result, recording, window) as rrd:
+        with session_rrd(path, judged(result, recording, window)) as rrd:
             rrd.stream.log("oops", rr.Scalars(["not a number"]))
     assert not path.exists() and no_leftovers(tmp_path)
     assert not rr.strict_mode()  # only inside the writer
@@ -828,7 +837,7 @@ def test_an_exception_after_a_rerun_warning_still_leaves_no_file(session, tmp_pa
     path = tmp_path / "warned.rrd"
     style = rr.SeriesLines(names=["a"])
     with pytest.raises(RuntimeError, match="boom"):
-        with session_rrd(path, result, recording, window) as rrd:
+        with session_rrd(path, judged(result, recording, window)) as rrd:
             with pytest.warns(rr.error_utils.RerunWarning, match="multiple times"):
                 rrd.stream.log("dup", style, style, static=True)  # a component twice
             raise RuntimeError("boom")
@@ -843,7 +852,7 @@ def test_an_unfinished_file_is_an_error(session, tmp_path, monkeypatch):
     # A sink that stops short of the footer, as a failed write on Rerun's thread would.
     monkeypatch.setattr(rr, "FileSink", lambda p: rr_file_sink(p, write_footer=False))
     with pytest.raises(RrdWriteError, match="no stream footer"):
-        write_session_rrd(path, result, recording, window)
+        write_session_rrd(path, judged(result, recording, window))
     assert path.read_bytes() == b"previous" and no_leftovers(tmp_path)
 
 
@@ -868,7 +877,7 @@ def test_rerun_disabled_is_an_error(session, tmp_path, monkeypatch):
     recording, window, result = session
     monkeypatch.setenv("RERUN", "off")
     with pytest.raises(RrdWriteError, match="RERUN=off"):
-        write_session_rrd(tmp_path / "off.rrd", result, recording, window)
+        write_session_rrd(tmp_path / "off.rrd", judged(result, recording, window))
     assert not (tmp_path / "off.rrd").exists()
 
 
@@ -879,7 +888,7 @@ def test_importing_viz_does_not_import_rerun():
 
 
 def test_calibrate_session_writes_the_rrd(session, tmp_path):
-    """The batch/CLI pipeline: write_session_rrd(out / f"{stem}.rrd", result, recording, window)."""
+    """The batch/CLI pipeline writes ``<out>/<stem>.rrd`` of the computed session."""
     from wheelcal.batch.session import calibrate_session
     from wheelcal.io import write_recording
     from wheelcal.session.compute import SessionOptions
@@ -965,8 +974,8 @@ def test_diagnose_shows_the_effects_added_before_and_after(diagnosed):
 @pytest.fixture(scope="module")
 def batch_sessions(session):
     """Five calibration dictionaries: two sensors, perturbed values, one undetermined σ."""
-    _, _, result = session
-    base = calibration_dict(result)
+    recording, window, result = session
+    base = calibration_dict(judged(result, recording, window))
     sessions = []
     for i in range(5):
         d = copy.deepcopy(base)
@@ -1083,7 +1092,7 @@ def test_a_gyro_session_shows_measured_and_modelled_omega(tmp_path):
 
     session = hostile.wandering(np.random.default_rng(300), gyro=GyroSpec())
     out = SessionFit(gyro="on").run(session.recording)
-    path = write_session_rrd(tmp_path / "gyro.rrd", out.result, session.recording, None)
+    path = write_session_rrd(tmp_path / "gyro.rrd", out)
     chunks = read_store(path)
     t_model, model = temporal(chunks, "/spin/omega_radps", "Scalars:scalars", "time")
     t_gyro, gyro = temporal(chunks, "/spin/omega_measured_radps", "Scalars:scalars", "time")
@@ -1095,10 +1104,9 @@ def test_a_gyro_session_shows_measured_and_modelled_omega(tmp_path):
     assert np.ptp(model) > 0.5  # the motor's ±5 % of 10 rad/s is in the modelled ω
 
 
-def test_the_session_writer_passes_the_gyro_calibration_of_a_diagnosis(tmp_path):
-    """A closed loop's final fit is assessed without the gyro block: the writer takes the base's."""
+def test_the_session_writer_uses_the_sessions_gyro_calibration(tmp_path):
+    """The measured ω is the gyro calibrated by the session's own gyro block."""
     import dataclasses
-    from types import SimpleNamespace
 
     from wheelcal.batch.session import _write_rrd
     from wheelcal.session.fit import SessionFit
@@ -1106,15 +1114,13 @@ def test_the_session_writer_passes_the_gyro_calibration_of_a_diagnosis(tmp_path)
     from wheelcal.simulate.gyro import GyroSpec
 
     session = hostile.wandering(np.random.default_rng(300), gyro=GyroSpec())
-    result = SessionFit(gyro="on").run(session.recording).result
-    assert result.assessment.gyro is not None
-    final = dataclasses.replace(
-        result, assessment=dataclasses.replace(result.assessment, gyro=None)
-    )
+    out = SessionFit(gyro="on").run(session.recording)
+    assert out.gyro is not None
+    without = dataclasses.replace(out, assessment=dataclasses.replace(out.assessment, gyro=None))
     label = "SeriesLines:names"
-    for name, diagnosis, expected in (
-        ("without", None, "measured: gyro (uncalibrated)"),
-        ("with", SimpleNamespace(base=result, steps=()), "measured: gyro"),
+    for name, judged_session, expected in (
+        ("without", without, "measured: gyro (uncalibrated)"),
+        ("with", out, "measured: gyro"),
     ):
-        path = _write_rrd(tmp_path / f"{name}.rrd", final, session.recording, None, diagnosis)
+        path = _write_rrd(tmp_path / f"{name}.rrd", judged_session)
         assert static(read_store(path), "/spin/omega_measured_radps", label) == [expected]

@@ -59,13 +59,23 @@ def bound_at_truth(session, result) -> Bound:
     return cramer_rao_bound(params, t_centred, scenario_noise(session.scenario), result.layout)
 
 
-def sigmas_off(session, result, names=SENSOR_NAMES) -> dict[str, float]:
+def sigmas_off(session, fitted, names=SENSOR_NAMES) -> dict[str, float]:
     """|estimate − truth| / σ_CRLB(truth) for the named parameters that are not undetermined."""
+    result, undetermined = split_session(fitted)
     bound = bound_at_truth(session, result)
     truth = dict(zip(bound.names, bound.values, strict=True))
     out = {}
     for name in names:
-        if name in result.undetermined:
+        if name in undetermined:
             continue
         out[name] = abs(result.value_of(name) - truth[name]) / bound.std_of(name)
     return out
+
+
+def split_session(fitted):
+    """(the fit, the names it left undetermined) of a SessionResult or a bare fit."""
+    from wheelcal.session.result import SessionResult
+
+    if isinstance(fitted, SessionResult):
+        return fitted.result, fitted.undetermined
+    return fitted, ()

@@ -54,7 +54,7 @@ def main() -> None:
             rng = np.random.default_rng(seed)
             session = simulate_session(random_setup(rng), rng)
             try:
-                result = SessionFit().run(session.recording).result
+                result = SessionFit().run(session.recording)
             except CalibrationRefused as exc:
                 refused.append((seed, exc.gate, exc.reason[:80]))
                 continue

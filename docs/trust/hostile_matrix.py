@@ -79,7 +79,7 @@ def main() -> int:
     confident_wrong = 0
     for name, session, recording in cases():
         try:
-            result = SessionFit().run(recording).result
+            result = SessionFit().run(recording)
         except CalibrationRefused as exc:
             print(f"| {name} | refused: `{exc.gate}` | – |")
             continue

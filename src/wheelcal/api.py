@@ -106,13 +106,7 @@ def calibrate(
         outcome = compute_recording(_checked(source, opts), opts)
     else:
         outcome = compute_session(source, opts)
-    return Calibration.from_result(
-        outcome.result,
-        geometry=opts.geometry,
-        window_reason=outcome.window.reason,
-        diagnosis=outcome.diagnosis,
-        model=opts.model,
-    )
+    return Calibration.from_session(outcome)
 
 
 def diagnose(

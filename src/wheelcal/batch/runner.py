@@ -151,8 +151,10 @@ def _run_task(task: _Task) -> SessionRecord:
                 durable=False,  # atomic, not fsync-ed one by one: run_batch syncs once
                 stem=task.stem,
             )
-    result = outcome.result
-    notes = () if result is None else (*result.notes, *(f"⚠ {w}" for w in result.warnings))
+    session = outcome.session
+    notes = (
+        () if session is None else (*session.result.notes, *(f"⚠ {w}" for w in session.warnings))
+    )
     return SessionRecord(
         source=outcome.source,
         stem=outcome.stem,

@@ -24,15 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.io.file_kind import special_file_kind
 from wheelcal.recording import (
     CalibrationRefused,
-    Recording,
     RecordingError,
 )
 from wheelcal.session.compute import SessionOptions, SessionResult, compute_session
-from wheelcal.session.window import FreeSpinWindow
 
 #: Outputs of a session, renamed ``<stem>.<kind>.stale.<ext>`` when a re-run fails.
 _OUTPUT_SUFFIXES = (".calibration.json", ".diagnosis.json", ".rrd")
@@ -40,29 +37,34 @@ _OUTPUT_SUFFIXES = (".calibration.json", ".diagnosis.json", ".rrd")
 
 @dataclass(frozen=True, eq=False)
 class SessionOutcome:
-    """What happened to one session."""
+    """The batch's record of one session: what happened, its files, how long it took.
+
+    ``session`` is the calibrated session (the computation's result) or None after
+    a failure, whose ``error`` names the file and the problem (``gate`` and ``fix``
+    for a refusal).
+    """
 
     source: str
     stem: str
     error: str | None = None
-    result: CalibrationResult | None = None
-    window: FreeSpinWindow | None = None
-    window_reason: str = ""
+    session: SessionResult | None = None
     calibration_path: str | None = None
     rrd_path: str | None = None
-    timings_s: dict[str, float] = field(default_factory=dict)
-    diagnosis: object | None = None  # wheelcal.closedloop.loop.Diagnosis
     diagnosis_path: str | None = None
+    timings_s: dict[str, float] = field(default_factory=dict)
     #: For a refused calibration: the gate that refused it and the likely fix.
     gate: str | None = None
     fix: str | None = None
-    #: The whole recording (for the .rrd); None after a failure.
-    recording: Recording | None = None
 
     @property
     def ok(self) -> bool:
         """True when the session was calibrated (and, after writing, written)."""
         return self.error is None
+
+    @property
+    def result(self):
+        """The final fit (None after a failure)."""
+        return None if self.session is None else self.session.result
 
 
 def outcome_of(session: SessionResult, stem: str | None = None) -> SessionOutcome:
@@ -70,11 +72,7 @@ def outcome_of(session: SessionResult, stem: str | None = None) -> SessionOutcom
     return SessionOutcome(
         source=session.source,
         stem=stem or session_stem(session.source),
-        result=session.result,
-        window=session.window.found,
-        window_reason=session.window.reason,
-        diagnosis=session.diagnosis,
-        recording=session.recording,
+        session=session,
         timings_s=dict(session.timings_s),
     )
 
@@ -85,20 +83,11 @@ def session_stem(path: str | Path) -> str:
     return name[: -len(".mcap")] if name.endswith(".mcap") else Path(path).stem
 
 
-def _write_rrd(path: Path, result, recording, window, diagnosis, durable: bool = True) -> Path:
-    """Session .rrd; with a diagnosis that added effects, its before/after tab.
-
-    A closed loop's final fit is assessed anew, without the gyroscope's
-    calibration of the first fit: that one is passed on for the measured ω.
-    """
+def _write_rrd(path: Path, session: SessionResult, durable: bool = True) -> Path:
+    """Session .rrd; with a diagnosis that added effects, its before/after tab."""
     from wheelcal.viz.session_rrd import write_session_rrd
 
-    gyro = None
-    if diagnosis is not None and diagnosis.base.assessment is not None:
-        gyro = diagnosis.base.assessment.gyro
-    return write_session_rrd(
-        path, result, recording, window, durable, diagnosis=diagnosis, gyro_calibration=gyro
-    )
+    return write_session_rrd(path, session, durable)
 
 
 def write_session(
@@ -120,33 +109,18 @@ def write_session(
     # up-to-date check), so it is written last.
     rrd_path = diagnosis_path = None
     if options.rrd:
-        rrd_path = str(
-            _write_rrd(
-                out / f"{stem}.rrd",
-                outcome.result,
-                outcome.recording,
-                outcome.window,
-                outcome.diagnosis,
-                durable,
-            )
-        )
+        rrd_path = str(_write_rrd(out / f"{stem}.rrd", outcome.session, durable))
         timings["rrd"] = time.perf_counter() - t1
         t1 = time.perf_counter()
-    if options.diagnose and outcome.diagnosis is not None:
+    diagnosis = outcome.session.diagnosis
+    if options.diagnose and diagnosis is not None:
         from wheelcal.calibration.diagnosis_json import write_diagnosis
 
         diagnosis_path = str(
-            write_diagnosis(out / f"{stem}.diagnosis.json", outcome.diagnosis, durable=durable)
+            write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis, durable=durable)
         )
     json_path = write_calibration(
-        out / f"{stem}.calibration.json",
-        outcome.result,
-        options.geometry,
-        provenance,
-        durable,
-        window_reason=outcome.window_reason,
-        model=options.model,
-        diagnosis=outcome.diagnosis,
+        out / f"{stem}.calibration.json", outcome.session, provenance, durable
     )
     timings["write"] = time.perf_counter() - t1
     return replace(

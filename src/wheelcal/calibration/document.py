@@ -40,8 +40,11 @@ from types import MappingProxyType
 
 import numpy as np
 
+from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.parameters import AXES
+from wheelcal.session.gates import Assessment
+from wheelcal.session.result import SessionResult
 
 
 def _array(values) -> np.ndarray:
@@ -98,15 +101,14 @@ class Calibration(Mapping):
     document:
         The contract dictionary (``wheelcal.calibration/1`` or
         ``wheelcal.sensor_calibration/1``); kept read-only.
-    result:
-        The in-process fit result, when the calibration was computed here.
-    diagnosis:
-        The closed loop's :class:`~wheelcal.closedloop.loop.Diagnosis`, if it ran.
+    session:
+        The calibrated session (:class:`~wheelcal.session.result.SessionResult`:
+        the fit, the gates' assessment, the closed loop's report) when it was
+        computed in this process; None for one read from a file.
     """
 
     document: Mapping
-    result: object | None = None
-    diagnosis: object | None = None
+    session: SessionResult | None = None
 
     def __post_init__(self) -> None:
         from wheelcal.calibration.session_json import CORRECTION_FORMATS, CalibrationFileError
@@ -133,22 +135,29 @@ class Calibration(Mapping):
 
     # construction -----------------------------------------------------------------
     @classmethod
-    def from_result(
-        cls,
-        result,
-        geometry: str = "radius",
-        window_reason: str = "",
-        provenance: dict | None = None,
-        diagnosis=None,
-        model: str = "closed_loop",
+    def from_session(
+        cls, session: SessionResult, provenance: dict | None = None
     ) -> Calibration:
-        """The calibration of a gated fit result (see :mod:`wheelcal.session.fit`)."""
+        """The calibration of a calibrated session (:mod:`wheelcal.session.compute`)."""
         from wheelcal.calibration.session_json import calibration_dict
 
-        document = calibration_dict(
-            result, geometry, provenance, window_reason, model=model, diagnosis=diagnosis
-        )
-        return cls(document, result=result, diagnosis=diagnosis)
+        return cls(calibration_dict(session, provenance), session=session)
+
+    # the computation behind it (this process only) ---------------------------------
+    @property
+    def result(self) -> CalibrationResult | None:
+        """The joint fit's result (residuals, noise model, covariance, χ²), if computed here."""
+        return None if self.session is None else self.session.result
+
+    @property
+    def assessment(self) -> Assessment | None:
+        """What the gates made of the fit (noise floor, checks, warnings), if computed here."""
+        return None if self.session is None else self.session.assessment
+
+    @property
+    def diagnosis(self):
+        """The closed loop's :class:`~wheelcal.closedloop.loop.Diagnosis`, if computed here."""
+        return None if self.session is None else self.session.diagnosis
 
     @classmethod
     def from_json(cls, path: str | os.PathLike, allow_partial: bool = True) -> Calibration:

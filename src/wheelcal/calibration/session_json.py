@@ -23,6 +23,8 @@ from wheelcal.io.json_text import dumps_indented
 from wheelcal.model import EULER_CONVENTION
 from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.parameters import AXES
+from wheelcal.session.gates import Assessment
+from wheelcal.session.result import SessionResult
 
 FORMAT = "wheelcal.calibration/1"
 #: A sensor's calibration pooled from its sessions (:mod:`wheelcal.calibration.sensor_json`):
@@ -48,23 +50,18 @@ def _vec(values) -> list:
     return [_num(v) for v in np.asarray(values, dtype=float).reshape(-1)]
 
 
-def calibration_dict(
-    result: CalibrationResult,
-    geometry: str = "radius",
-    provenance: dict | None = None,
-    window_reason: str = "",
-    model: str = "closed_loop",
-    diagnosis=None,
-) -> dict:
-    """The contract dictionary for one calibration result.
+def calibration_dict(session: SessionResult, provenance: dict | None = None) -> dict:
+    """The contract dictionary for one calibrated session.
 
     ``provenance`` (input hash, run key) lets a batch re-run skip sessions whose
-    output is up to date.  ``model`` is what was fitted (``fit.model``: the closed
-    loop's final model, or ``"paper"``); ``diagnosis`` (the closed loop's report)
-    gives each added effect its evidence and lists what the screen could not test.
+    output is up to date.  ``session.model`` is what was fitted (``fit.model``: the
+    closed loop's final model, or ``"paper"``); its diagnosis (the closed loop's
+    report) gives each added effect its evidence and lists what the screen could not
+    test; ``fit.warnings`` are the fit's and then the gates'.
     """
+    result, assessment, diagnosis = session.result, session.assessment, session.diagnosis
     params = result.params
-    undetermined = set(result.undetermined)
+    undetermined = set(assessment.undetermined_names)
     std = dict(zip(result.names, result.std, strict=True))
     values = dict(zip(result.names, result.values, strict=True))
     for name in undetermined:  # never a usable-looking number
@@ -102,7 +99,7 @@ def calibration_dict(
     return {
         "format": FORMAT,
         "wheelcal_version": __version__,
-        "geometry": geometry,
+        "geometry": session.geometry,
         "provenance": provenance or {},
         "source": {
             "file": result.source,
@@ -112,7 +109,7 @@ def calibration_dict(
             # sample times are whole nanoseconds: written at that precision (93.645, not
             # 93.64500000000001 from the ns → s conversion)
             "window_s": [round(t, 9) for t in result.window_s],
-            "window_reason": window_reason,
+            "window_reason": session.window.reason,
             "sensor_id": result.info.sensor_id,
             "mounting_id": result.info.mounting_id,
             "notes": list(result.notes),
@@ -122,7 +119,9 @@ def calibration_dict(
             "gain": [_num(values[f"gain_{a}"]) for a in AXES],
             "offset_std_mps2": [_num(std[f"offset_{a}_mps2"]) for a in AXES],
             "gain_std": [_num(std[f"gain_{a}"]) for a in AXES],
-            "undetermined": _undetermined(result),
+            "undetermined": [
+                {"parameter": n, "reason": r} for n, r in assessment.undetermined
+            ],
         },
         "bench": bench,
         "motion": motion,
@@ -131,7 +130,7 @@ def calibration_dict(
             n: {"value": _num(values[n]), "std": _num(std[n])} for n in _reported(result)
         },
         "fit": {
-            "model": model,
+            "model": session.model,
             **_screen(diagnosis),
             "residual_rms_mps2": _vec(result.residual_rms_mps2),
             "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
@@ -139,7 +138,7 @@ def calibration_dict(
             "iterations": int(result.iterations),
             "covariance": _covariance(result, undetermined),
             "covariance_names": list(_reported(result)),
-            "warnings": list(result.warnings),
+            "warnings": list(session.warnings),
             "noise_model": result.noise.to_dict(),
             "twin": {
                 "rejected_offset_mps2": _vec(result.twin.rejected.sensor.offset_mps2),
@@ -149,7 +148,15 @@ def calibration_dict(
             "residual_by_wheel_angle": residual_by_wheel_angle(
                 result.params.spin.theta_at(result.centred_time_s), result.residual_mps2
             ),
-            **_assessment(result),
+            "goodness": {
+                "chi2": _num(result.chi2),
+                "entries": int(result.entries),
+                "free_parameters": int(result.layout.size),
+                "chi2_reduced": _num(result.chi2_reduced),
+                "aic": _num(result.aic),
+                "bic": _num(result.bic),
+            },
+            **_assessment(assessment),
         },
         "systematic": {
             "gain_std": [_num(sys_std[f"gain_{a}"]) for a in AXES],
@@ -172,8 +179,8 @@ def calibration_dict(
             "note": _SYSTEMATIC_NOTE,
         },
         **(
-            {"gyro": _clean(result.assessment.gyro.to_dict())}
-            if result.assessment is not None and result.assessment.gyro is not None
+            {"gyro": _clean(assessment.gyro.to_dict())}
+            if assessment.gyro is not None
             else {}
         ),
         "correction": {
@@ -206,12 +213,6 @@ def _correction(result: CalibrationResult, undetermined: set[str]):
     return SensorCorrection.from_offset_gain(offset, gain), identity
 
 
-def _undetermined(result: CalibrationResult) -> list[dict]:
-    if result.assessment is None:
-        return []
-    return [{"parameter": n, "reason": r} for n, r in result.assessment.undetermined]
-
-
 #: Nuisance parameters kept out of ``parameters`` and ``covariance`` (in ``motion.spline``).
 _NUISANCE_PREFIXES = ("spin_spline.",)
 
@@ -237,11 +238,8 @@ def _rate_hz(time_s: np.ndarray) -> float | None:
     return float(f"{1.0 / np.median(np.diff(time_s)):.12g}")
 
 
-def _assessment(result: CalibrationResult) -> dict:
+def _assessment(a: Assessment) -> dict:
     """``fit`` keys from the gates: noise floor, unexplained residual, rest checks, thresholds."""
-    a = result.assessment
-    if a is None:
-        return {}
     out = {}
     if a.noise is not None:
         out["noise_floor_mps2"] = _vec(a.noise.floor_mps2)
@@ -349,16 +347,12 @@ def _pick(values: np.ndarray, names: tuple[str, ...], prefix: str) -> list[float
 
 def write_calibration(
     path: str | os.PathLike,
-    result: CalibrationResult,
-    geometry: str = "radius",
+    session: SessionResult,
     provenance: dict | None = None,
     durable: bool = True,
-    window_reason: str = "",
-    model: str = "closed_loop",
-    diagnosis=None,
 ) -> Path:
     """Write the calibration JSON atomically; returns the path (``durable``: see atomic)."""
-    doc = calibration_dict(result, geometry, provenance, window_reason, model, diagnosis)
+    doc = calibration_dict(session, provenance)
     text = dumps_indented(doc)  # json.dumps(doc, indent=2, allow_nan=False), faster
     atomic_write_text(path, text + "\n", durable=durable)
     return Path(path)

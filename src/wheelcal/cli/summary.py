@@ -17,7 +17,9 @@ def session_summary(outcome: SessionOutcome) -> str:
     """A few lines: window, parameters ± σ (and systematic σ), residual vs noise, warnings."""
     if not outcome.ok:
         return f"FAILED  {outcome.error}"
-    r = outcome.result
+    session = outcome.session
+    r = session.result
+    reason = session.window.reason
     sys = dict(zip(r.systematic.names, r.systematic.total_std, strict=True))
     w0, w1 = r.window_s
     omega = r.params.spin.omega_at(r.centred_time_s[[0, -1]])
@@ -25,9 +27,9 @@ def session_summary(outcome: SessionOutcome) -> str:
         f"{outcome.source}  topic {r.topic or '-'}",
         f"  window {w0:.2f}–{w1:.2f} s, {r.time_s.size} samples, "
         f"ω {omega[0]:+.2f} → {omega[1]:+.2f} rad/s"
-        + (f"  [{outcome.window_reason}]" if outcome.window_reason else ""),
+        + (f"  [{reason}]" if reason else ""),
     ]
-    undetermined = set(r.undetermined)
+    undetermined = set(session.undetermined)
 
     def show(name: str, digits: int) -> str:
         if name in undetermined:
@@ -61,10 +63,10 @@ def session_summary(outcome: SessionOutcome) -> str:
         + f" ({colour}, effective samples {100 * np.mean(noise.effective_sample_fraction):.0f} %)"
     )
     lines.append("  " + model_line(outcome))
-    verdict = noise_verdict(r)
+    verdict = noise_verdict(session.assessment)
     if verdict:
         lines.append("  " + verdict)
-    for warning in r.warnings:
+    for warning in session.warnings:
         lines.append(f"  warning: {warning}")
     for note in r.notes:
         lines.append(f"  note: {note}")
@@ -76,7 +78,7 @@ def session_summary(outcome: SessionOutcome) -> str:
 
 def model_line(outcome: SessionOutcome) -> str:
     """One line: what the closed loop added (each with χ² and p), or that nothing was needed."""
-    d = outcome.diagnosis
+    d = outcome.session.diagnosis
     if d is None:
         return "model: the paper's (--model paper: no screen for effects it lacks)"
     tested = sum(t.identifiable for t in d.final_tests)
@@ -97,10 +99,12 @@ def p_text(p: float) -> str:
     return "p < 1e-300" if p <= 0 else f"p = {p:.1g}"
 
 
-def noise_verdict(result) -> str:
-    """One line: the residual against the independent noise floor (empty if not assessed)."""
-    a = result.assessment
-    if a is None or a.noise is None:
+def noise_verdict(a) -> str:
+    """One line: the residual against the independent noise floor (empty without one).
+
+    ``a`` is the session's :class:`~wheelcal.session.gates.Assessment`.
+    """
+    if a.noise is None:
         return ""
     noise = a.noise
     where = "the rests" if noise.source == "rests" else "the spectrum between the wheel harmonics"
@@ -120,7 +124,7 @@ def noise_verdict(result) -> str:
 
 def diagnosis_summary(outcome: SessionOutcome) -> str:
     """The closed loop in a few lines: each step, what was not identifiable, before/after."""
-    d = outcome.diagnosis
+    d = outcome.session.diagnosis
     lines = [f"{outcome.source}: {len(d.steps)} effect(s) added (family-wise α = {d.alpha:g})"]
     for step in d.steps:
         t = step.test
@@ -142,7 +146,7 @@ def diagnosis_summary(outcome: SessionOutcome) -> str:
     final_rms = " ".join(f"{x:.4f}" for x in d.final.residual_rms_mps2)
     lines.append(f"  residual rms: paper's model {base_rms} → final {final_rms} m/s²")
     lines.append(f"  → {outcome.diagnosis_path}, {outcome.calibration_path}")
-    verdict = noise_verdict(outcome.result)
+    verdict = noise_verdict(outcome.session.assessment)
     if verdict:
         lines.append("  " + verdict)
     return "\n".join(lines)

@@ -12,6 +12,7 @@ compute a session here, so all give the same numbers.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,10 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from wheelcal.estimate.joint.fit import JointFit
-from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.recording import SESSION_FACT_KEYS, Recording
-from wheelcal.session.fit import SessionFit, WindowChoice
+from wheelcal.session.fit import SessionFit
 from wheelcal.session.gates import Gates
+from wheelcal.session.result import SessionResult
 
 #: Local gravity on Earth lies in this range; outside it needs ``force_gravity``.
 EARTH_GRAVITY_RANGE_MPS2 = (9.7, 9.9)
@@ -149,29 +150,13 @@ class SessionOptions:
             end_s=self.end_s,
             gyro=self.gyro,
             closed_loop=loop,
+            geometry=self.geometry,
         )
 
 
 def _positive(what: str, value: float | None, unit: str) -> None:
     if value is not None and not (np.isfinite(value) and value > 0):
         raise ValueError(f"{what} must be a positive number of {unit}, got {value}")
-
-
-@dataclass(frozen=True, eq=False)
-class SessionResult:
-    """A computed session: the assessed calibration and what it came from.
-
-    ``result`` is the fit the gates judged (its ``assessment`` set), ``window``
-    how its window was chosen, ``diagnosis`` the closed loop's report (None for
-    ``model="paper"``), ``recording`` the whole recording read.
-    """
-
-    source: str
-    result: CalibrationResult
-    window: WindowChoice
-    diagnosis: object | None
-    recording: Recording
-    timings_s: dict[str, float] = field(default_factory=dict)
 
 
 def compute_session(path: str | Path, options: SessionOptions) -> SessionResult:
@@ -203,8 +188,6 @@ def compute_recording(
     """Calibrate a recording already read and checked (see :func:`compute_session`)."""
     timings = dict(timings or {})
     t1 = time.perf_counter()
-    fit = options.session_fit().run(recording)
+    session = options.session_fit().run(recording)
     timings["fit"] = time.perf_counter() - t1
-    return SessionResult(
-        recording.source, fit.result, fit.window, fit.diagnosis, recording, timings
-    )
+    return dataclasses.replace(session, timings_s=timings)

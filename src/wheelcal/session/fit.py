@@ -25,10 +25,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 
+from wheelcal.closedloop.loop import ClosedLoop
 from wheelcal.estimate.gyro.block import gyro_by_product, gyro_from_fit
 from wheelcal.estimate.gyro.knots import choose_knot_spacing
 from wheelcal.estimate.gyro.rolling_fit import fit_window
@@ -57,9 +57,9 @@ from wheelcal.session.gates import (
 from wheelcal.session.motion_check import MotionCheck, broadband_noise, check_motion
 from wheelcal.session.noise_reference import NoiseReference, noise_reference
 from wheelcal.session.rest_check import check_rests
+from wheelcal.session.result import SessionResult, WindowChoice
 from wheelcal.session.window import (
     MAX_BRIDGED_GAP_S,
-    FreeSpinWindow,
     find_drive_window,
     find_free_spin,
     find_motion_window,
@@ -70,15 +70,6 @@ SHRINK = 0.6
 GYRO_MODES = ("auto", "on", "off")
 #: Refusals of the accelerometer-only fit that a gyroscope can overcome (``--gyro auto``).
 GYRO_CAN_HELP = ("motion", "undetermined", "turns")
-
-
-@dataclass(frozen=True, eq=False)
-class WindowChoice:
-    """The window a calibration used, and how it was chosen."""
-
-    recording: Recording  # cut to the window
-    found: FreeSpinWindow | None
-    reason: str
 
 
 def choose_window(
@@ -102,39 +93,6 @@ def choose_window(
     return WindowChoice(recording.window(start, end), found, reason)
 
 
-class Refinement(Protocol):
-    """What :class:`SessionFit` asks of a closed loop (the layer above provides it).
-
-    ``run`` takes the window and the fit of the paper's model there (and the model
-    as the fit's last pass evaluated it, or None), and returns an object whose
-    ``final`` is the calibration to judge and whose ``steps`` are the effects added.
-    """
-
-    def run(
-        self,
-        recording: Recording,
-        base: CalibrationResult,
-        evaluated: EvaluatedModel | None = None,
-        rests: tuple[RestSegment, ...] = (),
-    ):
-        """The closed loop's report on ``base`` (``final``, ``steps``)."""
-        ...
-
-
-@dataclass(frozen=True, eq=False)
-class SessionFitOutcome:
-    """A calibration that passed the gates, its window, and the rests it was judged by.
-
-    ``diagnosis`` is the closed loop's report when one ran (its ``final`` is ``result``
-    before the gates' assessment).
-    """
-
-    result: CalibrationResult
-    window: WindowChoice
-    rests: tuple[RestSegment, ...]
-    diagnosis: object | None = None
-
-
 @dataclass(frozen=True)
 class SessionFit:
     """Window → joint fit → gates, for one recording (see the module docstring)."""
@@ -148,13 +106,15 @@ class SessionFit:
     gyro: str = "auto"
     #: The closed loop run on the fit before the gates judge it (None: the paper's
     #: model as fitted).  The gates then judge the loop's final model.
-    closed_loop: Refinement | None = None
+    closed_loop: ClosedLoop | None = None
+    #: What the result says was fitted: the geometry asked for, and the model.
+    geometry: str = "radius"
 
     def __post_init__(self) -> None:
         if self.gyro not in GYRO_MODES:
             raise ValueError(f"gyro must be one of {GYRO_MODES}, got {self.gyro!r}")
 
-    def run(self, recording: Recording) -> SessionFitOutcome:
+    def run(self, recording: Recording) -> SessionResult:
         """Calibrate ``recording`` (rests, push and stop included).
 
         Raises
@@ -197,16 +157,14 @@ class SessionFit:
             else:
                 block = gyro_by_product(result, gyro_t, gyro, reading=self.fitter.gyro_reading())
             findings = tuple(gyro_findings(result.source, block, outcome.rests, self.gates))
+            assessment = outcome.assessment
             assessment = dataclasses.replace(
-                result.assessment, gyro=block, warnings=result.assessment.warnings + findings
+                assessment, gyro=block, warnings=assessment.warnings + findings
             )
-            result = dataclasses.replace(
-                result, assessment=assessment, warnings=result.warnings + findings
-            )
-            return dataclasses.replace(outcome, result=result)
+            return dataclasses.replace(outcome, assessment=assessment)
         return outcome
 
-    def _run_with_gyro(self, recording: Recording, why: str) -> SessionFitOutcome:
+    def _run_with_gyro(self, recording: Recording, why: str) -> SessionResult:
         """The gyro-aided fit: the whole motion, a spline wheel angle, both streams."""
         gates = self.gates
         if self.start_s is not None:
@@ -250,9 +208,8 @@ class SessionFit:
         result, diagnosis = self._refined(result, window, rests)
         block = gyro_from_fit(result, gyro_t, gyro)
         choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
-        return SessionFitOutcome(
-            assess(result, rests, gates, None, block), choice, rests, diagnosis
-        )
+        assessment = assess(result, rests, gates, None, block)
+        return self._result(recording, result, assessment, choice, rests, diagnosis)
 
     def _refined(
         self,
@@ -267,7 +224,7 @@ class SessionFit:
         diagnosis = self.closed_loop.run(window, base=result, evaluated=evaluated, rests=rests)
         return diagnosis.final, diagnosis
 
-    def _run_free_spin(self, recording: Recording) -> SessionFitOutcome:
+    def _run_free_spin(self, recording: Recording) -> SessionResult:
         """The accelerometer-only fit of the free spin (the paper's cubic)."""
         gates = self.gates
         choice = choose_window(recording, self.start_s, self.end_s, gates.max_window_s)
@@ -318,8 +275,22 @@ class SessionFit:
         omega = final.params.spin.omega_at(final.centred_time_s[[0, -1]])
         refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
         refuse_few_turns(final)
-        outcome = assess(final, rests, gates, motion, reference=reference)
-        return SessionFitOutcome(outcome, choice, rests, diagnosis)
+        assessment = assess(final, rests, gates, motion, reference=reference)
+        return self._result(recording, final, assessment, choice, rests, diagnosis)
+
+    def _result(self, recording, result, assessment, choice, rests, diagnosis) -> SessionResult:
+        model = "paper" if self.closed_loop is None else "closed_loop"
+        return SessionResult(
+            source=recording.source,
+            result=result,
+            assessment=assessment,
+            window=choice,
+            rests=rests,
+            diagnosis=diagnosis,
+            recording=recording,
+            geometry=self.geometry,
+            model=model,
+        )
 
 
 #: Stretches of the motion window whose residual exceeds this × the typical are left out.
@@ -468,8 +439,8 @@ def assess(
     motion: MotionCheck | None = None,
     gyro=None,
     reference: NoiseReference | None = None,
-) -> CalibrationResult:
-    """Apply the post-fit gates to ``result``; return it with its :class:`Assessment`.
+) -> Assessment:
+    """Apply the post-fit gates to ``result``; return their :class:`Assessment`.
 
     ``reference`` is the noise reference of this very result with these rests,
     when the caller has it already (the motion check needs it too).
@@ -490,7 +461,7 @@ def assess(
         + rest_warnings(checks, gates)
         + [f"{name} is undetermined: {reason}" for name, reason in undetermined]
     )
-    assessment = Assessment(
+    return Assessment(
         gates=gates,
         noise=noise,
         motion=motion,
@@ -499,6 +470,40 @@ def assess(
         warnings=tuple(warnings),
         gyro=gyro,
     )
-    return dataclasses.replace(
-        result, assessment=assessment, warnings=result.warnings + tuple(warnings)
+
+
+def session_of_fit(
+    result: CalibrationResult,
+    recording: Recording,
+    window=None,
+    gates: Gates | None = None,
+    diagnosis=None,
+    model: str = "paper",
+    geometry: str = "radius",
+) -> SessionResult:
+    """A fit made by hand (e.g. ``JointFit().fit(window)``) judged as a session.
+
+    ``recording`` is the whole recording the fitted window was cut from;
+    ``window`` the :class:`~wheelcal.session.window.FreeSpinWindow` it was found
+    in (None: given).  The rests outside the fitted span are found, and the
+    post-fit gates (:func:`assess`) applied — so the result can be written
+    (:func:`wheelcal.calibration.session_json.write_calibration`, the ``.rrd``)
+    like one of :class:`SessionFit`.  Raises :class:`CalibrationRefused` as
+    :func:`assess` does.
+    """
+    span = (float(result.time_s[0]), float(result.time_s[-1]))
+    exclude = (window.start_s, window.end_s) if window is not None else span
+    rests = find_rests(recording, exclude)
+    reason = "window found by the caller" if window is not None else "window given by the caller"
+    choice = WindowChoice(recording.window(*span), window, reason)
+    return SessionResult(
+        source=result.source,
+        result=result,
+        assessment=assess(result, rests, gates or Gates()),
+        window=choice,
+        rests=rests,
+        diagnosis=diagnosis,
+        recording=recording,
+        geometry=geometry,
+        model=model,
     )

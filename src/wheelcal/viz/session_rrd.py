@@ -56,8 +56,8 @@ More residual sets: inside :func:`session_rrd`, call
 (e.g. the rests' Allan deviation under ``/allan``) register their view with
 :meth:`SessionRrd.add_view`::
 
-    with session_rrd(path, result, recording, window) as rrd:
-        rrd.log_diagnosis(diagnosis)
+    with session_rrd(path, session) as rrd:
+        rrd.log_diagnosis(session.diagnosis)
         rrd.add_view("time_series", "/allan", "Allan deviation of the rests")
 
 Speed: no data are decimated (except ω, which is a polynomial).  Rerun's
@@ -101,6 +101,7 @@ from wheelcal.model import predict
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
+from wheelcal.session.result import SessionResult
 from wheelcal.session.window import FreeSpinWindow
 from wheelcal.viz.angle_profile import angle_profile
 from wheelcal.viz.arrow_chunks import (
@@ -432,9 +433,9 @@ def measured_omega(
 ) -> MeasuredRate | None:
     """ω measured over the fitted window: gyro if recorded, else per turn (accelerometer).
 
-    ``gyro_calibration`` (a ``GyroCalibration``) defaults to the result's own
-    (``result.assessment.gyro``); without either a recorded gyro is projected
-    on its principal axis (:func:`wheelcal.viz.measured_rate.gyro_rate`).
+    ``gyro_calibration`` (a ``GyroCalibration``, the session's ``gyro``); without
+    it a recorded gyro is projected on its principal axis
+    (:func:`wheelcal.viz.measured_rate.gyro_rate`).
     """
     first, last = np.searchsorted(
         recording.time_s, [result.time_s[0] + shift_s, result.time_s[-1] + shift_s]
@@ -443,8 +444,6 @@ def measured_omega(
     sign = float(np.sign(np.median(model_omega_radps)))
     gyro = getattr(recording, "gyro_radps", None)
     if gyro is not None:
-        if gyro_calibration is None and result.assessment is not None:
-            gyro_calibration = result.assessment.gyro
         rows = gyro[inside]
         every = max(1, math.ceil(rows.shape[0] / OMEGA_POINTS))
         measured = gyro_rate(
@@ -723,12 +722,7 @@ def send_session_blueprint(
 
 @contextlib.contextmanager
 def session_rrd(
-    path: str | os.PathLike,
-    result: CalibrationResult,
-    recording: Recording,
-    window: FreeSpinWindow | None,
-    durable: bool = True,
-    gyro_calibration=None,
+    path: str | os.PathLike, session: SessionResult, durable: bool = True
 ) -> Iterator[SessionRrd]:
     """Log a session into a new file; the caller may add residual sets inside the block.
 
@@ -740,18 +734,14 @@ def session_rrd(
     ----------
     path:
         Destination ``.rrd``.
-    result:
-        The calibration (residuals, parameters, noise, warnings).
-    recording:
-        The whole recording the window was cut from (raw signal, all samples).
-    window:
-        The free-spin window that was searched, or ``None`` when the window
-        was given (then the fitted samples' span is marked).
+    session:
+        The calibrated session: its final fit (residuals, parameters, noise,
+        warnings), the whole recording (raw signal, all samples), the free-spin
+        window that was searched (``None`` when given: then the fitted samples'
+        span is marked), the gyroscope's calibration for the measured ω and the
+        rests' noise for the Allan view.
     durable:
         fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
-    gyro_calibration:
-        The gyroscope's calibration for the measured ω, when the result does
-        not carry it (a closed loop's final fit is assessed without it).
 
     Yields
     ------
@@ -759,6 +749,7 @@ def session_rrd(
         ``.log_residuals(...)``, ``.log_diagnosis(...)``, ``.add_view(...)``;
         ``.stream`` is the Rerun stream.
     """
+    result, recording, window = session.result, session.recording, session.window.found
     # Plot on the recording's clock, whatever epoch the result counts from.
     shift_s = (result.epoch_unix_ns - recording.epoch_unix_ns) * 1e-9
     fit_time_s = result.time_s + shift_s
@@ -774,8 +765,8 @@ def session_rrd(
         model = predict(result.params, result.centred_time_s, result.layout)  # Eq. (6)
         stream.send_chunks(signal_chunks(recording.time_s, recording.accel_mps2, fit_time_s, model))
         log_window(stream, start_s, end_s, first_s, last_s)
-        chunks = spin_chunks(result, recording, shift_s, gyro_calibration)
-        allan = allan_chunks(result)
+        chunks = spin_chunks(result, recording, shift_s, session.gyro)
+        allan = allan_chunks(session.assessment.noise)
         chunks += allan
         markdown = report_markdown(result, window, start_s, end_s, recording.epoch_unix_ns)
         report = rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN)
@@ -796,17 +787,16 @@ def session_rrd(
         send_session_blueprint(stream, rrd.layout(), (start_s, end_s), shown_s)
 
 
-def allan_chunks(result: CalibrationResult) -> list[Chunk]:
+def allan_chunks(noise) -> list[Chunk]:
     """``/allan``: the rests' overlapping Allan deviation, log10 σ against log10 τ, per axis.
 
     A log-log plot drawn as 2-D line strips (x = log10 τ/s, y = log10 σ/(m/s²)),
     the white-noise density marked at τ = 1 s and the bias instability's
-    minimum, and the read-outs as text (``/allan/readouts``).  Nothing when the
-    recording has no rests.
+    minimum, and the read-outs as text (``/allan/readouts``).  ``noise`` is the
+    gates' noise floor (``Assessment.noise``); nothing when the recording has no rests.
     """
     from wheelcal.calibration.allan_json import rests_allan
 
-    noise = None if result.assessment is None else result.assessment.noise
     block = None if noise is None else rests_allan(noise.rests)
     if block is None:
         return []
@@ -846,13 +836,7 @@ def allan_chunks(result: CalibrationResult) -> list[Chunk]:
 
 
 def write_session_rrd(
-    path: str | os.PathLike,
-    result: CalibrationResult,
-    recording: Recording,
-    window: FreeSpinWindow | None,
-    durable: bool = True,
-    diagnosis=None,
-    gyro_calibration=None,
+    path: str | os.PathLike, session: SessionResult, durable: bool = True
 ) -> Path:
     """Write the session's ``.rrd`` (see the module docstring) atomically.
 
@@ -860,25 +844,17 @@ def write_session_rrd(
     ----------
     path:
         Destination, conventionally ``<out>/<stem>.rrd``.
-    result:
-        The calibration of the windowed recording.
-    recording:
-        The whole recording.
-    window:
-        The searched free-spin window, or ``None`` if it was given.
+    session:
+        The calibrated session (see :func:`session_rrd`); its closed loop's
+        report, when it added effects, gets its before/after tab.
     durable:
         fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
-    diagnosis:
-        The closed loop's :class:`~wheelcal.closedloop.loop.Diagnosis`
-        whose final fit is ``result``: its before/after tab when it added effects.
-    gyro_calibration:
-        See :func:`session_rrd`.
 
     Returns
     -------
     Path
         ``path``.
     """
-    with session_rrd(path, result, recording, window, durable, gyro_calibration) as rrd:
-        rrd.log_diagnosis(diagnosis)
+    with session_rrd(path, session, durable) as rrd:
+        rrd.log_diagnosis(session.diagnosis)
     return Path(path)

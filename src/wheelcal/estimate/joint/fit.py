@@ -454,6 +454,9 @@ class JointFit:
             gyro_noise=gyro_noise,
         )
         evaluated = last_residual.evaluated_at(params) if last_residual is not None else None
+        # χ² at the result: the cost the iterations ended on (the twin's own if chosen).
+        chi2 = out.cost if normal is out.normal else normal.cost
+        result = dataclasses.replace(result, chi2=float(chi2), entries=int(normal.entries))
         return result, evaluated
 
     def _noise_model(self, residual: np.ndarray) -> NoiseModel:

@@ -53,11 +53,13 @@ class LMOutcome:
     converged: bool
     message: str
     final_step: bool = False
+    #: ‖r̃‖² at ``params`` when ``normal`` is not evaluated there (a final step).
+    end_cost: float | None = None
 
     @property
     def cost(self) -> float:
-        """‖r̃‖² at the end."""
-        return self.normal.cost
+        """‖r̃‖² at ``params``."""
+        return self.normal.cost if self.end_cost is None else self.end_cost
 
 
 def levenberg_marquardt(
@@ -110,12 +112,13 @@ def levenberg_marquardt(
             last = _final_step(normal_fn, layout, params, a_s, g_s, scale, normal.cost)
             if last is not None:
                 return LMOutcome(
-                    last,
+                    last[0],
                     normal,
                     iteration,
                     True,
                     f"last step ({np.sqrt(decrease):.2g} σ) confirmed by the cost",
                     final_step=True,
+                    end_cost=last[1],
                 )
         if not fresh:  # an earlier point's Hessian only serves the tests above
             normal, fresh = normal_fn(params, True), True
@@ -178,8 +181,11 @@ def _final_step(
     g_s: np.ndarray,
     scale: np.ndarray,
     cost: float,
-) -> CalibrationParams | None:
-    """The Gauss–Newton step's end when the cost confirms it (one cost-only pass), else None."""
+) -> tuple[CalibrationParams, float] | None:
+    """The Gauss–Newton step's end and its cost, when the cost confirms it; else None.
+
+    One cost-only pass.
+    """
     if not np.all(np.diag(a_s) > 0):  # a parameter no sample depends on: iterate as usual
         return None
     w, v = np.linalg.eigh(a_s)
@@ -195,13 +201,14 @@ def _final_step(
     step_s = -(v @ (proj / w))
     try:
         trial = layout.unpack(layout.pack(params) + step_s / scale, params)
-        actual = cost - normal_fn(trial, False).cost
+        end_cost = normal_fn(trial, False).cost
+        actual = cost - end_cost
     except (ValueError, FloatingPointError):
         return None
     lo, hi = FINAL_STEP_RATIO
     if not (np.isfinite(actual) and lo * predicted <= actual <= hi * predicted):
         return None
-    return trial
+    return trial, float(end_cost)
 
 
 #: Scaled-Hessian eigenvalues at most this fraction of the largest are exact null directions

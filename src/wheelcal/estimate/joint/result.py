@@ -1,9 +1,9 @@
-"""The frozen outcome of a calibration: parameters, covariance, residuals, diagnostics."""
+"""The joint fit's frozen result: parameters, covariance, residuals, noise, goodness of fit."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,9 +14,6 @@ from wheelcal.estimate.joint.systematic import SystematicBudget
 from wheelcal.estimate.joint.twins import TwinChoice
 from wheelcal.model import CalibrationParams, ParameterLayout
 from wheelcal.recording import SessionInfo
-
-if TYPE_CHECKING:
-    from wheelcal.session.gates import Assessment
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,6 +30,20 @@ class CalibrationResult:
 
     ``residual_mps2`` is data − model at ``time_s`` (seconds from
     ``epoch_unix_ns``); the spin's t = 0 is ``centre_s`` on that clock.
+
+    Goodness of fit, as lmfit reports it, from the whitened cost χ² = ‖r̃‖² at the
+    result (every stream fitted: the accelerometer's, and the gyro's when it was
+    fitted, with the prior on its sensitivity to acceleration), the number of
+    whitened residual entries N and of free parameters k (``layout.size``):
+
+    * χ²_ν = χ² / (N − k)  (:attr:`chi2_reduced`; ≈ 1 when the noise model is right),
+    * AIC = χ² + 2k         (:attr:`aic`),
+    * BIC = χ² + k ln N     (:attr:`bic`),
+
+    each up to the constant −2 ln L − χ² of the fitted noise model (the same for
+    two models of one recording and noise model, so differences compare them).
+    What the gates made of a fit is not here: a session's
+    :class:`~wheelcal.session.result.SessionResult` holds it.
     """
 
     params: CalibrationParams
@@ -55,15 +66,32 @@ class CalibrationResult:
     source: str
     topic: str
     notes: tuple[str, ...] = ()
-    #: What the plausibility gates made of it (None until assessed).
-    assessment: Assessment | None = None
     #: The gyroscope's noise model when the gyro was fitted (None otherwise).
     gyro_noise: NoiseModel | None = None
+    #: χ² = ‖r̃‖², the whitened cost at the result (NaN when not computed).
+    chi2: float = math.nan
+    #: N, the whitened residual entries behind :attr:`chi2`.
+    entries: int = 0
 
     @property
-    def undetermined(self) -> tuple[str, ...]:
-        """Parameters this recording cannot determine (reported as null)."""
-        return () if self.assessment is None else self.assessment.undetermined_names
+    def dof(self) -> int:
+        """N − k: whitened residual entries less free parameters."""
+        return self.entries - self.layout.size
+
+    @property
+    def chi2_reduced(self) -> float:
+        """χ²_ν = χ² / (N − k)."""
+        return self.chi2 / self.dof if self.dof > 0 else math.nan
+
+    @property
+    def aic(self) -> float:
+        """Akaike's criterion χ² + 2k (up to the noise model's constant)."""
+        return self.chi2 + 2 * self.layout.size
+
+    @property
+    def bic(self) -> float:
+        """The Bayesian criterion χ² + k ln N (up to the noise model's constant)."""
+        return self.chi2 + self.layout.size * math.log(max(self.entries, 1))
 
     @property
     def std(self) -> np.ndarray:

@@ -1,0 +1,59 @@
+"""A calibrated session: the fit, what the gates made of it, and where it came from."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.rests import RestSegment
+from wheelcal.recording import Recording
+from wheelcal.session.gates import Assessment
+from wheelcal.session.window import FreeSpinWindow
+
+
+@dataclass(frozen=True, eq=False)
+class WindowChoice:
+    """The window a calibration used, and how it was chosen."""
+
+    recording: Recording  # cut to the window
+    found: FreeSpinWindow | None
+    reason: str
+
+
+@dataclass(frozen=True, eq=False)
+class SessionResult:
+    """One recording calibrated: the final fit and its assessment, the window, the loop's report.
+
+    ``result`` is the fit the gates judged — the closed loop's final model, or the
+    paper's model with ``model="paper"`` — and ``assessment`` what the gates made of
+    it (noise floor, motion and rest checks, undetermined parameters, warnings, the
+    gyroscope's calibration).  ``diagnosis`` is the closed loop's report (None for
+    the paper's model), ``rests`` the rests it was judged by, ``recording`` the whole
+    recording, ``geometry`` and ``model`` what was fitted.
+    """
+
+    source: str
+    result: CalibrationResult
+    assessment: Assessment
+    window: WindowChoice
+    rests: tuple[RestSegment, ...]
+    diagnosis: object | None
+    recording: Recording
+    geometry: str = "radius"
+    model: str = "closed_loop"
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def undetermined(self) -> tuple[str, ...]:
+        """Parameters this recording cannot determine (reported as null)."""
+        return self.assessment.undetermined_names
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The fit's own warnings, then the gates'."""
+        return self.result.warnings + self.assessment.warnings
+
+    @property
+    def gyro(self):
+        """The gyroscope's calibration, when the recording has one (else None)."""
+        return self.assessment.gyro
