@@ -22,8 +22,8 @@ from mcap.reader import make_reader
 from truth_bound import SENSOR_NAMES, scenario_noise
 from wheelcal.batch.pipeline import load_pipeline
 from wheelcal.cli.main import build_parser, main
-from wheelcal.diagnose.sensor_fit import sensor_crlb
-from wheelcal.estimate.crlb import cramer_rao_bound
+from wheelcal.closedloop.sensor_fit import sensor_crlb
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
 from wheelcal.io import read_recording
 from wheelcal.simulate import NoiseSpec, Quantiser, preset, table2
 from wheelcal.simulate.session import simulate_session

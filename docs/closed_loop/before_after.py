@@ -24,7 +24,7 @@ from threadpoolctl import threadpool_limits
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 from test_closed_loop import truth_bound_of
-from wheelcal.diagnose.closed_loop import ClosedLoop
+from wheelcal.closedloop.loop import ClosedLoop
 from wheelcal.model import ParameterLayout
 from wheelcal.model.effects import GainDrift, OffsetWarmup, QuadraticNonlinearity
 from wheelcal.simulate import NoiseSpec, simulate, table1

@@ -19,9 +19,9 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from test_rolling import SENSOR, _bound_at_truth, _drive
-from wheelcal.diagnose.closed_loop import ClosedLoop
-from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.knots import choose_knot_spacing
+from wheelcal.closedloop.loop import ClosedLoop
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.gyro.knots import choose_knot_spacing
 
 SEEDS = (5, 6, 7)
 

@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from wheelcal.estimate.crlb import cramer_rao_bound, cramer_rao_bound_with_gyro
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.joint.crlb import cramer_rao_bound, cramer_rao_bound_with_gyro
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import ParameterLayout
 from wheelcal.model.effects import GyroReading, Imbalance, SpinSpline
 from wheelcal.simulate import table1, table2
