@@ -47,7 +47,7 @@ def contenders(rotation, ref_rotation, samples, ref_transpose_times):
     """{name: (now, ref)} of the calls to time; the same inputs for both."""
     from scipy import special, stats
 
-    from wheelcal.estimate.columns import difference_stds
+    from wheelcal.estimate.joint.columns import difference_stds
     from wheelcal.model import ParameterLayout, evaluate
     from wheelcal.model.forward import jacobian_transpose_times
     from wheelcal.simulate import table1

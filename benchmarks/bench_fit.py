@@ -29,10 +29,10 @@ from threadpoolctl import threadpool_limits
 
 from _timing import fmt, interleaved_times
 from bench_versus import STAGES, stage_times
-from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.paper import PaperEstimator
-from wheelcal.estimate.session_fit import SessionFit, choose_window
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.paper.estimator import PaperEstimator
 from wheelcal.runtime import tune_allocator
+from wheelcal.session.fit import SessionFit, choose_window
 from wheelcal.simulate import simulate, table1
 
 
@@ -53,7 +53,7 @@ def peak_bytes(fn) -> int:
 
 def stage_breakdown(recording, repeats: int) -> None:
     """Median ms of each stage of the whole calibration, run as SessionFit runs it."""
-    from wheelcal.estimate import session_fit as sf
+    from wheelcal.session import fit as sf
 
     run = stage_times(sf, recording)
     stages: dict[str, list[float]] = {}

@@ -2,7 +2,7 @@
 
 Prints absolute times and ratios measured in this same process, on whole
 simulated sessions (90 s of motion at 200 Hz with a gyroscope, rest, push and
-stop around it), through :class:`~wheelcal.estimate.session_fit.SessionFit`:
+stop around it), through :class:`~wheelcal.session.fit.SessionFit`:
 
 * a clean free spin: accelerometer only (``--gyro off``) against the gyro-aided
   fit forced on (``--gyro on``: spline wheel angle with knots chosen by BIC,
@@ -98,8 +98,8 @@ def main() -> None:
 
 
 def _run(args) -> None:
-    from wheelcal.estimate.session_fit import SessionFit
     from wheelcal.runtime import tune_allocator
+    from wheelcal.session.fit import SessionFit
 
     with threadpool_limits(1):
         tune_allocator()

@@ -41,14 +41,14 @@ def _recording(package, session: bool):
 
 def screen_parts(recording, repeats: int) -> None:
     """The screen at the default fit of ``recording``, by part (median ms)."""
-    from wheelcal.diagnose import score
-    from wheelcal.diagnose.closed_loop import ClosedLoop
-    from wheelcal.diagnose.rest_stream import rest_normal, usable_rests
-    from wheelcal.estimate.fisher_quadrature import stride_for
-    from wheelcal.estimate.joint import JointFit
+    from wheelcal.closedloop import score
+    from wheelcal.closedloop.loop import ClosedLoop
+    from wheelcal.closedloop.rest_stream import rest_normal, usable_rests
+    from wheelcal.estimate.joint.fisher_quadrature import stride_for
+    from wheelcal.estimate.joint.fit import JointFit
     from wheelcal.estimate.rests import find_rests
-    from wheelcal.estimate.session_fit import choose_window
     from wheelcal.model.effects import default_candidates
+    from wheelcal.session.fit import choose_window
 
     choice = choose_window(recording)
     window = choice.recording
@@ -89,8 +89,8 @@ def main() -> None:
     with contextlib.ExitStack() as stack:
         contenders = {}
         import wheelcal.simulate as sim
-        from wheelcal.batch.session import SessionOptions
         from wheelcal.runtime import tune_allocator
+        from wheelcal.session.compute import SessionOptions
 
         with threadpool_limits(1):
             tune_allocator()

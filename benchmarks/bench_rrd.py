@@ -30,8 +30,8 @@ from threadpoolctl import threadpool_limits
 
 from _timing import fmt, interleaved_times, times
 from bench_versus import reference_code
-from wheelcal.estimate.joint import JointFit
-from wheelcal.io.calibration_json import calibration_dict
+from wheelcal.calibration.session_json import calibration_dict
+from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.runtime import tune_allocator
 from wheelcal.simulate import simulate, table1
 from wheelcal.viz.batch_rrd import write_batch_rrd

@@ -34,9 +34,9 @@ def main() -> None:
         from wheelcal_ref.estimate.joint import JointFit as RefJoint
         from wheelcal_ref.estimate.session_fit import SessionFit as RefSession
 
-        from wheelcal.estimate.joint import JointFit
-        from wheelcal.estimate.session_fit import SessionFit
+        from wheelcal.estimate.joint.fit import JointFit
         from wheelcal.runtime import tune_allocator
+        from wheelcal.session.fit import SessionFit
         from wheelcal.simulate import simulate, table1
 
         with threadpool_limits(1):

@@ -99,7 +99,7 @@ def stage_times(session_fit_module, recording):
     """A function that runs the stages of ``SessionFit().run`` once, seconds per stage.
 
     The same stages as ``bench_fit.py --profile``, for this tree's or the
-    reference's ``wheelcal.estimate.session_fit``.
+    reference's ``wheelcal.session.fit``.
     """
     sf = session_fit_module
     session = sf.SessionFit()
@@ -177,9 +177,9 @@ def main() -> None:
         from wheelcal_ref.estimate.session_fit import SessionFit as RefSession
 
         import wheelcal.simulate as sim
-        from wheelcal.estimate.joint import JointFit
-        from wheelcal.estimate.session_fit import SessionFit
+        from wheelcal.estimate.joint.fit import JointFit
         from wheelcal.runtime import tune_allocator
+        from wheelcal.session.fit import SessionFit
 
         def recording(package):
             if args.scenario == "table1":
@@ -227,7 +227,7 @@ def main() -> None:
         if args.stages:
             from wheelcal_ref.estimate import session_fit as ref_session_fit
 
-            from wheelcal.estimate import session_fit
+            from wheelcal.session import fit as session_fit
 
             with threadpool_limits(1):
                 print_stages(

@@ -35,7 +35,7 @@ def main() -> None:
     with reference_code(args.ref):
         from wheelcal_ref.estimate.noise_model import NoiseModel as RefNoiseModel
 
-        from wheelcal.estimate.noise_model import NoiseModel
+        from wheelcal.estimate.joint.noise_model import NoiseModel
         from wheelcal.runtime import tune_allocator
 
         rng = np.random.default_rng(0)

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from truth_bound import scenario_noise
-from wheelcal.estimate.crlb import Bound, cramer_rao_bound_with_gyro
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.joint.crlb import Bound, cramer_rao_bound_with_gyro
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import SpinParams
 from wheelcal.model.effects import cubic_bspline_basis
 

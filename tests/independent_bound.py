@@ -2,8 +2,8 @@
 
 The accuracy tests judge the estimator against the CRLB at the truth.  If that
 bound came from the code under test (the analytic Jacobian of
-``wheelcal.model.forward``, the whitening of ``wheelcal.estimate.noise_model``,
-the inversion of ``wheelcal.estimate.information``, the reporting transform),
+``wheelcal.model.forward``, the whitening of ``wheelcal.estimate.joint.noise_model``,
+the inversion of ``wheelcal.estimate.joint.information``, the reporting transform),
 an error there would move the yardstick with the thing measured.  Here only
 the model's *prediction* v(x) (eq. 6) is used — itself checked against physics
 by tests/physics_oracle.py — and everything else is redone from first

@@ -14,7 +14,7 @@ same way — never from the estimate's values:
   their law keeps its shape;
 * a gyro reading's truth from the simulator's gyro (``gyro_truth.py``).
 
-The bound is then :func:`~wheelcal.estimate.crlb.cramer_rao_bound` (with the
+The bound is then :func:`~wheelcal.estimate.joint.crlb.cramer_rao_bound` (with the
 gyro's stream when the layout fits it) at that truth, with the simulator's noise.
 """
 
@@ -24,8 +24,8 @@ import numpy as np
 
 from gyro_truth import gyro_truth_values
 from truth_bound import scenario_noise
-from wheelcal.estimate.crlb import Bound, cramer_rao_bound, cramer_rao_bound_with_gyro
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.joint.crlb import Bound, cramer_rao_bound, cramer_rao_bound_with_gyro
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import SpinParams
 from wheelcal.model.effects import (
     GainDrift,

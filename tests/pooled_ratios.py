@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.runtime import worker_init
 from wheelcal.simulate import simulate
 

@@ -5,7 +5,7 @@ The README's headline claim (paper's Table I truth, σ_n = 0.08 m/s², white and
 bound, and the σ it reports is honest.  The yardstick is the bound of
 tests/independent_bound.py (finite differences of the prediction, exact AR
 likelihood, numpy's inverse), not wheelcal's own CRLB code: an error in
-``wheelcal.estimate.information``/``crlb`` that scaled both the reported σ and
+``wheelcal.estimate.joint.information``/``crlb`` that scaled both the reported σ and
 the CRLB would otherwise cancel.
 
 Statistics (tests/pooled_ratios.py): per parameter group G of k parameters
@@ -40,7 +40,7 @@ import pytest
 
 from independent_bound import scenario_crlb
 from pooled_ratios import Pooled, acceptance, errors_against, pooled, run_joint_fits
-from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.simulate import NoiseSpec, random_setup, simulate, table1
 from wheelcal.study import PARAMETER_GROUPS
 from wheelcal.study.montecarlo import group_of

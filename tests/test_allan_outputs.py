@@ -9,8 +9,8 @@ from batch_inputs import pipeline_file, simulated_recordings
 from test_viz_rrd import blueprint_views, read_store, static
 from wheelcal.cli.main import main
 from wheelcal.estimate.allan import AllanSums
-from wheelcal.estimate.session_fit import SessionFit
-from wheelcal.estimate.window import find_free_spin
+from wheelcal.session.fit import SessionFit
+from wheelcal.session.window import find_free_spin
 from wheelcal.simulate import table2
 from wheelcal.simulate.session import simulate_session
 from wheelcal.viz.session_rrd import write_session_rrd

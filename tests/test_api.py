@@ -80,7 +80,7 @@ def test_the_calibration_object_is_immutable(session):
 
 
 def test_wheelcal_diagnose_is_the_api_even_after_the_package_is_imported(session):
-    import wheelcal.diagnose.closed_loop
+    import wheelcal.closedloop.loop
 
     cal = wheelcal.diagnose(session.recording, radius_m=0.28)
     assert cal.diagnosis is not None

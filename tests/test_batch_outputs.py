@@ -21,11 +21,11 @@ from mcap.reader import make_reader
 from wheelcal.batch.pipeline import load_pipeline
 from wheelcal.batch.report import build_report, report_markdown, sessions_csv
 from wheelcal.batch.runner import ProgressEvent, SessionRecord, run_batch
+from wheelcal.calibration.sensor_json import session_estimate
 from wheelcal.cli.main import main
 from wheelcal.cli.progress import BatchProgress
-from wheelcal.diagnose.pooling import POOLED_PARAMETERS, pool_sessions
+from wheelcal.closedloop.pooling import POOLED_PARAMETERS, pool_sessions
 from wheelcal.io import read_recording
-from wheelcal.io.sensor_calibration_json import session_estimate
 from wheelcal.viz import batch_png
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -6,10 +6,10 @@ from types import MappingProxyType
 
 import numpy as np
 
-from wheelcal.estimate.joint import JointFit
-from wheelcal.io import calibration as calibration_module
-from wheelcal.io.calibration import Calibration
-from wheelcal.io.calibration_json import write_calibration
+from wheelcal.calibration import document as calibration_module
+from wheelcal.calibration.document import Calibration
+from wheelcal.calibration.session_json import write_calibration
+from wheelcal.estimate.joint.fit import JointFit
 
 
 def _frozen_plain(value):

@@ -77,7 +77,7 @@ def test_diagnose_and_apply_contain_a_memory_error(tmp_path, inputs, monkeypatch
     status = main(["diagnose", str(inputs / "r0.mcap"), "--out", str(tmp_path / "d")])
     err = capsys.readouterr().err
     assert status == 1 and "r0.mcap" in err and "MemoryError" in err
-    import wheelcal.io.apply_calibration as apply_module
+    import wheelcal.calibration.apply as apply_module
 
     def no_memory(*args, **kwargs):
         raise MemoryError
@@ -277,7 +277,7 @@ def test_apply_needs_no_spin(tmp_path, inputs):
     out = tmp_path / "out"
     assert main(["calibrate", str(inputs / "r2.mcap"), "--out", str(out), "--quiet"]) == 0
     from wheelcal.io import read_recording, write_recording
-    from wheelcal.io.sample_checks import InputPolicy
+    from wheelcal.recording.samples import InputPolicy
 
     recording = read_recording(inputs / "r2.mcap")
     short = recording.window(0.0, 3.0)  # 3 s: far too short to calibrate, fine to correct

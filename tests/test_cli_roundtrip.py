@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import yaml
 
+from wheelcal.calibration.session_json import load_calibration, load_correction_from
 from wheelcal.cli.main import main
-from wheelcal.estimate.crlb import cramer_rao_bound
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.io import read_recording
-from wheelcal.io.calibration_json import load_calibration, load_correction_from
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
 
 

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from truth_bound import scenario_noise
-from wheelcal.diagnose.closed_loop import ClosedLoop
-from wheelcal.estimate.crlb import cramer_rao_bound
+from wheelcal.closedloop.loop import ClosedLoop
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
 from wheelcal.model import ParameterLayout, SpinParams
 from wheelcal.model.effects import GainDrift, OffsetWarmup, QuadraticNonlinearity
 from wheelcal.simulate import NoiseSpec, simulate, table1

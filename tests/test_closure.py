@@ -9,10 +9,10 @@ from scipy import stats
 
 from wheelcal.batch.pipeline import load_pipeline
 from wheelcal.batch.runner import run_batch
-from wheelcal.diagnose.score import pooled_score_tests
-from wheelcal.diagnose.sensor_fit import sensor_crlb
-from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.closedloop.score import pooled_score_tests
+from wheelcal.closedloop.sensor_fit import sensor_crlb
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.io import write_recording
 from wheelcal.model import BenchParams, Rotation, SensorParams
 from wheelcal.model.effects import OffsetWarmup, QuadraticNonlinearity, intrinsic_candidates

@@ -11,13 +11,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wheelcal.estimate import session_fit as sf
-from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, gradient_pass
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES, gradient_pass
 from wheelcal.model import ParameterLayout, evaluate
 from wheelcal.model.effects import QuadraticNonlinearity
 from wheelcal.model.forward import EvaluatedModel
+from wheelcal.session import fit as sf
 from wheelcal.simulate import NoiseSpec, simulate, table1
 from wheelcal.simulate.presets import random_setup
 
@@ -100,7 +100,7 @@ def test_the_fit_keeps_its_last_evaluation_at_the_result(fitted):
 def test_either_last_pass_keeps_its_evaluation(monkeypatch, seed, last):
     # The LM's last pass is the cost-only one confirming a last step (seed 0) or a
     # gradient pass whose step ended below the tolerance (seed 2): both keep theirs.
-    from wheelcal.estimate import joint as joint_module
+    from wheelcal.estimate.joint import fit as joint_module
 
     passes: list[str] = []
     call, gradient = joint_module._LastResidual.__call__, joint_module._LastResidual.gradient

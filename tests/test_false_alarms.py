@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from wheelcal.batch.session import SessionOptions
+from wheelcal.session.compute import SessionOptions
 from wheelcal.simulate import random_setup, simulate_session
 
 ALPHA = 0.01

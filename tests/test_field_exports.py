@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 import yaml
 
+from wheelcal.calibration.session_json import load_calibration, load_correction_from
 from wheelcal.cli.main import main
 from wheelcal.estimate.allan import AllanSums
 from wheelcal.io import read_recording
-from wheelcal.io.calibration_json import load_calibration, load_correction_from
 
 HOSTILE = [
     'lab "A"',

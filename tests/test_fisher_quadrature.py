@@ -1,4 +1,4 @@
-"""J̃ᵀJ̃ by quadrature (estimate/fisher_quadrature.py): exact on its rows, close to the full sum.
+"""J̃ᵀJ̃ by quadrature (estimate/joint/fisher_quadrature.py): exact on its rows, close to the sum.
 
 Two separate claims:
 
@@ -21,22 +21,22 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wheelcal.estimate.fisher_quadrature import (
+from wheelcal.estimate.joint.fisher_quadrature import (
     MIN_ROWS_PER_TURN,
     quadrature_rows,
     quadrature_stride,
     stride_for,
 )
-from wheelcal.estimate.joint import JointFit, residual_of
-from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import (
+from wheelcal.estimate.joint.fit import JointFit, residual_of
+from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.normal_equations import (
     _filled_buffer,
     accumulate,
     accumulate_fitting_noise,
     quadrature_hessian,
 )
-from wheelcal.estimate.session_fit import SessionFit
-from wheelcal.estimate.systematic import nuisance_columns, nuisance_extra
+from wheelcal.estimate.joint.systematic import nuisance_columns, nuisance_extra
+from wheelcal.session.fit import SessionFit
 from wheelcal.simulate import NoiseSpec, hostile, simulate, table1
 
 

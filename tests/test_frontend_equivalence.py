@@ -41,7 +41,7 @@ def _floor_sum_by_loop(power, band, between):
 
 def test_band_floors_are_the_medians_of_each_band():
     """Bands of uneven size (odd, even, partial) and one without bins between orders."""
-    from wheelcal.estimate.noise_reference import HARMONIC_HALF_WIDTH, _Bands
+    from wheelcal.session.noise_reference import HARMONIC_HALF_WIDTH, _Bands
 
     rng = np.random.default_rng(5)
     for bins, turns in ((8193, 100.3), (1001, 37.0), (4097, 12.7)):
@@ -61,7 +61,7 @@ def test_band_floors_are_the_medians_of_each_band():
 
 
 def test_column_statistics_equal_numpys():
-    from wheelcal.estimate.columns import centred_rows, column_means, row_gram
+    from wheelcal.estimate.joint.columns import centred_rows, column_means, row_gram
 
     x = np.random.default_rng(6).normal(3.0, 2.0, size=(5001, 3))
     mean = column_means(x)
@@ -74,7 +74,7 @@ def test_column_statistics_equal_numpys():
 
 
 def test_difference_stds_equal_numpys():
-    from wheelcal.estimate.columns import difference_stds
+    from wheelcal.estimate.joint.columns import difference_stds
 
     x = np.cumsum(np.random.default_rng(8).normal([0.1, -2.0, 5.0], [1.0, 0.3, 7.0], (5001, 3)), 0)
     expected = np.std(np.diff(x, axis=0), axis=0)
@@ -84,7 +84,7 @@ def test_difference_stds_equal_numpys():
 
 def test_legendre_normal_equations_give_polyfits_polynomial():
     """The phase polynomial and the trend, as polyfit and lstsq gave them."""
-    from wheelcal.estimate.initial import _legendre_fit
+    from wheelcal.estimate.joint.initial import _legendre_fit
 
     rng = np.random.default_rng(7)
     tau = np.linspace(-1.0, 1.0, 4341)
@@ -111,7 +111,7 @@ def _dominant_frequency_by_fftfreq(u, rate_hz):
 
 
 def test_dominant_frequency_of_the_wheel_plane_either_direction():
-    from wheelcal.estimate.initial import _dominant_frequency, _plane_signal
+    from wheelcal.estimate.joint.initial import _dominant_frequency, _plane_signal
 
     rng = np.random.default_rng(8)
     t = np.arange(17364) / 200.0
@@ -130,7 +130,7 @@ def test_window_search_low_pass_is_scipys_sosfiltfilt():
     """The zero-phase filter with its start state solved once gives sosfiltfilt's numbers."""
     from scipy import signal
 
-    from wheelcal.estimate.window import _lowpass
+    from wheelcal.session.window import _lowpass
 
     rng = np.random.default_rng(9)
     for rate, size in ((50.0, 4501), (20.0, 200), (16.0, 10)):
@@ -145,7 +145,7 @@ def test_window_search_low_pass_is_scipys_sosfiltfilt():
 
 
 def test_rotating_phase_and_revolution_mean_on_rows():
-    from wheelcal.estimate.rotating import revolution_mean, rotating_phase
+    from wheelcal.estimate.joint.rotating import revolution_mean, rotating_phase
 
     rng = np.random.default_rng(10)
     t = np.arange(3000) / 50.0
@@ -189,7 +189,7 @@ def test_rest_blocks_and_segments_as_numpy_computes_them():
 
 
 def test_noise_model_innovation_covariance_is_the_filtered_residuals_gram():
-    from wheelcal.estimate.noise_model import NoiseModel
+    from wheelcal.estimate.joint.noise_model import NoiseModel
     from wheelcal.model.ar_process import fir_filter
     from wheelcal.simulate import NoiseSpec
 
@@ -210,7 +210,7 @@ def test_noise_model_innovation_covariance_is_the_filtered_residuals_gram():
 
 def test_start_regression_is_least_squares_when_well_or_ill_posed():
     """Step 3 of the start: normal equations when well posed, the SVD when ω² hardly varies."""
-    from wheelcal.estimate.initial import _regression
+    from wheelcal.estimate.joint.initial import _regression
 
     rng = np.random.default_rng(13)
     t = np.linspace(-40.0, 40.0, 4341)
@@ -244,7 +244,7 @@ def _yule_walker_by_toeplitz(x, max_order):
 
 
 def test_levinson_recursion_gives_the_yule_walker_solution_of_the_aic_order():
-    from wheelcal.estimate.noise_model import _yule_walker_aic
+    from wheelcal.estimate.joint.noise_model import _yule_walker_aic
     from wheelcal.simulate import NoiseSpec
 
     rng = np.random.default_rng(14)
@@ -262,9 +262,9 @@ def test_levinson_recursion_gives_the_yule_walker_solution_of_the_aic_order():
 
 def test_start_of_a_short_window_skips_the_full_rate_spectrum(monkeypatch):
     """Below 2 × 4000 samples nothing is thinned, whatever the turn rate: no spectrum needed."""
-    from wheelcal.estimate import initial
-    from wheelcal.estimate.decimation import thinning_stride
-    from wheelcal.estimate.joint import JointFit
+    from wheelcal.estimate.joint import initial
+    from wheelcal.estimate.joint.decimation import thinning_stride
+    from wheelcal.estimate.joint.fit import JointFit
     from wheelcal.simulate import simulate, table1
 
     # The stride the spectrum would have chosen: 1 at any turn rate.
@@ -286,7 +286,7 @@ def test_start_of_a_short_window_skips_the_full_rate_spectrum(monkeypatch):
 
 
 def test_column_rms_equals_numpys():
-    from wheelcal.estimate.columns import column_rms
+    from wheelcal.estimate.joint.columns import column_rms
 
     x = np.random.default_rng(4).normal(0.3, 2.0, size=(5001, 3)) * [1.0, 1e-3, 1e3]
     expected = np.sqrt(np.mean(x**2, axis=0))

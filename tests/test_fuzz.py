@@ -33,8 +33,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wheelcal.batch.session import SessionOptions, calibrate_session
+from wheelcal.batch.session import calibrate_session
 from wheelcal.io import write_recording
+from wheelcal.session.compute import SessionOptions
 from wheelcal.simulate import simulate, table2
 from wheelcal.simulate.simulator import Scenario
 

@@ -19,8 +19,8 @@ import pytest
 from scipy import stats
 
 from truth_bound import sigmas_off
-from wheelcal.estimate.session_fit import SessionFit
 from wheelcal.model.effects import OffsetWarmup, QuadraticNonlinearity
+from wheelcal.session.fit import SessionFit
 from wheelcal.simulate import random_setup, simulate_session, table1, table2
 
 

@@ -31,12 +31,12 @@ import pytest
 
 from gyro_truth import gyro_bound, gyro_truth_values
 from independent_bound import independent_crlb
-from wheelcal.estimate.crlb import cramer_rao_bound, cramer_rao_bound_with_gyro
-from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.session_fit import SessionFit
+from wheelcal.estimate.joint.crlb import cramer_rao_bound, cramer_rao_bound_with_gyro
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import ParameterLayout
 from wheelcal.model.effects import GyroReading, Imbalance, SpinSpline
+from wheelcal.session.fit import SessionFit
 from wheelcal.simulate import hostile, simulate, table1, table2
 from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.motion import ImbalancedSpin
@@ -244,8 +244,8 @@ def test_driven_motions_calibrate_within_5_sigma_crlb_full(name):
 
 
 def test_auto_keeps_the_accelerometer_answer_and_calibrates_the_gyro_as_a_by_product(tmp_path):
+    from wheelcal.calibration.session_json import calibration_dict
     from wheelcal.io import read_recording, write_recording
-    from wheelcal.io.calibration_json import calibration_dict
 
     session = hostile.clean(np.random.default_rng(21), gyro=SPEC)
     path = tmp_path / "spin.mcap"

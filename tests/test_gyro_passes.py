@@ -12,17 +12,17 @@ within 0.05 σ and its σ within 1 %.
 import numpy as np
 import pytest
 
-from wheelcal.estimate import joint as joint_module
-from wheelcal.estimate.gyro_equations import accumulate_gyro, combined
-from wheelcal.estimate.information import covariance_from_fisher
-from wheelcal.estimate.joint import JointFit, _residual_fn, gyro_samples
-from wheelcal.estimate.knots import choose_knot_spacing
-from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
-from wheelcal.estimate.normal_equations import accumulate
-from wheelcal.estimate.reporting import report_transform, transform_covariance
-from wheelcal.estimate.session_fit import SessionFit
-from wheelcal.estimate.systematic import nuisance_columns, nuisance_extra
-from wheelcal.estimate.window import find_motion_window
+from wheelcal.estimate.gyro.knots import choose_knot_spacing
+from wheelcal.estimate.joint import fit as joint_module
+from wheelcal.estimate.joint.fit import JointFit, _residual_fn, gyro_samples
+from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, combined
+from wheelcal.estimate.joint.information import covariance_from_fisher
+from wheelcal.estimate.joint.levenberg_marquardt import levenberg_marquardt
+from wheelcal.estimate.joint.normal_equations import accumulate
+from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
+from wheelcal.estimate.joint.systematic import nuisance_columns, nuisance_extra
+from wheelcal.session.fit import SessionFit
+from wheelcal.session.window import find_motion_window
 from wheelcal.simulate import hostile
 from wheelcal.simulate.gyro import GyroSpec
 

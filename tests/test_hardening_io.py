@@ -351,7 +351,7 @@ def _hostile_good_sessions():
 
 def test_good_data_has_no_gross_outliers():
     """Rails, centripetal swings at high ω, heavy vibration: nothing is flagged."""
-    from wheelcal.io.sample_checks import InputPolicy, clean_samples
+    from wheelcal.recording.samples import InputPolicy, clean_samples
 
     for name, rec in _hostile_good_sessions():
         out = clean_samples(

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from truth_bound import sigmas_off
-from wheelcal.estimate.session_fit import SessionFit
 from wheelcal.recording import CalibrationRefused
+from wheelcal.session.fit import SessionFit
 from wheelcal.simulate import hostile as H
 
 RIGHT_SIGMA = 5.0

@@ -1,6 +1,6 @@
 """wheelcal's analytic Cramér–Rao bound against the independent one (tests/independent_bound.py).
 
-The analytic bound (``wheelcal.estimate.crlb``: analytic Jacobian, the noise
+The analytic bound (``wheelcal.estimate.joint.crlb``: analytic Jacobian, the noise
 model's whitening, ``information.covariance_from_fisher``, the reporting
 transform) must equal the bound rebuilt from finite differences of the
 prediction, the exact AR likelihood and numpy's inverse.  Measured agreement:
@@ -96,7 +96,7 @@ def test_offset_information_is_the_closed_form(name):
 
 def _gyro_case(name: str, kind: str):
     from gyro_truth import gyro_truth_values
-    from wheelcal.estimate.noise_model import NoiseModel
+    from wheelcal.estimate.joint.noise_model import NoiseModel
     from wheelcal.model.effects import GyroReading, Imbalance, SpinSpline
     from wheelcal.simulate import GyroSpec, table2
 
@@ -126,8 +126,8 @@ def test_analytic_crlb_with_gyro_equals_the_independent_one(name, kind):
     analytic bound); every other parameter must agree.
     """
     from independent_bound import independent_crlb
-    from wheelcal.estimate.crlb import cramer_rao_bound_with_gyro
-    from wheelcal.estimate.noise_model import NoiseModel
+    from wheelcal.estimate.joint.crlb import cramer_rao_bound_with_gyro
+    from wheelcal.estimate.joint.noise_model import NoiseModel
 
     scenario, truth, effects, noise, gyro_std = _gyro_case(name, kind)
     t = scenario.centred_times_s()
@@ -147,8 +147,8 @@ def test_analytic_crlb_with_gyro_equals_the_independent_one(name, kind):
 def test_analytic_crlb_with_sensor_and_spin_effects_equals_the_independent_one(bandwidth_hz):
     """Free effects of the closed loop (warm-up, nonlinearity, gain drift, imbalance)."""
     from independent_bound import independent_crlb
-    from wheelcal.estimate.crlb import cramer_rao_bound
-    from wheelcal.estimate.noise_model import NoiseModel
+    from wheelcal.estimate.joint.crlb import cramer_rao_bound
+    from wheelcal.estimate.joint.noise_model import NoiseModel
     from wheelcal.model.effects import GainDrift, Imbalance, OffsetWarmup, QuadraticNonlinearity
 
     scenario = _reversed(table1(NoiseSpec(0.08, bandwidth_hz=bandwidth_hz)))

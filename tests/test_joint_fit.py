@@ -5,11 +5,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wheelcal.estimate.gates import Gates, undetermined_parameters
-from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.reporting import report_transform
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.joint.reporting import report_transform
 from wheelcal.model import BenchParams, Rotation, SensorParams, SpinParams
 from wheelcal.recording import RecordingError
+from wheelcal.session.gates import Gates, undetermined_parameters
 from wheelcal.simulate import NoiseSpec, Scenario, simulate, table1
 from wheelcal.study.montecarlo import scenario_bound
 
@@ -81,7 +81,7 @@ def test_missing_radius_is_a_clear_error(table1_session):
 
 def test_smaller_offset_twin_is_reported_whatever_the_start():
     session = simulate(table1(), np.random.default_rng(6))
-    from wheelcal.estimate.twins import twin_of
+    from wheelcal.estimate.joint.twins import twin_of
 
     start = twin_of(session.truth)  # start the fit on the wrong twin
     result = JointFit().fit(session.recording, initial=start)

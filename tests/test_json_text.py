@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from wheelcal.estimate.joint import JointFit
-from wheelcal.io.calibration_json import calibration_dict
+from wheelcal.calibration.session_json import calibration_dict
+from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.io.json_text import dumps_indented
 
 

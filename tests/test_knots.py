@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from wheelcal.estimate.knots import _spline_rss, choose_knot_spacing
+from wheelcal.estimate.gyro.knots import _spline_rss, choose_knot_spacing
 from wheelcal.model.effects import cubic_bspline_basis
 
 

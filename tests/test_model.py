@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from wheelcal.estimate.twins import choose_twin, to_contract_frame, twin_of
+from wheelcal.estimate.joint.twins import choose_twin, to_contract_frame, twin_of
 from wheelcal.model import (
     BenchParams,
     CalibrationParams,

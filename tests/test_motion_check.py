@@ -5,7 +5,7 @@ coefficients' blocks a knot interval at a time with only the functions alive
 there.  By parts over every sample (a fast spin, long AR filters, effects,
 windows of several chunks), the sums must equal one dense accumulation (FIR
 history carried across the intervals, even when it spans several).  By
-quadrature (estimate/fisher_quadrature.py), H must equal the same rows of the
+quadrature (estimate/joint/fisher_quadrature.py), H must equal the same rows of the
 dense whitened columns and g the dense gradient; the check's numbers then
 stay within the quadrature's error of those computed from the dense sums.  Its
 score test has as many degrees of freedom as the spline has directions
@@ -21,13 +21,13 @@ import functools
 import numpy as np
 import pytest
 
-from wheelcal.estimate import motion_check, motion_quadrature
-from wheelcal.estimate.fisher_quadrature import quadrature_rows
-from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.motion_check import KNOT_SPACING_S, _normal_with_spline, check_motion
-from wheelcal.estimate.normal_equations import CHUNK_SAMPLES, _filled_buffer, accumulate
+from wheelcal.estimate.joint.fisher_quadrature import quadrature_rows
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES, _filled_buffer, accumulate
 from wheelcal.model.effects import SpinSpline
 from wheelcal.model.forward import candidate_columns
+from wheelcal.session import motion_check, motion_quadrature
+from wheelcal.session.motion_check import KNOT_SPACING_S, _normal_with_spline, check_motion
 from wheelcal.simulate import NoiseSpec, simulate, table1
 
 
@@ -189,7 +189,7 @@ def test_check_motion_equals_the_dense_computation(monkeypatch, name, recording)
     # round-off moves the statistic by ~1e-6 of itself (measured: 2e-6 on table1, 5e-6
     # on the wandering motor).  H by quadrature moves it by ≤ 4e-4 of itself and a
     # shift by ≤ 4e-4 σ (measured at s = 11 on table1, the lowpass and three Table II sessions).
-    from wheelcal.estimate import session_fit as sf
+    from wheelcal.session import fit as sf
 
     choice = sf.choose_window(recording, max_window_s=sf.Gates().max_window_s)
     found = choice.found

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.simulate import NoiseSpec
 
 

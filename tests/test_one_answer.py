@@ -28,7 +28,7 @@ from truth_bound import scenario_noise
 from wheelcal.batch.pipeline import load_pipeline
 from wheelcal.batch.runner import run_batch
 from wheelcal.cli.main import main
-from wheelcal.estimate.crlb import cramer_rao_bound
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
 from wheelcal.io import write_recording
 from wheelcal.model import ParameterLayout
 from wheelcal.model.effects import OffsetWarmup, QuadraticNonlinearity

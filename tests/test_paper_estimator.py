@@ -27,10 +27,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from wheelcal.estimate import paper_steps
-from wheelcal.estimate.paper import PaperEstimate, PaperEstimator
-from wheelcal.estimate.reporting import report_transform
-from wheelcal.estimate.twins import choose_twin
+from wheelcal.estimate.joint.reporting import report_transform
+from wheelcal.estimate.joint.twins import choose_twin
+from wheelcal.estimate.paper import steps as paper_steps
+from wheelcal.estimate.paper.estimator import PaperEstimate, PaperEstimator
 from wheelcal.model import (
     BenchParams,
     CalibrationParams,

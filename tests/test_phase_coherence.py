@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from wheelcal.estimate.initial import _coherence
+from wheelcal.estimate.joint.initial import _coherence
 
 
 def test_the_running_product_equals_the_direct_sums():

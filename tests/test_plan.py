@@ -15,10 +15,10 @@ import time
 import numpy as np
 import pytest
 
-from wheelcal.estimate.crlb import cramer_rao_bound
-from wheelcal.estimate.reporting import report_transform
-from wheelcal.estimate.systematic import nuisance_columns
-from wheelcal.estimate.twins import twin_of
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
+from wheelcal.estimate.joint.reporting import report_transform
+from wheelcal.estimate.joint.systematic import nuisance_columns
+from wheelcal.estimate.joint.twins import twin_of
 from wheelcal.model import BenchParams, Rotation, SpinParams
 from wheelcal.plan import (
     AssumedErrors,

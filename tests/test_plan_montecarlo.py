@@ -32,7 +32,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wheelcal.estimate.twins import twin_of
+from wheelcal.estimate.joint.twins import twin_of
 from wheelcal.model import SpinParams
 from wheelcal.plan import PlannedSetup, plan_report
 from wheelcal.study.montecarlo import run_fits, scenario_bound, summarise

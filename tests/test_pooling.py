@@ -1,4 +1,4 @@
-"""One calibration per sensor: the pooling of its sessions (wheelcal.diagnose.pooling).
+"""One calibration per sensor: the pooling of its sessions (wheelcal.closedloop.pooling).
 
 Tiers: exact algebra on hand-made sessions; the σ rule on many synthetic
 batches (pure statistics, fast); and Monte Carlo on simulated recordings fitted
@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from wheelcal.diagnose.pooling import (
+from wheelcal.calibration.sensor_json import joint_estimate, session_estimate
+from wheelcal.calibration.session_json import calibration_dict
+from wheelcal.closedloop.pooling import (
     JOINT_FIT,
     POOLED_PARAMETERS,
     WEIGHTED_MEAN,
@@ -20,9 +22,7 @@ from wheelcal.diagnose.pooling import (
     SessionEstimate,
     pool_sessions,
 )
-from wheelcal.estimate.joint import JointFit
-from wheelcal.io.calibration_json import calibration_dict
-from wheelcal.io.sensor_calibration_json import joint_estimate, session_estimate
+from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.model import SensorParams
 from wheelcal.simulate import simulate
 from wheelcal.simulate.presets import TABLE2_GAIN, TABLE2_OFFSET_MPS2, table2
@@ -173,7 +173,7 @@ def test_session_estimate_reads_nulls_and_the_covariance_block(table1_session):
 
 
 def test_joint_estimate_from_a_real_sensor_fit():
-    from wheelcal.diagnose.sensor_fit import SensorFit
+    from wheelcal.closedloop.sensor_fit import SensorFit
 
     rng = np.random.default_rng(21)
     recs, fits = [], []

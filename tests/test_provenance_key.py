@@ -6,7 +6,7 @@ import json
 
 from wheelcal import __version__
 from wheelcal.batch.provenance import run_key
-from wheelcal.batch.session import SessionOptions
+from wheelcal.session.compute import SessionOptions
 
 
 def _plain_run_key(sha: str, options: SessionOptions, produces: dict) -> str:

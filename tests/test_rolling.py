@@ -165,7 +165,7 @@ def _bound_at_truth(session, result):
     import dataclasses
 
     from gyro_truth import gyro_bound
-    from wheelcal.estimate.twins import twin_of
+    from wheelcal.estimate.joint.twins import twin_of
 
     scenario = session.scenario
     shift = result.centre_s - 0.5 * scenario.duration_s  # fit's centre − scenario's centre
@@ -188,8 +188,8 @@ def _bound_at_truth(session, result):
 
 def _rolling_run(seed: int) -> tuple[dict, dict, dict]:
     """Per parameter: (estimate − truth) / σ_CRLB(truth), estimate − truth, reported σ."""
-    from wheelcal.estimate.joint import JointFit
-    from wheelcal.estimate.session_fit import SessionFit
+    from wheelcal.estimate.joint.fit import JointFit
+    from wheelcal.session.fit import SessionFit
 
     session = _drive(seed)
     fitter = JointFit(geometry="rolling", use_gyro=True)
@@ -242,9 +242,9 @@ def test_drives_calibrate_within_5_sigma_crlb_and_report_honest_sigma_full():
 
 
 def test_the_closed_loop_finds_an_undeclared_rolling_wheel():
-    from wheelcal.diagnose.closed_loop import ClosedLoop
-    from wheelcal.estimate.joint import JointFit
-    from wheelcal.estimate.knots import choose_knot_spacing
+    from wheelcal.closedloop.loop import ClosedLoop
+    from wheelcal.estimate.gyro.knots import choose_knot_spacing
+    from wheelcal.estimate.joint.fit import JointFit
 
     session = _drive(5, duration_s=40.0)
     recording = session.recording

@@ -9,8 +9,8 @@ contiguous copy.  The straightforward forms are the oracle.
 import numpy as np
 import pytest
 
-from wheelcal.io import sample_checks
-from wheelcal.io.sample_checks import InputPolicy, clean_samples, rows_all, rows_any
+from wheelcal.recording import samples as sample_checks
+from wheelcal.recording.samples import InputPolicy, clean_samples, rows_all, rows_any
 
 
 @pytest.mark.parametrize("width", [1, 2, 3, 4])

@@ -5,9 +5,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wheelcal.diagnose.sensor_fit import SensorFit, sensor_crlb
-from wheelcal.estimate.joint import JointFit
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.closedloop.sensor_fit import SensorFit, sensor_crlb
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import BenchParams, Rotation
 from wheelcal.model.effects import CrossAxis
 from wheelcal.simulate import simulate, table1

@@ -14,9 +14,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wheelcal.estimate.gyro_equations import accumulate_gyro
-from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import accumulate
+from wheelcal.estimate.joint.gyro_equations import accumulate_gyro
+from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.normal_equations import accumulate
 from wheelcal.model import (
     BenchParams,
     CalibrationParams,
@@ -115,7 +115,7 @@ def test_gyro_stream_jacobian_equals_finite_differences():
     # H = JᵀJ of the gyro stream (unit white noise) against J from finite
     # differences of the gyro's prediction: the spin, spline, tilt and the
     # reading's own parameters (w, b and the sensitivity to linear acceleration).
-    from wheelcal.estimate.gyro_equations import gyro_prediction
+    from wheelcal.estimate.joint.gyro_equations import gyro_prediction
 
     params, layout = _setup()
     t = np.linspace(-20, 20, 401)

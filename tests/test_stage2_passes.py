@@ -14,17 +14,17 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wheelcal.estimate import joint as joint_module
-from wheelcal.estimate.information import covariance_from_fisher
-from wheelcal.estimate.joint import JointFit, _residual_fn, residual_of
-from wheelcal.estimate.levenberg_marquardt import levenberg_marquardt
-from wheelcal.estimate.normal_equations import (
+from wheelcal.estimate.joint import fit as joint_module
+from wheelcal.estimate.joint.fit import JointFit, _residual_fn, residual_of
+from wheelcal.estimate.joint.information import covariance_from_fisher
+from wheelcal.estimate.joint.levenberg_marquardt import levenberg_marquardt
+from wheelcal.estimate.joint.normal_equations import (
     accumulate,
     accumulate_fitting_noise,
     gradient_pass,
 )
-from wheelcal.estimate.reporting import report_transform, transform_covariance
-from wheelcal.estimate.systematic import nuisance_columns, nuisance_extra
+from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
+from wheelcal.estimate.joint.systematic import nuisance_columns, nuisance_extra
 from wheelcal.model.effects import QuadraticNonlinearity
 from wheelcal.simulate import NoiseSpec, simulate, table1, table2
 from wheelcal.simulate.presets import random_setup

@@ -14,9 +14,9 @@ import dataclasses
 
 import numpy as np
 
-from wheelcal.diagnose.closed_loop import ClosedLoop
-from wheelcal.estimate.crlb import cramer_rao_bound
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.closedloop.loop import ClosedLoop
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import ParameterLayout
 from wheelcal.model.temperature_offset import TemperatureOffset
 from wheelcal.simulate import simulate, table2

@@ -9,8 +9,8 @@ twin would not be the same model.  Exact algebra: predictions equal to 1e-9.
 import numpy as np
 import pytest
 
-from wheelcal.estimate.gyro_equations import gyro_prediction
-from wheelcal.estimate.twins import to_contract_frame, twin_of
+from wheelcal.estimate.joint.gyro_equations import gyro_prediction
+from wheelcal.estimate.joint.twins import to_contract_frame, twin_of
 from wheelcal.model import (
     BenchParams,
     CalibrationParams,

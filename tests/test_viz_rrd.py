@@ -20,10 +20,10 @@ import rerun.blueprint as rrb
 from rerun import FileSink as rr_file_sink
 from rerun.chunk import Chunk, RrdReader
 
-from wheelcal.estimate.joint import JointFit
+from wheelcal.calibration.session_json import calibration_dict
+from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.residual_profile import binned_mean_by_angle
-from wheelcal.estimate.window import find_free_spin
-from wheelcal.io.calibration_json import calibration_dict
+from wheelcal.session.window import find_free_spin
 from wheelcal.simulate import table2
 from wheelcal.simulate.session import simulate_session
 from wheelcal.viz.angle_profile import angle_profile
@@ -880,8 +880,9 @@ def test_importing_viz_does_not_import_rerun():
 
 def test_calibrate_session_writes_the_rrd(session, tmp_path):
     """The batch/CLI pipeline: write_session_rrd(out / f"{stem}.rrd", result, recording, window)."""
-    from wheelcal.batch.session import SessionOptions, calibrate_session
+    from wheelcal.batch.session import calibrate_session
     from wheelcal.io import write_recording
+    from wheelcal.session.compute import SessionOptions
 
     recording, _, _ = session
     mcap = tmp_path / "bench1.mcap"
@@ -1076,7 +1077,7 @@ def test_a_gyro_session_shows_measured_and_modelled_omega(tmp_path):
     # A motor-driven wheel through the gyro-aided fit: the .rrd carries ω of the
     # model (cubic + spline) and ω as the gyro measures it; they agree to the gyro's
     # noise, while the driven motion is far from any cubic.
-    from wheelcal.estimate.session_fit import SessionFit
+    from wheelcal.session.fit import SessionFit
     from wheelcal.simulate import hostile
     from wheelcal.simulate.gyro import GyroSpec
 
@@ -1100,7 +1101,7 @@ def test_the_session_writer_passes_the_gyro_calibration_of_a_diagnosis(tmp_path)
     from types import SimpleNamespace
 
     from wheelcal.batch.session import _write_rrd
-    from wheelcal.estimate.session_fit import SessionFit
+    from wheelcal.session.fit import SessionFit
     from wheelcal.simulate import hostile
     from wheelcal.simulate.gyro import GyroSpec
 

@@ -9,10 +9,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from wheelcal.estimate.window import FreeSpinWindow, WindowSearch, find_free_spin
 from wheelcal.io import read_recording, write_recording
 from wheelcal.model import Rotation, SpinParams
 from wheelcal.recording import Recording, RecordingError
+from wheelcal.session.window import FreeSpinWindow, WindowSearch, find_free_spin
 from wheelcal.simulate import NoiseSpec, Quantiser, Scenario, simulate, table1, table2
 from wheelcal.simulate.presets import random_setup
 from wheelcal.simulate.session import SessionPlan, simulate_session
@@ -126,7 +126,7 @@ def test_a_day_long_gap_costs_memory_by_samples_not_by_time_span():
     """
     import tracemalloc
 
-    from wheelcal.estimate.session_fit import SessionFit
+    from wheelcal.session.fit import SessionFit
 
     spin = simulate(table1(), np.random.default_rng(4)).recording
     rest_t = spin.time_s[-1] + 86_400.0 + np.arange(2000) / 200.0
@@ -156,7 +156,7 @@ def test_a_given_gyro_window_across_a_day_long_gap_is_refused_in_bounded_memory(
     to build B-spline bases of ~5,000 knots × 6,000 samples per candidate spacing)."""
     import tracemalloc
 
-    from wheelcal.estimate.session_fit import SessionFit
+    from wheelcal.session.fit import SessionFit
     from wheelcal.simulate import hostile
     from wheelcal.simulate.gyro import GyroSpec
 

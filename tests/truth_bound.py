@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.estimate.crlb import Bound, cramer_rao_bound
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.joint.crlb import Bound, cramer_rao_bound
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import CalibrationParams, SpinParams
 from wheelcal.model.parameters import AXES
 

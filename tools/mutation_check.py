@@ -50,7 +50,7 @@ class Mutation:
     replacements: tuple[Replacement, ...]
 
 
-_INFO = "src/wheelcal/estimate/information.py"
+_INFO = "src/wheelcal/estimate/joint/information.py"
 _EFFECTS = "src/wheelcal/model/effects.py"
 _ROLLING = "src/wheelcal/model/rolling.py"
 _GYRO_SIM = "src/wheelcal/simulate/gyro.py"

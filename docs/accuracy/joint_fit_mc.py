@@ -14,7 +14,7 @@ import argparse
 
 import numpy as np
 
-from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.simulate import NoiseSpec, random_setup, simulate, table1
 from wheelcal.study import PARAMETER_GROUPS, group_of, monte_carlo
 from wheelcal.study.montecarlo import scenario_bound

@@ -4,7 +4,7 @@ The four-step estimator (paper Sec. III) is not efficient: its step A picks the
 realignment T'' by an extreme-value statistic of the noise (eq. 26), and every
 later step inherits that error.  This script measures by how much, on Table I at
 σ_n = 0.08 m/s²: for ``--runs`` noise draws (seeds from ``--first-seed``) it fits
-each recording with :class:`~wheelcal.estimate.paper.PaperEstimator` and prints,
+each recording with :class:`~wheelcal.estimate.paper.estimator.PaperEstimator` and prints,
 per parameter, the observed std over σ_CRLB at the truth (the inefficiency
 factor F that ``tests/test_paper_estimator.py`` states in ``PAPER_OVER_CRLB``),
 the bias over σ_CRLB, and the bias's t statistic, bias / (std/√n).
@@ -19,7 +19,7 @@ import argparse
 
 import numpy as np
 
-from wheelcal.estimate.paper import PaperEstimator
+from wheelcal.estimate.paper.estimator import PaperEstimator
 from wheelcal.simulate import table1
 from wheelcal.study import monte_carlo
 

@@ -15,9 +15,9 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from wheelcal.diagnose.closed_loop import ClosedLoop
-from wheelcal.diagnose.score import pooled_score_tests
-from wheelcal.estimate.joint import JointFit
+from wheelcal.closedloop.loop import ClosedLoop
+from wheelcal.closedloop.score import pooled_score_tests
+from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.model.effects import intrinsic_candidates
 from wheelcal.simulate import NoiseSpec, simulate, table1, table2
 

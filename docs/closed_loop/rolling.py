@@ -20,8 +20,8 @@ from threadpoolctl import threadpool_limits
 
 from test_rolling import SENSOR, _bound_at_truth, _drive
 from wheelcal.closedloop.loop import ClosedLoop
-from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.gyro.knots import choose_knot_spacing
+from wheelcal.estimate.joint.fit import JointFit
 
 SEEDS = (5, 6, 7)
 

@@ -23,8 +23,8 @@ from threadpoolctl import threadpool_limits
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 from truth_bound import sigmas_off
-from wheelcal.estimate.session_fit import SessionFit
 from wheelcal.recording import CalibrationRefused
+from wheelcal.session.fit import SessionFit
 from wheelcal.simulate import random_setup, simulate_session
 
 

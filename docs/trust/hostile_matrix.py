@@ -20,9 +20,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 from truth_bound import sigmas_off
-from wheelcal.estimate.session_fit import SessionFit
 from wheelcal.io import read_recording, write_recording
 from wheelcal.recording import CalibrationRefused, RecordingError
+from wheelcal.session.fit import SessionFit
 from wheelcal.simulate import hostile as H
 
 

@@ -21,12 +21,12 @@ _LAZY = {
     "calibrate": ("wheelcal.api", "calibrate"),
     "diagnose": ("wheelcal.api", "diagnose"),
     "read_recording": ("wheelcal.api", "read_recording"),
-    "Calibration": ("wheelcal.io.calibration", "Calibration"),
+    "Calibration": ("wheelcal.calibration.document", "Calibration"),
     "CalibrationRefused": ("wheelcal.recording", "CalibrationRefused"),
     "RecordingError": ("wheelcal.recording", "RecordingError"),
     "Recording": ("wheelcal.recording", "Recording"),
     "SessionInfo": ("wheelcal.recording", "SessionInfo"),
-    "Gates": ("wheelcal.estimate.gates", "Gates"),
+    "Gates": ("wheelcal.session.gates", "Gates"),
 }
 
 __all__ = ["__version__", *_LAZY]

@@ -22,7 +22,7 @@ import os
 
 import numpy as np
 
-from wheelcal.io.calibration import Calibration
+from wheelcal.calibration.document import Calibration
 from wheelcal.recording import Recording
 
 
@@ -34,7 +34,7 @@ def read_recording(path: str | os.PathLike, **kwargs) -> Recording:
 
 
 def _options(radius_m, options: dict):
-    from wheelcal.batch.session import SessionOptions
+    from wheelcal.session.compute import SessionOptions
 
     allowed = {f.name for f in dataclasses.fields(SessionOptions)} - {"rrd", "defaults"}
     unknown = sorted(set(options) - allowed)
@@ -45,9 +45,9 @@ def _options(radius_m, options: dict):
 
 def _checked(recording: Recording, options) -> Recording:
     """An in-memory recording through the reader's sample checks and the session facts."""
-    from wheelcal.io.gyro_checks import align_to_samples, check_gyro
-    from wheelcal.io.sample_checks import InputPolicy, clean_samples
     from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+    from wheelcal.recording.gyro import align_to_samples, check_gyro
+    from wheelcal.recording.samples import InputPolicy, clean_samples
 
     info = recording.info.merged(**options.info_overrides())
     accel = recording.accel_mps2
@@ -99,7 +99,7 @@ def calibrate(
     TypeError
         An unknown option.
     """
-    from wheelcal.batch.session import compute_recording, compute_session
+    from wheelcal.session.compute import compute_recording, compute_session
 
     opts = _options(radius_m, options)
     if isinstance(source, Recording):
@@ -109,7 +109,7 @@ def calibrate(
     return Calibration.from_result(
         outcome.result,
         geometry=opts.geometry,
-        window_reason=outcome.window_reason,
+        window_reason=outcome.window.reason,
         diagnosis=outcome.diagnosis,
         model=opts.model,
     )
@@ -125,6 +125,6 @@ def diagnose(
 
     Every calibration runs the closed loop (unless ``model="paper"``), so this
     returns the same numbers as :func:`calibrate`; its ``diagnosis`` holds the steps
-    (:class:`~wheelcal.diagnose.closed_loop.Diagnosis`).
+    (:class:`~wheelcal.closedloop.loop.Diagnosis`).
     """
     return calibrate(source, radius_m=radius_m, diagnose=True, alpha=alpha, **options)

@@ -1,6 +1,6 @@
 """The batch's sensor-level closure: re-read each sensor's free spins and pool their evidence.
 
-Runs :func:`wheelcal.diagnose.sensor_closure.close_sensor` for every
+Runs :func:`wheelcal.closedloop.sensor_closure.close_sensor` for every
 ``sensor_id`` with two or more calibrated sessions, using the windows and the
 local effects (warm-up, drift, imbalance …) each session's own closed loop found,
 and writes the sensor model of the joint fit to ``sensors/<sensor_id>.sensor.json``.
@@ -12,9 +12,9 @@ from collections import defaultdict
 
 from wheelcal.batch.pipeline import Pipeline
 from wheelcal.batch.sensors import SENSORS_FOLDER, sensor_file_stem
-from wheelcal.diagnose.sensor_closure import SessionInput, close_sensor
+from wheelcal.calibration.document import Calibration
+from wheelcal.closedloop.sensor_closure import SessionInput, close_sensor
 from wheelcal.io.atomic import atomic_write_text
-from wheelcal.io.calibration import Calibration
 from wheelcal.io.json_text import dumps_indented, json_safe
 from wheelcal.model.effects import make_effect
 

@@ -42,10 +42,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from wheelcal.batch.session import SessionOptions
-from wheelcal.estimate.gates import Gates
-from wheelcal.estimate.joint import GEOMETRY_MODES
+from wheelcal.estimate.joint.fit import GEOMETRY_MODES
 from wheelcal.recording import SESSION_FACT_KEYS
+from wheelcal.session.compute import SessionOptions
+from wheelcal.session.gates import Gates
 
 
 class PipelineError(ValueError):

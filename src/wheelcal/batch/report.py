@@ -34,7 +34,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from wheelcal.io.calibration import Calibration, read_only_document
+from wheelcal.calibration.document import Calibration, read_only_document
 from wheelcal.model.parameters import AXES
 
 REPORT_PARAMETERS = (
@@ -239,7 +239,7 @@ def build_report(
     }
 
 
-#: What the reader writes into ``source.notes`` when it drops samples (wheelcal.io.sample_checks).
+#: What the reader writes into ``source.notes`` when it drops samples (wheelcal.recording.samples).
 _DROPPED = {
     "clipped": re.compile(r"dropped (\d+) clipped samples"),
     "nonfinite": re.compile(r"dropped (\d+) NaN/inf samples"),

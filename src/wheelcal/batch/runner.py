@@ -42,18 +42,14 @@ from wheelcal.batch.provenance import (
     run_key_of,
     stored_run_key,
 )
-from wheelcal.batch.session import (
-    SessionOptions,
-    calibrate_session,
-    check_regular_file,
-    failed_outcome,
-)
+from wheelcal.batch.session import calibrate_session, check_regular_file, failed_outcome
 from wheelcal.batch.stems import unique_stems
 from wheelcal.batch.workers import exit_with_parent, worker_context
+from wheelcal.calibration.document import Calibration
 from wheelcal.io.atomic import OutputFolderError, prepare_output_folder
-from wheelcal.io.calibration import Calibration
 from wheelcal.recording import RecordingError
 from wheelcal.runtime import tune_allocator
+from wheelcal.session.compute import SessionOptions
 
 
 @dataclass(frozen=True)

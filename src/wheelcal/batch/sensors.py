@@ -1,7 +1,7 @@
 """The batch's deliverable per sensor: ``sensors/<sensor_id>.calibration.json``.
 
 For every ``sensor_id`` with at least one calibrated session, pool the
-sessions (:func:`wheelcal.diagnose.pooling.pool_sessions`) — with the joint
+sessions (:func:`wheelcal.closedloop.pooling.pool_sessions`) — with the joint
 sensor fit of the closure when it ran and determines every parameter — and
 write the pooled calibration atomically.  The report opens with these.
 """
@@ -15,14 +15,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from wheelcal.diagnose.pooling import pool_sessions
-from wheelcal.io.calibration import read_only_document
-from wheelcal.io.sensor_calibration_json import (
+from wheelcal.calibration.document import read_only_document
+from wheelcal.calibration.sensor_json import (
     joint_estimate,
     sensor_calibration_dict,
     session_estimate,
     write_sensor_calibration,
 )
+from wheelcal.closedloop.pooling import pool_sessions
 
 SENSORS_FOLDER = "sensors"
 STALE_SUFFIX = ".calibration.stale.json"

@@ -36,8 +36,8 @@ def register(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
     from wheelcal.batch.session import describe_error
+    from wheelcal.calibration.apply import apply_calibration
     from wheelcal.cli.errors import SessionsFailed, UsageError
-    from wheelcal.io.apply_calibration import apply_calibration
     from wheelcal.io.atomic import OutputExistsError
     from wheelcal.io.file_kind import special_file_kind
 

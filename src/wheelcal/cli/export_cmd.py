@@ -39,10 +39,10 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export."""
+    from wheelcal.calibration.export import to_c_header, to_imu_calib, to_yaml
+    from wheelcal.calibration.session_json import load_calibration
     from wheelcal.cli.errors import UsageError
     from wheelcal.io.atomic import OutputExistsError, atomic_write_text
-    from wheelcal.io.calibration_json import load_calibration
-    from wheelcal.io.export_formats import to_c_header, to_imu_calib, to_yaml
 
     if args.out and Path(args.out).is_dir():
         raise UsageError(f"--out {args.out} is a folder; give the file to write")

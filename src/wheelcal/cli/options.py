@@ -123,7 +123,7 @@ def add_gate_arguments(parser: argparse.ArgumentParser) -> None:
 
 def gates_from_args(args: argparse.Namespace):
     """The Gates given by the command line (defaults where not given)."""
-    from wheelcal.estimate.gates import Gates
+    from wheelcal.session.gates import Gates
 
     given = {name: getattr(args, name, None) for name in GATE_FLAGS}
     if getattr(args, "gain_range", None) is not None:
@@ -136,7 +136,7 @@ def gates_from_args(args: argparse.Namespace):
 
 def session_options(args: argparse.Namespace, rrd: bool = False):
     """SessionOptions from parsed arguments (UsageError on inconsistent ones)."""
-    from wheelcal.batch.session import SessionOptions
+    from wheelcal.session.compute import SessionOptions
 
     if args.geometry == "tilt" and args.tilt_deg is None:
         raise UsageError("--geometry tilt needs --tilt-deg")

@@ -1,1 +1,14 @@
-"""Estimators: the joint ML fit at the Cramér–Rao bound, the paper's four steps, and tools."""
+"""The estimators, in subsystems: the joint ML fit, the paper's four steps, the gyroscope.
+
+Layer 4 (above ``recording``, ``io`` and ``simulate``; below ``closedloop``).
+
+* :mod:`.joint` — the joint maximum-likelihood fit: its start, normal equations,
+  Levenberg–Marquardt, noise model, the Fisher information by quadrature, the
+  Cramér–Rao bound, identifiability, twins, the systematic budget, the frozen result;
+* :mod:`.paper` — the paper's four-step estimator (III-A … D), for comparison;
+* :mod:`.gyro` — the gyroscope's calibration, the yaw of a rolling wheel, its fit;
+* the rests of a recording (:mod:`.rests`) and their Allan deviation (:mod:`.allan`),
+  and the residual by wheel angle (:mod:`.residual_profile`).
+
+Subsystems import ``joint``, never the reverse.
+"""

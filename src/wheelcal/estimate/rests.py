@@ -4,9 +4,9 @@ They are evidence the fit never saw, so they can judge it:
 
 * their scatter is the sensor's own **noise floor** — independent of the
   model, unlike an AR noise model fitted to the residual, which absorbs
-  whatever the model misses (:mod:`wheelcal.estimate.noise_reference`);
+  whatever the model misses (:mod:`wheelcal.session.noise_reference`);
 * their mean is a static reading of gravity, which a calibration must turn
-  into |a| = g (:mod:`wheelcal.estimate.rest_check`).
+  into |a| = g (:mod:`wheelcal.session.rest_check`).
 
 Detection needs no unit or mounting: the signal is cut into blocks of
 ~0.1 s; a block is *still* when its mean differs from the previous block's
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.allan import AllanSums
-from wheelcal.estimate.columns import centred_rows, column_means
-from wheelcal.estimate.noise_model import NoiseModel
+from wheelcal.estimate.joint.columns import centred_rows, column_means
+from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.recording import Recording
 
 #: Block length for the stillness test.
@@ -99,9 +99,7 @@ def find_rests(
         if t[i1 - 1] - t[i0] < min_duration_s:
             continue
         gyro = getattr(recording, "gyro_radps", None)
-        segments.append(
-            _segment(t[i0:i1], v[i0:i1], rate, None if gyro is None else gyro[i0:i1])
-        )
+        segments.append(_segment(t[i0:i1], v[i0:i1], rate, None if gyro is None else gyro[i0:i1]))
     return tuple(segments)
 
 

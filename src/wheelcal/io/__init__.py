@@ -27,8 +27,8 @@ from wheelcal.io.mcap_writer import (
     write_accel_mcap,
     write_recording,
 )
-from wheelcal.io.sample_checks import InputPolicy
 from wheelcal.io.session_meta import require_radius
+from wheelcal.recording.samples import InputPolicy
 
 __all__ = [
     "AccelTopic",

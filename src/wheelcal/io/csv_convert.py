@@ -65,8 +65,8 @@ import numpy as np
 from wheelcal.io.atomic import refuse_existing
 from wheelcal.io.errors import InputError
 from wheelcal.io.mcap_writer import Compression, Encoding, write_accel_mcap
-from wheelcal.io.sample_checks import rest_level
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+from wheelcal.recording.samples import rest_level
 
 TIME_UNITS_NS = {"s": 1_000_000_000, "ms": 1_000_000, "us": 1_000, "ns": 1}
 ACCEL_UNITS = ("m/s^2", "g", "mg", "counts")

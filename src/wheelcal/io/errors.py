@@ -8,22 +8,17 @@ caller that handles bad recordings handles bad files too.
 
 from __future__ import annotations
 
-import os
+from wheelcal.recording.errors import InputError, RecordingError, SampleError
 
-from wheelcal.recording import RecordingError
-
-
-class InputError(RecordingError):
-    """An input file that cannot be used, with the file and the reason in the message."""
-
-    def __init__(self, path: str | os.PathLike, problem: str) -> None:
-        self.path = str(path)
-        self.problem = problem
-        super().__init__(f"{self.path}: {problem}")
-
-    def __reduce__(self):
-        # Survive pickling (errors cross process boundaries in parallel batches).
-        return (type(self), (self.path, self.problem))
+__all__ = [
+    "CorruptFileError",
+    "InputError",
+    "NotMcapError",
+    "RecordingError",
+    "SampleError",
+    "SessionInfoError",
+    "TopicError",
+]
 
 
 class NotMcapError(InputError):
@@ -40,7 +35,3 @@ class TopicError(InputError):
 
 class SessionInfoError(InputError):
     """The ``wheelcal.session`` facts are missing, unparsable or out of range."""
-
-
-class SampleError(InputError):
-    """The samples themselves cannot be calibrated (too short, too many bad values, …)."""

@@ -19,16 +19,16 @@ Optional channels (additive, issue 13), read onto the accelerometer's samples:
   ``angular_velocity_covariance[0] == -1``, and a channel of exact zeros is
   absent too), or the batch's ``"gyro"`` rows (channel metadata
   ``gyro_unit`` ``rad/s`` default or ``deg/s``) — kept aligned through the
-  accelerometer's repairs and checked by :mod:`~wheelcal.io.gyro_checks`
+  accelerometer's repairs and checked by :mod:`~wheelcal.recording.gyro`
   (clipped rows left out as NaN rows);
 * the temperature — the batch's ``"temperature_c"``, else a ROS 2
   ``sensor_msgs/msg/Temperature`` topic (the only one, or the one in the
   accelerometer topic's namespace; ``temperature_topic=`` chooses),
-  interpolated onto the sample times (:mod:`~wheelcal.io.temperature_align`).
+  interpolated onto the sample times (:mod:`~wheelcal.recording.temperature`).
 
 The pipeline is: :func:`~wheelcal.io.mcap_scan.scan_mcap` (record walk, every
 CRC verified) → a vectorised decoder (:mod:`~wheelcal.io.imu_cdr`,
-:mod:`~wheelcal.io.accel_json`) → :func:`~wheelcal.io.sample_checks.clean_samples`
+:mod:`~wheelcal.io.accel_json`) → :func:`~wheelcal.recording.samples.clean_samples`
 (repairs noted in ``Recording.notes``, or refusal) → ``Recording`` with times
 in seconds from the first sample (``epoch_unix_ns``).
 """
@@ -54,7 +54,6 @@ from wheelcal.io.accel_json import (
     decode_accel_batch,
 )
 from wheelcal.io.errors import InputError, TopicError
-from wheelcal.io.gyro_checks import RADPS_PER_DPS, align_to_samples, check_gyro
 from wheelcal.io.imu_cdr import (
     CDR_MESSAGE_ENCODING,
     IMU_SCHEMA_NAME,
@@ -71,12 +70,13 @@ from wheelcal.io.imu_ros1 import (
 )
 from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord
 from wheelcal.io.recording_scan import scan_recording
-from wheelcal.io.sample_checks import InputPolicy, clean_samples
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
-from wheelcal.io.temperature_align import temperature_at
 from wheelcal.io.temperature_cdr import TEMPERATURE_SCHEMA_NAME, decode_temperature_blocks
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 from wheelcal.recording import Recording
+from wheelcal.recording.gyro import RADPS_PER_DPS, align_to_samples, check_gyro
+from wheelcal.recording.samples import InputPolicy, clean_samples
+from wheelcal.recording.temperature import temperature_at
 
 _IMU_NAMES = (IMU_SCHEMA_NAME, "sensor_msgs/Imu")
 _TEMPERATURE_NAMES = (TEMPERATURE_SCHEMA_NAME, "sensor_msgs/Temperature")
@@ -400,7 +400,7 @@ def read_recording(
         files that misstate it.
     policy:
         Thresholds for repairing versus refusing defects
-        (:class:`~wheelcal.io.sample_checks.InputPolicy`).
+        (:class:`~wheelcal.recording.samples.InputPolicy`).
     gravity_checked:
         Refuse a ``gravity_mps2`` outside Earth's 9.7–9.9 m/s² (False: the
         user forced it).

@@ -789,7 +789,7 @@ class CrossAxis(_SensorEffect):
     With R a free rotation, Γ(I + L)R spans every 3×3 matrix (9 = 3 + 3 + 3), so
     (l_yx, l_zx, l_zy) are the sensor's three non-orthogonality angles (rad).
     One mounting sees only two columns of ΓR: these are identifiable only from
-    several mountings (see :mod:`wheelcal.diagnose.multi_mounting`).
+    several mountings (see :mod:`wheelcal.closedloop.multi_mounting`).
     """
 
     name = "cross_axis"

@@ -42,7 +42,7 @@ frequency of gravity: a car wheel at 10 m/s (ρ = 0.3 m, ω ≈ 33 rad/s) in a
 
 **The yaw rate comes from the gyro**: ψ̇(t) is the gyro's reading along the
 upward direction, demodulated with the wheel angle
-(:mod:`wheelcal.estimate.yaw`).  The gyro's scale across the wheel axis is not
+(:mod:`wheelcal.estimate.gyro.yaw`).  The gyro's scale across the wheel axis is not
 calibrated by the spin, so the effect fits a scale κ with ψ̇ = κ ψ̇_gyro:
 
     parameters  ρ (``radius_m``)  and  κ (``yaw_scale``),

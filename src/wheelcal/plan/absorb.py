@@ -32,7 +32,7 @@ A sample clock that stretches time stamps by (1 + ε) reads ω/(1 + ε) and
 tilt and vertical modes).
 
 Because the map is exact, it gives the systematic shifts to every order; the
-joint fit's linearised budget (:mod:`wheelcal.estimate.systematic`) is its first
+joint fit's linearised budget (:mod:`wheelcal.estimate.joint.systematic`) is its first
 derivative.
 """
 
@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.reporting import report_transform
+from wheelcal.estimate.joint.reporting import report_transform
 from wheelcal.model import BenchParams, CalibrationParams, ParameterLayout, SensorParams, SpinParams
 
 #: The fixed quantities a fit can get wrong, with the unit of their error.

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.reporting import report_transform
-from wheelcal.estimate.systematic import SystematicBudget, nuisance_columns, systematic_budget
+from wheelcal.estimate.joint.reporting import report_transform
+from wheelcal.estimate.joint.systematic import SystematicBudget, nuisance_columns, systematic_budget
 from wheelcal.plan.absorb import AssumedErrors, NotAbsorbable, reported_shift
 from wheelcal.plan.bench_plan import PlannedSetup
 

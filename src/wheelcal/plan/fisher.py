@@ -1,7 +1,7 @@
 """Fisher information of a planned recording, exact or on a decimated grid.
 
 For Gaussian noise whitened by the AR filter A(z) of each axis and L⁻¹ across
-axes (:class:`~wheelcal.estimate.noise_model.NoiseModel`), the Fisher matrix is a
+axes (:class:`~wheelcal.estimate.joint.noise_model.NoiseModel`), the Fisher matrix is a
 sum over samples,
 
     F = Σ_n J̃_n J̃_nᵀ,     J̃_n = L⁻¹ Σ_k a_k J_{n−k}                      (*)
@@ -35,12 +35,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.estimate.crlb import Bound
-from wheelcal.estimate.information import covariance_from_fisher
-from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.normal_equations import accumulate
-from wheelcal.estimate.reporting import report_transform, transform_covariance
-from wheelcal.estimate.systematic import nuisance_extra
+from wheelcal.estimate.joint.crlb import Bound
+from wheelcal.estimate.joint.information import covariance_from_fisher
+from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.normal_equations import accumulate
+from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
+from wheelcal.estimate.joint.systematic import nuisance_extra
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate, nuisance_sensitivity
 
 #: Bound on the retained instants per chunk (memory: (P + Q) × 3 × chunk × (p + 1)).

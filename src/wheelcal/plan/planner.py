@@ -1,6 +1,6 @@
 """Predicted precision of a planned setup: the bound, the budget, the warnings, the choices.
 
-The joint fit (:mod:`wheelcal.estimate.joint`) attains the Cramér–Rao bound, and
+The joint fit (:mod:`wheelcal.estimate.joint.fit`) attains the Cramér–Rao bound, and
 the σ it reports on a real recording *is* that bound evaluated at its estimate
 (inverse Fisher information of the whitened problem).  So the σ a user will
 see is predictable before the bench is built: the bound at the planned truth
@@ -11,7 +11,7 @@ for the planned sampling and noise.  :func:`plan_report` gathers
   sample clock do to the parameters, which repeating the calibration does not
   average away;
 * the warnings ``calibrate`` would print for such a recording
-  (:func:`wheelcal.estimate.identifiability.check_identifiability`), plus the
+  (:func:`wheelcal.estimate.joint.identifiability.check_identifiability`), plus the
   planning ones (clipping, discrete twins, too few turns);
 * optionally the best mounting (:mod:`wheelcal.plan.mounting`) and the
   geometry-mode trade-offs (:mod:`wheelcal.plan.tradeoff`).
@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from wheelcal.estimate.identifiability import Identifiability, check_identifiability
-from wheelcal.estimate.systematic import nuisance_columns
-from wheelcal.estimate.twins import choose_twin
+from wheelcal.estimate.joint.identifiability import Identifiability, check_identifiability
+from wheelcal.estimate.joint.systematic import nuisance_columns
+from wheelcal.estimate.joint.twins import choose_twin
 from wheelcal.model import EULER_CONVENTION
 from wheelcal.plan.bench_plan import PlannedSetup
 from wheelcal.plan.budget import PlanBudget, plan_budget

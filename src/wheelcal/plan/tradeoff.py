@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from wheelcal.estimate.decimation import decimation_stride
-from wheelcal.estimate.systematic import nuisance_columns
+from wheelcal.estimate.joint.decimation import decimation_stride
+from wheelcal.estimate.joint.systematic import nuisance_columns
 from wheelcal.model.parameters import AXES
 from wheelcal.plan.bench_plan import VERTICAL_TILT_DEG, PlannedSetup
 from wheelcal.plan.budget import plan_budget

@@ -8,7 +8,7 @@ through the all-pole part of a 2nd-order Butterworth low-pass,
 
 an AR(2) process.  Its exact whitening filter A(z) = 1 + a₁z⁻¹ + a₂z⁻² is
 known, so the Cramér–Rao bound for coloured noise can be computed exactly
-(:mod:`wheelcal.estimate.crlb`).  ``std_mps2`` is always the *marginal*
+(:mod:`wheelcal.estimate.joint.crlb`).  ``std_mps2`` is always the *marginal*
 standard deviation per sample, the number a datasheet quotes.
 """
 

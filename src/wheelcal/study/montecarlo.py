@@ -26,9 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.crlb import Bound, cramer_rao_bound
-from wheelcal.estimate.noise_model import NoiseModel
-from wheelcal.estimate.reporting import report_transform
+from wheelcal.estimate.joint.crlb import Bound, cramer_rao_bound
+from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.reporting import report_transform
 from wheelcal.model import ParameterLayout
 from wheelcal.runtime import worker_init
 from wheelcal.simulate import Scenario, simulate
@@ -171,8 +171,8 @@ def monte_carlo(
 
     ``estimator`` is any configuration object with ``fit(recording)`` returning
     a result with ``params`` (and optionally ``std`` and ``layout``), e.g.
-    :class:`~wheelcal.estimate.joint.JointFit` or
-    :class:`~wheelcal.estimate.paper.PaperEstimator`.  ``progress`` (optional)
+    :class:`~wheelcal.estimate.joint.fit.JointFit` or
+    :class:`~wheelcal.estimate.paper.estimator.PaperEstimator`.  ``progress`` (optional)
     is called with (fits done, fits in total) as fits finish.
     """
     bound = scenario_bound(scenario, layout)

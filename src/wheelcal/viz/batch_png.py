@@ -25,7 +25,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from wheelcal.io.calibration import read_only_document
+from wheelcal.calibration.document import read_only_document
 
 OVERVIEW_FILE = "overview.png"
 MISSING_MATPLOTLIB = "matplotlib is not installed (pip install 'wheelcal[plots]')"

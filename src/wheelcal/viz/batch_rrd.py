@@ -1,7 +1,7 @@
 """Rerun view of a batch: each parameter per session with its ±σ band, by sensor and mounting.
 
 Input: the per-session calibration dictionaries of
-:func:`wheelcal.io.calibration_json.calibration_dict` (as loaded from
+:func:`wheelcal.calibration.session_json.calibration_dict` (as loaded from
 ``<stem>.calibration.json``); only ``source.file``, ``source.sensor_id``,
 ``source.mounting_id`` and ``parameters: {name: {value, std}}`` are read
 (JSON ``null`` — an undetermined σ — is accepted).
@@ -51,7 +51,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from wheelcal.io.calibration import Calibration
+from wheelcal.calibration.document import Calibration
 from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import rrd_file
 from wheelcal.viz.session_blueprint import GLOBAL_VIEW_PATH

@@ -4,7 +4,7 @@ The fitted ω(t) (eq. 2) is a model; a person judging it wants the wheel's rate
 measured without that model.  Three sources, best first:
 
 * **gyro, calibrated** — the recording has a gyroscope and the calibration
-  holds its scale, axis and bias (:class:`~wheelcal.estimate.gyro_block.GyroCalibration`):
+  holds its scale, axis and bias (:class:`~wheelcal.estimate.gyro.block.GyroCalibration`):
   ω = (ω_meas − b)·w/|w|², w = k·u;
 * **gyro, uncalibrated** — a gyroscope but no gyro block: the reading
   projected on its principal direction over the window (the wheel axis, the
@@ -55,7 +55,7 @@ def gyro_rate(
     gyro_radps:
         Gyro readings (N, 3), rad/s; non-finite rows are skipped.
     calibration:
-        A :class:`~wheelcal.estimate.gyro_block.GyroCalibration` or ``None``.
+        A :class:`~wheelcal.estimate.gyro.block.GyroCalibration` or ``None``.
     model_sign:
         Sign of the model's ω (orients the principal axis when uncalibrated).
     """

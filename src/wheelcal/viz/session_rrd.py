@@ -96,12 +96,12 @@ import pyarrow as pa
 import rerun as rr
 from rerun.chunk import Chunk
 
-from wheelcal.estimate.result import CalibrationResult
-from wheelcal.estimate.window import FreeSpinWindow
+from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model import predict
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.parameters import AXES
 from wheelcal.recording import Recording
+from wheelcal.session.window import FreeSpinWindow
 from wheelcal.viz.angle_profile import angle_profile
 from wheelcal.viz.arrow_chunks import (
     ArrowColumn,
@@ -565,7 +565,7 @@ def closed_loop_markdown(diagnosis) -> str:
     Parameters
     ----------
     diagnosis:
-        A :class:`wheelcal.diagnose.closed_loop.Diagnosis`.
+        A :class:`wheelcal.closedloop.loop.Diagnosis`.
     """
     base, final = diagnosis.base, diagnosis.final
     rms = lambda r: ", ".join(f"{v:.4g}" for v in r.residual_rms_mps2)  # noqa: E731
@@ -682,7 +682,7 @@ class SessionRrd:
         Parameters
         ----------
         diagnosis:
-            A :class:`wheelcal.diagnose.closed_loop.Diagnosis` whose final fit
+            A :class:`wheelcal.closedloop.loop.Diagnosis` whose final fit
             is this file's calibration.
         """
         if diagnosis is None or not diagnosis.steps or self.closed_loop:
@@ -804,7 +804,7 @@ def allan_chunks(result: CalibrationResult) -> list[Chunk]:
     minimum, and the read-outs as text (``/allan/readouts``).  Nothing when the
     recording has no rests.
     """
-    from wheelcal.io.allan_json import rests_allan
+    from wheelcal.calibration.allan_json import rests_allan
 
     noise = None if result.assessment is None else result.assessment.noise
     block = None if noise is None else rests_allan(noise.rests)
@@ -869,7 +869,7 @@ def write_session_rrd(
     durable:
         fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
     diagnosis:
-        The closed loop's :class:`~wheelcal.diagnose.closed_loop.Diagnosis`
+        The closed loop's :class:`~wheelcal.closedloop.loop.Diagnosis`
         whose final fit is ``result``: its before/after tab when it added effects.
     gyro_calibration:
         See :func:`session_rrd`.

@@ -1,0 +1,403 @@
+"""The calibration of one session as a typed, immutable object.
+
+:class:`Calibration` wraps the contract's calibration document
+(``wheelcal.calibration/1``, see README "Outputs") with typed accessors, so
+notebooks, tools and wheelcal's own reports read named values instead of
+digging through dictionaries:
+
+    cal = wheelcal.calibrate("spin.mcap", radius_m=0.28)
+    cal.gain, cal.offset_mps2, cal.gain_std          # arrays, NaN where undetermined
+    cal.apply(raw_samples)                           # a = M (v − b)
+    cal.to_json("spin.calibration.json")
+    Calibration.from_json("spin.calibration.json").summary()
+
+One loader reads both kinds of calibration document: a session's
+(``wheelcal.calibration/1``) and a sensor's pooled one
+(``wheelcal.sensor_calibration/1``, the batch's ``sensors/<id>.calibration.json``)::
+
+    cal = Calibration.from_json("out/sensors/mpu9250-A.calibration.json")
+    cal.kind                                         # "sensor" (or "session")
+    cal.gain, cal.correction, cal.apply(raw_samples), cal.summary()
+
+The sensor, correction, σ, parameters and warnings read alike; what only a
+session has (bench, window, residuals) raises a ``ValueError`` that says so.
+
+A calibration computed in this process also carries the full
+:class:`~wheelcal.estimate.joint.result.CalibrationResult` (residuals, noise model,
+covariance) as ``result``; one read from a file carries only the document.
+Values the recording could not determine are NaN here and ``null`` in the
+file, and are named in ``undetermined``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+
+from wheelcal.model.correction import SensorCorrection
+from wheelcal.model.parameters import AXES
+
+
+def _array(values) -> np.ndarray:
+    out = np.array([np.nan if v is None else float(v) for v in values], dtype=float)
+    out.setflags(write=False)
+    return out
+
+
+#: JSON's scalar types: a list of only these has nothing inside to freeze or thaw.
+_SCALARS = frozenset({float, int, str, bool, type(None)})
+
+
+def _frozen(value):
+    """A read-only view of nested JSON data."""
+    if isinstance(value, dict):
+        return MappingProxyType(
+            {k: v if type(v) in _SCALARS else _frozen(v) for k, v in value.items()}
+        )
+    if isinstance(value, list):
+        if _SCALARS.issuperset(map(type, value)):  # numbers and strings (most lists)
+            return tuple(value)
+        return tuple(_frozen(v) for v in value)
+    return value
+
+
+def _thawed(value):
+    if isinstance(value, Mapping):
+        return {k: v if type(v) in _SCALARS else _thawed(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        if _SCALARS.issuperset(map(type, value)):
+            return list(value)
+        return [_thawed(v) for v in value]
+    return value
+
+
+def read_only_document(calibration: Mapping) -> Mapping:
+    """The contract document to read from: a :class:`Calibration`'s own (no copy), else as given.
+
+    A :class:`Calibration`'s item access returns a fresh deep copy each time
+    (callers may change it); code that only reads many values uses this.
+    """
+    return calibration.document if isinstance(calibration, Calibration) else calibration
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration(Mapping):
+    """A calibration document — one session's or one sensor's pooled — typed.
+
+    It is also a read-only mapping of the document's top-level keys (each
+    value a fresh plain copy), so code written for the JSON reads it too.
+
+    Parameters
+    ----------
+    document:
+        The contract dictionary (``wheelcal.calibration/1`` or
+        ``wheelcal.sensor_calibration/1``); kept read-only.
+    result:
+        The in-process fit result, when the calibration was computed here.
+    diagnosis:
+        The closed loop's :class:`~wheelcal.closedloop.loop.Diagnosis`, if it ran.
+    """
+
+    document: Mapping
+    result: object | None = None
+    diagnosis: object | None = None
+
+    def __post_init__(self) -> None:
+        from wheelcal.calibration.session_json import CORRECTION_FORMATS, CalibrationFileError
+
+        if self.document.get("format") not in CORRECTION_FORMATS:
+            raise CalibrationFileError(
+                f"not a {' or '.join(CORRECTION_FORMATS)} document "
+                f"(format {self.document.get('format')!r})"
+            )
+        if not isinstance(self.document, MappingProxyType):
+            object.__setattr__(self, "document", _frozen(dict(self.document)))
+
+    # the document as a mapping -----------------------------------------------------
+    def __getitem__(self, key: str):
+        return _thawed(self.document[key])
+
+    def __iter__(self):
+        return iter(self.document)
+
+    def __len__(self) -> int:
+        return len(self.document)
+
+    __hash__ = object.__hash__
+
+    # construction -----------------------------------------------------------------
+    @classmethod
+    def from_result(
+        cls,
+        result,
+        geometry: str = "radius",
+        window_reason: str = "",
+        provenance: dict | None = None,
+        diagnosis=None,
+        model: str = "closed_loop",
+    ) -> Calibration:
+        """The calibration of a gated fit result (see :mod:`wheelcal.session.fit`)."""
+        from wheelcal.calibration.session_json import calibration_dict
+
+        document = calibration_dict(
+            result, geometry, provenance, window_reason, model=model, diagnosis=diagnosis
+        )
+        return cls(document, result=result, diagnosis=diagnosis)
+
+    @classmethod
+    def from_json(cls, path: str | os.PathLike, allow_partial: bool = True) -> Calibration:
+        """Read a calibration file (``allow_partial=False`` refuses undetermined parameters)."""
+        from wheelcal.calibration.session_json import load_calibration
+
+        return cls(load_calibration(path, allow_partial=allow_partial))
+
+    @classmethod
+    def from_document(
+        cls, document: dict, path: str | os.PathLike, allow_partial: bool = True
+    ) -> Calibration:
+        """As :meth:`from_json`, for the document already read from ``path`` (same checks)."""
+        from wheelcal.calibration.session_json import check_calibration
+
+        return cls(check_calibration(document, path, allow_partial=allow_partial))
+
+    def to_dict(self) -> dict:
+        """The contract dictionary (a mutable copy)."""
+        return _thawed(self.document)
+
+    def to_json(self, path: str | os.PathLike, durable: bool = True) -> Path:
+        """Write the contract JSON atomically; returns the path."""
+        from wheelcal.io.atomic import atomic_write_text
+
+        text = json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
+        atomic_write_text(path, text, durable=durable)
+        return Path(path)
+
+    # which document --------------------------------------------------------------
+    @property
+    def kind(self) -> str:
+        """``"session"`` (one recording) or ``"sensor"`` (pooled from a batch's sessions)."""
+        from wheelcal.calibration.session_json import SENSOR_CALIBRATION_FORMAT
+
+        return "sensor" if self.document["format"] == SENSOR_CALIBRATION_FORMAT else "session"
+
+    def _session_only(self, what: str) -> None:
+        if self.kind == "sensor":
+            sessions = self.document.get("pooling", {}).get("sessions", "?")
+            raise ValueError(
+                f"{what}: a sensor's pooled calibration (from {sessions} sessions) has none; "
+                "read a session's <stem>.calibration.json for it"
+            )
+
+    @property
+    def origin(self) -> str:
+        """Where it comes from: the recording, or the sensor and how many sessions."""
+        from wheelcal.calibration.export import origin
+
+        return origin(self.to_dict())
+
+    # the sensor ---------------------------------------------------------------------
+    @property
+    def gain(self) -> np.ndarray:
+        """Gain γ per axis (NaN where undetermined)."""
+        return _array(self.document["sensor"]["gain"])
+
+    @property
+    def offset_mps2(self) -> np.ndarray:
+        """Offset o per axis, m/s² (NaN where undetermined)."""
+        return _array(self.document["sensor"]["offset_mps2"])
+
+    @property
+    def gain_std(self) -> np.ndarray:
+        """Statistical σ of the gains."""
+        return _array(self.document["sensor"]["gain_std"])
+
+    @property
+    def offset_std_mps2(self) -> np.ndarray:
+        """Statistical σ of the offsets, m/s²."""
+        return _array(self.document["sensor"]["offset_std_mps2"])
+
+    @property
+    def systematic_gain_std(self) -> np.ndarray:
+        """Systematic σ of the gains (radius, gravity, clock): shared, never averaged away."""
+        return _array(self.document["systematic"]["gain_std"])
+
+    @property
+    def systematic_offset_std_mps2(self) -> np.ndarray:
+        """Systematic σ of the offsets, m/s²."""
+        return _array(self.document["systematic"]["offset_std_mps2"])
+
+    @property
+    def undetermined(self) -> tuple[tuple[str, str], ...]:
+        """(parameter, reason) for every value the recording could not determine."""
+        return tuple(
+            (u["parameter"], u["reason"]) for u in self.document["sensor"].get("undetermined", ())
+        )
+
+    @property
+    def correction(self) -> SensorCorrection:
+        """The correction a = M (v − b) (identity rows on undetermined axes)."""
+        block = self.document["correction"]
+        return SensorCorrection(bias_mps2=block["bias_mps2"], matrix=block["matrix"])
+
+    def apply(self, samples_mps2: np.ndarray, allow_partial: bool = False) -> np.ndarray:
+        """Corrected specific force (N, 3) from raw samples (N, 3) in m/s².
+
+        Raises ``ValueError`` for a partial calibration unless ``allow_partial``
+        (its undetermined axes would pass unchanged).
+        """
+        if self.undetermined and not allow_partial:
+            names = ", ".join(name for name, _ in self.undetermined)
+            raise ValueError(
+                f"this calibration could not determine {names}: those axes would pass "
+                "unchanged; use apply(..., allow_partial=True) to accept that"
+            )
+        return self.correction.apply(samples_mps2)
+
+    # the bench, the fit, the source ------------------------------------------------
+    @property
+    def tilt_deg(self) -> float:
+        """Bench tilt α."""
+        self._session_only("tilt_deg")
+        return float(self.document["bench"]["tilt_deg"])
+
+    @property
+    def radius_m(self) -> float:
+        """Sensor distance from the axle used (or fitted)."""
+        self._session_only("radius_m")
+        return float(self.document["bench"]["radius_m"])
+
+    @property
+    def misalignment_matrix(self) -> np.ndarray:
+        """R, bench → sensor."""
+        self._session_only("misalignment_matrix")
+        return np.array(self.document["bench"]["misalignment_matrix"], dtype=float)
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """Every warning of the fit and the gates."""
+        return tuple(self.document["fit"]["warnings"])
+
+    @property
+    def noise_floor_mps2(self) -> np.ndarray | None:
+        """The sensor's noise floor (rests or residual spectrum), independent of the fit."""
+        floor = self.document["fit"].get("noise_floor_mps2")
+        return None if floor is None else _array(floor)
+
+    @property
+    def unexplained_mps2(self) -> np.ndarray | None:
+        """√(residual² − floor²) per axis."""
+        value = self.document["fit"].get("unexplained_mps2")
+        return None if value is None else _array(value)
+
+    @property
+    def residual_rms_mps2(self) -> np.ndarray:
+        """Residual RMS per axis."""
+        self._session_only("residual_rms_mps2")
+        return _array(self.document["fit"]["residual_rms_mps2"])
+
+    @property
+    def source_file(self) -> str:
+        """The recording this calibration came from."""
+        self._session_only("source_file")
+        return str(self.document["source"]["file"])
+
+    @property
+    def sensor_id(self) -> str:
+        """The sensor's identifier (may be empty)."""
+        return str(self.document["source"].get("sensor_id", ""))
+
+    @property
+    def mounting_id(self) -> str:
+        """The mounting's identifier (may be empty; a sensor's: its sessions' ids, comma-joined)."""
+        source = self.document["source"]
+        if "mounting_ids" in source:
+            return ", ".join(m for m in source["mounting_ids"] if m)
+        return str(source.get("mounting_id", ""))
+
+    @property
+    def window_s(self) -> tuple[float, float]:
+        """The fitted free-spin window, s from the first sample."""
+        self._session_only("window_s")
+        start, end = self.document["source"]["window_s"]
+        return float(start), float(end)
+
+    @property
+    def parameters(self) -> dict[str, tuple[float, float]]:
+        """Every reported parameter as (value, std), NaN where null."""
+        out = {}
+        for name, p in self.document.get("parameters", {}).items():
+            value = np.nan if p["value"] is None else float(p["value"])
+            std = np.nan if p["std"] is None else float(p["std"])
+            out[name] = (value, std)
+        return out
+
+    @property
+    def effects(self) -> dict[str, dict]:
+        """Effects in the model: name → settings (empty for the paper's model)."""
+        return {
+            name: dict(entry.get("settings", {}))
+            for name, entry in self.document.get("effects", {}).items()
+        }
+
+    def value(self, name: str) -> float:
+        """Value of one reported parameter (NaN when undetermined)."""
+        return self.parameters[name][0]
+
+    def std(self, name: str) -> float:
+        """σ of one reported parameter (NaN when undetermined)."""
+        return self.parameters[name][1]
+
+    def summary(self) -> str:
+        """A few lines for people: sensor ± σ (systematic σ), bench, fit, warnings."""
+        lines = [f"{self.origin}: wheelcal calibration ({self.document['format']})"]
+        undetermined = {name for name, _ in self.undetermined}
+        for i, axis in enumerate(AXES):
+            parts = []
+            gain_sys = self.systematic_gain_std[i]
+            for name, value, std, sys, unit, digits in (
+                (f"gain_{axis}", self.gain[i], self.gain_std[i], gain_sys, "", 5),
+                (
+                    f"offset_{axis}_mps2",
+                    self.offset_mps2[i],
+                    self.offset_std_mps2[i],
+                    self.systematic_offset_std_mps2[i],
+                    " m/s²",
+                    4,
+                ),
+            ):
+                if name in undetermined:
+                    parts.append(f"{name.split('_')[0]} undetermined")
+                else:
+                    parts.append(
+                        f"{name.split('_')[0]} {value:+.{digits}f} ± {std:.{digits}f} "
+                        f"(sys {sys:.{digits}f}){unit}"
+                    )
+            lines.append(f"  {axis}: " + "   ".join(parts))
+        if self.kind == "session":
+            lines.append(f"  tilt {self.tilt_deg:.3f}°, radius {self.radius_m:.4g} m")
+            floor = self.noise_floor_mps2
+            rms = " ".join(f"{x:.4f}" for x in self.residual_rms_mps2)
+            lines.append(
+                f"  residual rms {rms} m/s²"
+                + (
+                    ""
+                    if floor is None
+                    else " vs noise floor " + " ".join(f"{x:.4f}" for x in floor)
+                )
+            )
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        gains = ", ".join(f"{g:.5g}" for g in self.gain)
+        offsets = ", ".join(f"{o:.4g}" for o in self.offset_mps2)
+        return (
+            f"Calibration({self.origin!r}, gain=[{gains}], offset_mps2=[{offsets}], "
+            f"warnings={len(self.warnings)})"
+        )

@@ -1,0 +1,413 @@
+"""``<stem>.calibration.json`` — the contract's per-session calibration file.
+
+Written atomically.  Keys follow ../shared/CONTRACT.md; additions are additive
+(``parameters``, ``geometry``, ``fit.noise_model``, ``fit.twin``,
+``bench.radius_std_m``, ``wheelcal_version``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from wheelcal import __version__
+from wheelcal.calibration.allan_json import rests_allan
+from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.residual_profile import residual_by_wheel_angle
+from wheelcal.io.atomic import atomic_write_text
+from wheelcal.io.json_text import dumps_indented
+from wheelcal.model import EULER_CONVENTION
+from wheelcal.model.correction import SensorCorrection
+from wheelcal.model.parameters import AXES
+
+FORMAT = "wheelcal.calibration/1"
+#: A sensor's calibration pooled from its sessions (:mod:`wheelcal.calibration.sensor_json`):
+#: same ``sensor``/``systematic``/``correction`` keys, so export and apply take either.
+SENSOR_CALIBRATION_FORMAT = "wheelcal.sensor_calibration/1"
+CORRECTION_FORMATS = (FORMAT, SENSOR_CALIBRATION_FORMAT)
+_SYSTEMATIC_NOTE = (
+    "shared by every recording of the same bench and clock: repeating does not average it away"
+)
+
+
+class CalibrationFileError(ValueError):
+    """A calibration JSON that cannot be used, with the file named."""
+
+
+def _num(x):
+    """JSON-safe float: ∞/NaN become null (JSON has neither)."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _vec(values) -> list:
+    return [_num(v) for v in np.asarray(values, dtype=float).reshape(-1)]
+
+
+def calibration_dict(
+    result: CalibrationResult,
+    geometry: str = "radius",
+    provenance: dict | None = None,
+    window_reason: str = "",
+    model: str = "closed_loop",
+    diagnosis=None,
+) -> dict:
+    """The contract dictionary for one calibration result.
+
+    ``provenance`` (input hash, run key) lets a batch re-run skip sessions whose
+    output is up to date.  ``model`` is what was fitted (``fit.model``: the closed
+    loop's final model, or ``"paper"``); ``diagnosis`` (the closed loop's report)
+    gives each added effect its evidence and lists what the screen could not test.
+    """
+    params = result.params
+    undetermined = set(result.undetermined)
+    std = dict(zip(result.names, result.std, strict=True))
+    values = dict(zip(result.names, result.values, strict=True))
+    for name in undetermined:  # never a usable-looking number
+        std[name] = values[name] = float("nan")
+    budget = result.systematic
+    sys_std = dict(zip(budget.names, budget.total_std, strict=True))
+    spin = params.spin
+    correction, identity_axes = _correction(result, undetermined)
+    spline = next((e for e in result.layout.effects if e.name == "spin_spline"), None)
+    motion = {"model": f"polynomial{spin.degree}", "t0_unix_ns": int(result.t0_unix_ns)}
+    if spline is not None:
+        motion["model"] += "+spline"
+        motion["spline"] = {
+            **spline.settings(),
+            "coefficients_rad": _vec(params.effect(spline.name, spline.size)),
+            "description": spline.description,
+        }
+    for name, value in spin.to_dict().items():
+        motion[name] = _num(value)
+        motion[name.replace("_rad", "_std_rad", 1) if name == "theta0_rad" else _std_key(name)] = (
+            _num(std[name])
+        )
+    tilt_std = std.get("tilt_deg", 0.0)
+    bench = {
+        "radius_m": _num(params.bench.radius_m),
+        "radius_std_m": _num(std.get("radius_m", result.info.radius_std_m)),
+        "tilt_deg": _num(params.bench.tilt_deg),
+        "tilt_std_deg": _num(tilt_std),
+        "spin_sign": 1 if spin.omega_radps[0] >= 0 else -1,
+        "misalignment_matrix": params.bench.misalignment.matrix.tolist(),
+        "misalignment_euler_deg": _vec(params.bench.misalignment.euler_deg()),
+        "misalignment_euler_std_deg": [_num(std[f"euler_{k}_deg"]) for k in (1, 2, 3)],
+        "euler_convention": EULER_CONVENTION,
+    }
+    return {
+        "format": FORMAT,
+        "wheelcal_version": __version__,
+        "geometry": geometry,
+        "provenance": provenance or {},
+        "source": {
+            "file": result.source,
+            "topic": result.topic,
+            "samples": int(result.time_s.size),
+            "rate_hz": _rate_hz(result.time_s),
+            # sample times are whole nanoseconds: written at that precision (93.645, not
+            # 93.64500000000001 from the ns → s conversion)
+            "window_s": [round(t, 9) for t in result.window_s],
+            "window_reason": window_reason,
+            "sensor_id": result.info.sensor_id,
+            "mounting_id": result.info.mounting_id,
+            "notes": list(result.notes),
+        },
+        "sensor": {
+            "offset_mps2": [_num(values[f"offset_{a}_mps2"]) for a in AXES],
+            "gain": [_num(values[f"gain_{a}"]) for a in AXES],
+            "offset_std_mps2": [_num(std[f"offset_{a}_mps2"]) for a in AXES],
+            "gain_std": [_num(std[f"gain_{a}"]) for a in AXES],
+            "undetermined": _undetermined(result),
+        },
+        "bench": bench,
+        "motion": motion,
+        "effects": effects_dict(result, diagnosis),
+        "parameters": {
+            n: {"value": _num(values[n]), "std": _num(std[n])} for n in _reported(result)
+        },
+        "fit": {
+            "model": model,
+            **_screen(diagnosis),
+            "residual_rms_mps2": _vec(result.residual_rms_mps2),
+            "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
+            "converged": bool(result.converged),
+            "iterations": int(result.iterations),
+            "covariance": _covariance(result, undetermined),
+            "covariance_names": list(_reported(result)),
+            "warnings": list(result.warnings),
+            "noise_model": result.noise.to_dict(),
+            "twin": {
+                "rejected_offset_mps2": _vec(result.twin.rejected.sensor.offset_mps2),
+                "ambiguous": bool(result.twin.ambiguous),
+            },
+            "poorly_determined": list(result.identifiability.poorly_determined),
+            "residual_by_wheel_angle": residual_by_wheel_angle(
+                result.params.spin.theta_at(result.centred_time_s), result.residual_mps2
+            ),
+            **_assessment(result),
+        },
+        "systematic": {
+            "gain_std": [_num(sys_std[f"gain_{a}"]) for a in AXES],
+            "offset_std_mps2": [_num(sys_std[f"offset_{a}_mps2"]) for a in AXES],
+            "tilt_std_deg": _num(sys_std.get("tilt_deg", 0.0)),
+            "sources": {
+                s.name: {
+                    "std": _num(s.std),
+                    "unit": s.unit,
+                    "gain_std": [_num(v) for v in _pick(s.shift_std, budget.names, "gain")],
+                    "offset_std_mps2": [
+                        _num(v) for v in _pick(s.shift_std, budget.names, "offset")
+                    ],
+                    "tilt_std_deg": _num(
+                        dict(zip(budget.names, s.shift_std, strict=True)).get("tilt_deg", 0.0)
+                    ),
+                }
+                for s in budget.sources
+            },
+            "note": _SYSTEMATIC_NOTE,
+        },
+        **(
+            {"gyro": _clean(result.assessment.gyro.to_dict())}
+            if result.assessment is not None and result.assessment.gyro is not None
+            else {}
+        ),
+        "correction": {
+            "bias_mps2": _vec(correction.bias_mps2),
+            "matrix": correction.matrix.tolist(),
+            "equation": "a = matrix @ (v - bias)",
+            **(
+                {
+                    "identity_axes": identity_axes,
+                    "note": "these axes are left unchanged (gain 1, offset 0): the recording "
+                    "cannot determine their gain or offset (see sensor.undetermined)",
+                }
+                if identity_axes
+                else {}
+            ),
+        },
+    }
+
+
+def _correction(result: CalibrationResult, undetermined: set[str]):
+    """The correction, with gain 1 / offset 0 on every axis with an undetermined parameter."""
+    gain = np.array(result.params.sensor.gain, dtype=float)
+    offset = np.array(result.params.sensor.offset_mps2, dtype=float)
+    identity = [
+        a for a in AXES if f"gain_{a}" in undetermined or f"offset_{a}_mps2" in undetermined
+    ]
+    for a in identity:
+        i = AXES.index(a)
+        gain[i], offset[i] = 1.0, 0.0
+    return SensorCorrection.from_offset_gain(offset, gain), identity
+
+
+def _undetermined(result: CalibrationResult) -> list[dict]:
+    if result.assessment is None:
+        return []
+    return [{"parameter": n, "reason": r} for n, r in result.assessment.undetermined]
+
+
+#: Nuisance parameters kept out of ``parameters`` and ``covariance`` (in ``motion.spline``).
+_NUISANCE_PREFIXES = ("spin_spline.",)
+
+
+def _reported(result: CalibrationResult) -> tuple[str, ...]:
+    return tuple(n for n in result.names if not n.startswith(_NUISANCE_PREFIXES))
+
+
+def _covariance(result: CalibrationResult, undetermined: set[str]) -> list:
+    keep = [result.names.index(n) for n in _reported(result)]
+    cov = np.array(result.covariance, dtype=float)[np.ix_(keep, keep)]
+    names = _reported(result)
+    for name in undetermined:
+        i = names.index(name)
+        cov[i, :] = cov[:, i] = np.nan
+    return [[_num(c) for c in row] for row in cov]
+
+
+def _rate_hz(time_s: np.ndarray) -> float | None:
+    """The median sample rate, to 12 digits (``source.rate_hz``, additive: Kalibr's update_rate)."""
+    if time_s.size < 2:
+        return None
+    return float(f"{1.0 / np.median(np.diff(time_s)):.12g}")
+
+
+def _assessment(result: CalibrationResult) -> dict:
+    """``fit`` keys from the gates: noise floor, unexplained residual, rest checks, thresholds."""
+    a = result.assessment
+    if a is None:
+        return {}
+    out = {}
+    if a.noise is not None:
+        out["noise_floor_mps2"] = _vec(a.noise.floor_mps2)
+        out["unexplained_mps2"] = _vec(a.noise.unexplained_mps2)
+        out["noise_reference"] = _clean(a.noise.to_dict())
+        allan = rests_allan(a.noise.rests)
+        if allan is not None:
+            out["allan"] = allan
+    if a.motion is not None:
+        out["motion_check"] = _clean(a.motion.to_dict())
+    out["rest_checks"] = [_clean(c.to_dict()) for c in a.rest_checks]
+    out["gates"] = a.gates.to_dict()
+    return out
+
+
+def _clean(value):
+    """Floats made JSON-safe through nested lists and dicts."""
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return _num(value)
+    return value
+
+
+def _screen(diagnosis) -> dict:
+    """``fit.effects_screen``: what the closed loop tested on the final model, and its level."""
+    if diagnosis is None:
+        return {}
+    tests = diagnosis.final_tests
+    return {
+        "effects_screen": {
+            "alpha": diagnosis.alpha,
+            "correction": "Bonferroni over the candidates tested (each τ grid point counts)",
+            "added": [s.test.effect.label() for s in diagnosis.steps],
+            "tested": list(dict.fromkeys(t.effect.label() for t in tests if t.identifiable)),
+            "with_rests": list(
+                dict.fromkeys(t.effect.label() for t in tests if t.streams == "spin+rests")
+            ),
+            "smallest_p_corrected": _num(
+                min((t.p_corrected for t in tests if t.identifiable), default=float("nan"))
+            ),
+            "not_identifiable": [t.effect.label() for t in diagnosis.not_identifiable],
+        }
+    }
+
+
+def _evidence(diagnosis) -> dict:
+    """Per effect name, the score test that added it (statistic, dof, p)."""
+    if diagnosis is None:
+        return {}
+    return {
+        step.test.effect.name: {
+            "statistic": _num(step.test.statistic),
+            "dof": int(step.test.dof),
+            "p_value": _num(step.test.p_value),
+            "p_corrected": _num(step.test.p_corrected),
+            "alpha": diagnosis.alpha,
+            "test": "score (Lagrange multiplier) test at the model before it was added",
+            "streams": step.test.streams,
+        }
+        for step in diagnosis.steps
+    }
+
+
+def effects_dict(result: CalibrationResult, diagnosis=None) -> dict:
+    """``effects`` block: per effect its parameters (value, std), settings and meaning.
+
+    With the closed loop's ``diagnosis``, each effect it added carries its ``evidence``.
+    """
+    evidence = _evidence(diagnosis)
+    std = dict(zip(result.names, result.std, strict=True))
+    out = {}
+    for effect in result.layout.effects:
+        if effect.stage == "gyro" or effect.name == "spin_spline":
+            continue  # a measurement and a motion model: see ``gyro`` and ``motion``
+        values = result.params.effect(effect.name, effect.size)
+        entry = {
+            p: {"value": _num(v), "std": _num(std.get(f"{effect.name}.{p}", float("nan")))}
+            for p, v in zip(effect.param_names, values, strict=True)
+        }
+        entry["settings"] = effect.settings()
+        entry["description"] = effect.description
+        if effect.name in evidence:
+            entry["evidence"] = evidence[effect.name]
+        out[effect.name] = entry
+    return out
+
+
+def _std_key(name: str) -> str:
+    """omega1_radps2 → omega1_std_radps2, theta0_rad → theta0_std_rad."""
+    head, _, unit = name.partition("_")
+    return f"{head}_std_{unit}"
+
+
+def _pick(values: np.ndarray, names: tuple[str, ...], prefix: str) -> list[float]:
+    picked = [float(v) for n, v in zip(names, values, strict=True) if n.startswith(prefix + "_")]
+    return picked or [0.0]
+
+
+def write_calibration(
+    path: str | os.PathLike,
+    result: CalibrationResult,
+    geometry: str = "radius",
+    provenance: dict | None = None,
+    durable: bool = True,
+    window_reason: str = "",
+    model: str = "closed_loop",
+    diagnosis=None,
+) -> Path:
+    """Write the calibration JSON atomically; returns the path (``durable``: see atomic)."""
+    doc = calibration_dict(result, geometry, provenance, window_reason, model, diagnosis)
+    text = dumps_indented(doc)  # json.dumps(doc, indent=2, allow_nan=False), faster
+    atomic_write_text(path, text + "\n", durable=durable)
+    return Path(path)
+
+
+def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> dict:
+    """Read and check a calibration JSON (format tag, correction block).
+
+    Accepts a session's calibration and a sensor's pooled one (:data:`CORRECTION_FORMATS`).
+    A calibration with undetermined parameters (``sensor.undetermined``) is
+    refused unless ``allow_partial``: its correction leaves those axes
+    unchanged, which a user must choose knowingly.
+    """
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CalibrationFileError(f"{path}: no such calibration file") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CalibrationFileError(f"{path}: not a calibration JSON ({exc})") from None
+    return check_calibration(data, path, allow_partial)
+
+
+def check_calibration(data, path: str | os.PathLike, allow_partial: bool = False) -> dict:
+    """The checks of :func:`load_calibration` on a document already read from ``path``."""
+    if not isinstance(data, dict) or data.get("format") not in CORRECTION_FORMATS:
+        raise CalibrationFileError(
+            f"{path}: not a {' or '.join(CORRECTION_FORMATS)} file "
+            "(format tag missing or different)"
+        )
+    try:
+        load_correction_from(data)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CalibrationFileError(f"{path}: unusable correction block ({exc})") from None
+    missing = [u.get("parameter", "?") for u in data.get("sensor", {}).get("undetermined", [])]
+    if missing and not allow_partial:
+        raise CalibrationFileError(
+            f"{path}: the recording could not determine {', '.join(missing)}; the correction "
+            "leaves those axes unchanged (gain 1, offset 0). Use --allow-partial to export or "
+            "apply it anyway"
+        )
+    return data
+
+
+def partial_axes(data: dict) -> list[str]:
+    """Axes the correction leaves unchanged because a parameter was undetermined."""
+    return list(data.get("correction", {}).get("identity_axes", []))
+
+
+def load_correction_from(data: dict) -> SensorCorrection:
+    """The correction of a loaded calibration dictionary."""
+    block = data["correction"]
+    return SensorCorrection(bias_mps2=block["bias_mps2"], matrix=block["matrix"])

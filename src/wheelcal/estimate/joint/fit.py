@@ -1,0 +1,624 @@
+"""Joint maximum-likelihood fit of every parameter at once.
+
+The paper estimates the parameters in four separate searches (III-A…D), each
+blind to the others' errors.  Here all of them — spin (eq. 2), tilt, R, gains
+and offsets — are fitted together by Levenberg–Marquardt with the analytic
+Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound:
+
+1. start from the closed-form guess of :mod:`wheelcal.estimate.joint.initial` (the
+   data and the radius only — never the truth);
+2. least squares with per-axis weights from a first-difference noise estimate
+   (on a decimated copy of ~3 000 samples: it only needs to get within a few σ;
+   then, on a long or fast recording, stages on N/100 and N/10 of the N samples
+   (those above 6 000), so that stage 2 starts ≲ 10 σ away and its noise model
+   is not fitted to a start's misfit);
+3. estimate the noise model (AR colour per axis, cross-axis correlation) from
+   full residual and refit the whitened (generalised least squares) problem on
+   every sample, from the canonical twin (the smaller offset: the decimated fit
+   already tells the twins apart).  From 5–10 σ away this takes one pass with
+   the Jacobian (H and g at the start), a Gauss–Newton step judged by the
+   gradient alone (the start's H serving), and a last step (< 0.3 σ) confirmed
+   by the cost alone (:mod:`wheelcal.estimate.joint.levenberg_marquardt`), whose
+   residual is the result's;
+4. choose the discrete twin with the smaller offset, and compute the covariance
+   from the Fisher information, the systematic budget and the identifiability
+   verdict there.  (Stage 2 moves the estimate by a small fraction of σ, so the
+   noise model estimated before it is the noise model at the optimum.)
+
+Geometry modes (paper II-C): ``radius`` — r known, α fitted (the paper's choice);
+``tilt`` — α known, r fitted; ``vertical`` — α = 90° (a spirit level), r fitted;
+``rolling`` — a vertical wheel rolling on level ground (α = 90°, r known, the
+rolling radius ρ and the gyro's yaw scale fitted, the yaw rate demodulated
+from the gyro: :mod:`wheelcal.model.rolling`, :mod:`wheelcal.estimate.gyro.yaw`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.estimate.joint.columns import difference_stds
+from wheelcal.estimate.joint.decimation import thinning_stride
+from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, combined, gyro_prediction
+from wheelcal.estimate.joint.identifiability import check_identifiability
+from wheelcal.estimate.joint.information import covariance_from_fisher
+from wheelcal.estimate.joint.initial import InitialGuess, initial_guess
+from wheelcal.estimate.joint.levenberg_marquardt import levenberg_marquardt
+from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.normal_equations import (
+    CHUNK_SAMPLES,
+    NormalEquations,
+    accumulate,
+    accumulate_fitting_noise,
+    gradient_pass,
+    residual_of,
+    whitened_cost,
+)
+from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
+from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint.systematic import (
+    DEFAULT_CLOCK_STD_PPM,
+    DEFAULT_GRAVITY_STD_MPS2,
+    GIVEN_GRAVITY_STD_MPS2,
+    nuisance_columns,
+    nuisance_extra,
+    systematic_budget,
+)
+from wheelcal.estimate.joint.twins import TwinChoice, choose_twin, twin_of
+from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
+from wheelcal.model.bench import bench_force
+from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, SpinSpline
+from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
+from wheelcal.recording import Recording, RecordingError
+
+GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling")
+#: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
+_STAGE1_SAMPLES = 3000
+#: Stage 2's last Gauss–Newton step is taken without a Jacobian when below √this σ.
+_FINAL_STEP_TOL = 0.1
+#: The same for stage 1 (it only needs to get close: stage 2 iterates from there).
+_STAGE1_FINAL_STEP_TOL = 10.0
+#: Between stage 1 and all N samples, stages on N/10, N/100, … samples (those above
+#: ``_LADDER_MIN_SAMPLES``): a decimated stage on M samples with white weights ends
+#: ~k·√(N/M) σ of the whole from its optimum (k ≈ 1–3, more for coloured noise), and
+#: stage 2's one Gauss–Newton step lands within 0.3 σ from ~10 σ, not from 20.
+_LADDER_STEP = 10
+_LADDER_MIN_SAMPLES = 2 * _STAGE1_SAMPLES
+
+
+@dataclass(frozen=True)
+class JointFit:
+    """Configuration of the joint ML fit; :meth:`fit` returns a frozen result.
+
+    Parameters
+    ----------
+    spin_degree:
+        Degree of the ω(t) polynomial (3 = the paper's cubic).
+    geometry:
+        ``"radius"`` (default), ``"tilt"``, ``"vertical"`` or ``"rolling"`` (needs
+        ``use_gyro``); see the module doc.
+    known_tilt_deg:
+        The measured tilt in ``"tilt"`` mode.
+    tilt_std_deg:
+        Uncertainty of the known tilt (levelling), for the systematic budget.
+    coloured_noise:
+        Model the residual as AR noise (True) or as white noise per axis.
+    max_ar_order:
+        Largest AR order tried (chosen by AIC).
+    clock_std_ppm, gravity_std_mps2:
+        Systematic-budget inputs; ``gravity_std_mps2=None`` uses 0.02 m/s² when the
+        session does not give local gravity and 1e-4 m/s² when it does.
+    effects:
+        Model extensions to fit (:mod:`wheelcal.model.effects`).  The discrete
+        twin is chosen on the paper's model first (effects such as a nonlinearity
+        break the twin symmetry), then the effects are fitted from zero.
+    use_gyro:
+        Fit the recording's gyroscope too (:class:`~wheelcal.model.effects.GyroReading`:
+        ω_meas = w ω + b), as a second, independent stream of the likelihood.
+    spline_spacing_s:
+        Let the wheel angle follow any motion: the cubic plus a cubic B-spline
+        correction with knots this far apart (:class:`~wheelcal.model.effects.SpinSpline`).
+        ``None`` keeps the paper's cubic.
+    """
+
+    spin_degree: int = 3
+    geometry: str = "radius"
+    known_tilt_deg: float | None = None
+    tilt_std_deg: float = 0.5
+    coloured_noise: bool = True
+    max_ar_order: int = 10
+    max_iterations: int = 100
+    clock_std_ppm: float = DEFAULT_CLOCK_STD_PPM
+    gravity_std_mps2: float | None = None
+    effects: tuple = ()
+    use_gyro: bool = False
+    spline_spacing_s: float | None = None
+    #: σ of the prior on the gyro's sensitivity to linear acceleration, °/s/g
+    #: (:class:`~wheelcal.model.effects.GyroReading`; None: no prior).
+    gyro_g_prior_dps_per_g: float | None = G_SENSITIVITY_PRIOR_DPS_PER_G
+
+    def __post_init__(self) -> None:
+        if self.spline_spacing_s is not None and not self.spline_spacing_s > 0:
+            raise ValueError("spline_spacing_s must be positive")
+        if self.geometry not in GEOMETRY_MODES:
+            raise ValueError(f"geometry must be one of {GEOMETRY_MODES}, got {self.geometry!r}")
+        if self.geometry == "rolling" and not self.use_gyro:
+            raise ValueError("geometry 'rolling' takes the yaw rate from the gyro: use_gyro=True")
+        if self.geometry == "tilt" and self.known_tilt_deg is None:
+            raise ValueError("geometry 'tilt' needs known_tilt_deg")
+        if self.known_tilt_deg is not None and not 0.0 <= self.known_tilt_deg <= 90.0:
+            raise ValueError("known_tilt_deg must lie in [0, 90]")
+
+    @property
+    def layout(self) -> ParameterLayout:
+        """Free parameters for this configuration (without the window's motion effects)."""
+        return ParameterLayout(
+            spin_degree=self.spin_degree,
+            fit_tilt=self.geometry == "radius",
+            fit_radius=self.geometry in ("tilt", "vertical"),
+            effects=tuple(self.effects),
+        )
+
+    def _spline(self, tc: np.ndarray) -> SpinSpline | None:
+        if self.spline_spacing_s is None:
+            return None
+        return SpinSpline(float(tc[0]), float(tc[-1]), self.spline_spacing_s)
+
+    def layout_for(
+        self, recording: Recording, frame: tuple[float, float] | None = None
+    ) -> ParameterLayout:
+        """Free parameters for this configuration and window (spline, gyro included).
+
+        ``frame`` (start, end in recording time) is the window that sets the time
+        origin and the spline's knots; default: the recording's first and last sample.
+        """
+        start, end = frame or (float(recording.time_s[0]), float(recording.time_s[-1]))
+        centre = 0.5 * (start + end)
+        motion = []
+        spline = self._spline(np.array([start - centre, end - centre]))
+        if spline is not None:
+            motion.append(spline)
+        if self.use_gyro:
+            motion.append(self.gyro_reading())
+        return dataclasses.replace(self.layout, effects=tuple(self.effects) + tuple(motion))
+
+    def gyro_reading(self) -> GyroReading:
+        """The gyroscope's reading with this configuration's prior on G."""
+        return GyroReading(g_sensitivity=True, g_prior_dps_per_g=self.gyro_g_prior_dps_per_g)
+
+    def _fixed_tilt_rad(self) -> float | None:
+        if self.geometry in ("vertical", "rolling"):
+            return np.pi / 2
+        if self.geometry == "tilt":
+            return float(np.deg2rad(self.known_tilt_deg))
+        return None
+
+    def _checked_info(self, recording: Recording):
+        info = recording.info
+        if self.geometry in ("radius", "rolling") and info.radius_m is None:
+            raise RecordingError(
+                f"{recording.source}: the radius (sensor distance from the axle) is needed: "
+                "give --radius or radius_m in the wheelcal.session metadata"
+            )
+        return info
+
+    def start(self, recording: Recording, fastest_radps: float | None = None) -> InitialGuess:
+        """The closed-form starting point (:mod:`wheelcal.estimate.joint.initial`) for a window.
+
+        ``fastest_radps``: the wheel's fastest |ω| in the window, when the window
+        search has measured it (it spares the start a spectrum of every sample).
+        """
+        info = self._checked_info(recording)
+        t = recording.time_s
+        tc = t - 0.5 * (t[0] + t[-1])
+        gyro_t = gyro = rate = None
+        if self.use_gyro:
+            gyro_t, gyro = gyro_samples(recording, tc, self.effects)
+            _, vecs = np.linalg.eigh(gyro.T @ gyro)
+            rate = np.interp(tc, gyro_t, gyro @ vecs[:, -1])  # ω up to sign, scale, bias
+        guess = initial_guess(
+            tc,
+            recording.accel_mps2,
+            info.gravity_or_standard_mps2,
+            radius_m=info.radius_m if self.geometry == "radius" else None,
+            tilt_rad=self._fixed_tilt_rad(),
+            spin_degree=self.spin_degree,
+            spline=self._spline(tc),
+            omega_radps=rate,
+            fastest_radps=fastest_radps,
+        )
+        if self.geometry == "rolling":  # r is known: the vertical guess only fitted it
+            bench = dataclasses.replace(guess.params.bench, radius_m=info.radius_m)
+            guess = dataclasses.replace(guess, params=guess.params.with_changes(bench=bench))
+        if not self.use_gyro:
+            return guess
+        params = with_gyro_start(guess.params, self.layout_for(recording), gyro_t, gyro)
+        return dataclasses.replace(guess, params=params)
+
+    def fit(
+        self,
+        recording: Recording,
+        initial: CalibrationParams | None = None,
+        guess: InitialGuess | None = None,
+        frame: tuple[float, float] | None = None,
+    ) -> CalibrationResult:
+        """Calibrate one recording (already cut to its free-spin window).
+
+        ``initial`` starts from given parameters; ``guess`` reuses a
+        :meth:`start` already computed for this window.  ``frame`` (start,
+        end in recording time) keeps the time origin and the spline's knots of a
+        larger window when refitting a subset of it from its ``initial``.
+        """
+        return self.fit_evaluated(recording, initial, guess, frame)[0]
+
+    def fit_evaluated(
+        self,
+        recording: Recording,
+        initial: CalibrationParams | None = None,
+        guess: InitialGuess | None = None,
+        frame: tuple[float, float] | None = None,
+    ) -> tuple[CalibrationResult, EvaluatedModel | None]:
+        """:meth:`fit`, and the model as its last pass evaluated it at the result.
+
+        The evaluation (:class:`~wheelcal.model.forward.EvaluatedModel`) is there
+        for a window of one chunk and the paper's model (None otherwise): a check
+        at the result (the motion check) forms its Jacobian from it.
+        """
+        if self.geometry == "rolling" and _rolling_of(self.effects) is None:
+            raise ValueError(
+                "geometry 'rolling' needs the yaw from the gyro first: fit it with "
+                "wheelcal.estimate.gyro.rolling_fit.fit_window (or give the rolling effect)"
+            )
+        info = self._checked_info(recording)
+        t = recording.time_s
+        frame = frame or (float(t[0]), float(t[-1]))
+        centre = 0.5 * (frame[0] + frame[1])
+        tc = t - centre
+        v = recording.accel_mps2
+        gravity = info.gravity_or_standard_mps2
+        layout = self.layout_for(recording, frame)
+        gyro_t, gyro = gyro_samples(recording, tc, self.effects) if self.use_gyro else (None, None)
+        notes: list[str] = []
+        if initial is None and self.effects:
+            # Settle the twin on the paper's model, then free the effects from zero.
+            initial = dataclasses.replace(self, effects=()).fit(recording, guess=guess).params
+        if initial is None:
+            guess = guess or self.start(recording)
+            initial = guess.params
+            notes += guess.notes
+
+        # Stage 1: least squares on a decimated copy (it only needs to get close),
+        # per-axis weights from first differences.
+        # (never below 16 samples per turn at the fastest rate: no aliasing)
+        omega_max = float(np.max(np.abs(initial.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
+        stride = thinning_stride(t.size, _STAGE1_SAMPLES, recording.rate_hz, omega_max)
+        std0 = np.maximum(difference_stds(v) / np.sqrt(2), 1e-6)
+        white0 = NoiseModel.white(std0)
+        gyro1 = None
+        if gyro is not None:
+            gyro_std0 = np.maximum(np.std(np.diff(gyro, axis=0), axis=0) / np.sqrt(2), 1e-9)
+            gyro1 = (gyro_t[::stride], gyro[::stride], NoiseModel.white(gyro_std0))
+        out = levenberg_marquardt(
+            _residual_fn(tc[::stride], v[::stride], layout, white0, gyro=gyro1),
+            initial,
+            layout,
+            self.max_iterations,
+            tol=1e-2,  # close is enough: < 0.1 σ of this decimated problem
+            # The gyro-aided start (rate measured, phase demodulated) is close and the
+            # spline enters linearly: Gauss–Newton steps (2 instead of 7 on a clean spin).
+            initial_damping=1e-7 if gyro is not None else 1e-3,
+            # Its last step (< 3 σ of this problem) needs no Jacobian: the cost confirms it.
+            final_step_tol=_STAGE1_FINAL_STEP_TOL,
+            # The step's end judged by its gradient, the start's Hessian serving: the
+            # paper's model only.  Effects are freed here from zero, where the Hessian
+            # is not the end's (a warm-up's τ has no column while its amplitude is 0).
+            gradient_fn=None
+            if gyro is not None or self.effects
+            else _gradient_fn(tc[::stride], v[::stride], layout, white0),
+        )
+        if gyro is None:  # a ladder of decimations toward all samples (a long, fast recording)
+            for target in _ladder(t.size):
+                finer = thinning_stride(t.size, target, recording.rate_hz, omega_max)
+                if finer >= stride:
+                    continue
+                stride = finer
+                out = levenberg_marquardt(
+                    _residual_fn(tc[::stride], v[::stride], layout, white0),
+                    out.params,
+                    layout,
+                    self.max_iterations,
+                    tol=1e-2,
+                    initial_damping=1e-9,  # warm start: Gauss–Newton steps
+                    jacobian_on_trial=True,
+                    final_step_tol=_STAGE1_FINAL_STEP_TOL,
+                    gradient_fn=_gradient_fn(tc[::stride], v[::stride], layout, white0),
+                )
+        # Stage 2: noise model from the full residual, whitened refit on all samples.
+        # The accumulations carry the sensitivities to the fixed quantities as
+        # extra columns, so the last one also gives the systematic budget.
+        start = out.params
+        if not self.effects:
+            # The canonical twin: the twins' offsets differ by far more than σ, so the
+            # decimated fit already tells them apart, and the end point is then
+            # canonical too (no second Jacobian pass for the other twin in stage 3).
+            # The gyro's reading and the spline mirror with the twin (twins.py).
+            start = choose_twin(start).chosen
+        normal0 = None
+        if gyro is None and (tc.size <= CHUNK_SAMPLES or not self.effects):
+            normal0, noise = accumulate_fitting_noise(
+                start, tc, v, layout, self._noise_model, nuisance_extra(nuisance_columns(layout))
+            )
+        else:
+            noise = self._noise_model(residual_of(start, tc, v, layout))
+        gyro2 = gyro_noise = None
+        if gyro is not None:
+            gyro_noise = self._noise_model(gyro - gyro_prediction(start, gyro_t, layout))
+            gyro2 = (gyro_t, gyro, gyro_noise)
+        normal_fn = _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2)
+        last_residual = _LastResidual(normal_fn, tc, v, layout, noise) if gyro is None else None
+        out = levenberg_marquardt(
+            last_residual or normal_fn,
+            start,
+            layout,
+            self.max_iterations,
+            tol=1e-3,  # stop when the next step would be < 0.03 σ
+            initial_damping=1e-9,  # warm start: Gauss–Newton steps
+            jacobian_on_trial=True,  # ... which are accepted: one pass per step
+            # The last step (< 0.3 σ) needs no Jacobian: the cost confirms it.
+            final_step_tol=_FINAL_STEP_TOL,
+            # The step from the start lands within a small fraction of σ: there the
+            # gradient (the whitening applied to the residual, not to J) and the
+            # start's Hessian decide the last step, and serve as the Fisher information.
+            gradient_fn=last_residual.gradient if last_residual is not None else None,
+            normal0=normal0,
+        )
+        iterations = out.iterations
+        converged = out.converged
+        # Stage 3: canonical twin; the Fisher information and the cross terms
+        # with the quantities held fixed (systematic budget) at the optimum.
+        if self.effects:  # the twin was chosen on the base model (see `effects`)
+            twin = TwinChoice(out.params, twin_of(out.params), ambiguous=False)
+        else:
+            twin = choose_twin(out.params)
+        params = twin.chosen
+        nuisances = nuisance_columns(layout)
+        normal = out.normal
+        if not _same_point(params, out.params):  # the other twin: new Jacobian
+            normal = _residual_fn(tc, v, layout, noise, nuisances, gyro=gyro2)(params, True)
+        size = layout.size
+        cov_x = covariance_from_fisher(normal.hessian[:size, :size])
+        names, values, g = report_transform(params, layout)
+        cov = transform_covariance(g, cov_x)
+        std = np.sqrt(np.diag(cov))
+        residual = last_residual.at(params) if last_residual is not None else None
+        if residual is None:
+            residual = residual_of(params, tc, v, layout)
+
+        gravity_std = self.gravity_std_mps2
+        if gravity_std is None:
+            gravity_std = (
+                DEFAULT_GRAVITY_STD_MPS2 if info.gravity_mps2 is None else GIVEN_GRAVITY_STD_MPS2
+            )
+        budget = systematic_budget(
+            params,
+            layout,
+            normal.hessian,
+            nuisances,
+            g,
+            names,
+            radius_std_m=info.radius_std_m,
+            gravity_std_mps2=gravity_std,
+            clock_std_ppm=self.clock_std_ppm,
+            tilt_std_deg=self.tilt_std_deg,
+        )
+        ident = check_identifiability(params, tc, names, std)
+        warnings = list(ident.warnings)
+        if not converged:
+            warnings.append(f"the fit did not converge ({out.message})")
+        if twin.warning and self.geometry != "vertical":
+            warnings.append(twin.warning)
+        if self.geometry != "radius" and info.gravity_mps2 is None:
+            warnings.append(
+                f"{self.geometry} mode without local gravity: the gains scale with the assumed "
+                f"g ({gravity:.5f} m/s²) one for one — give gravity_mps2 for gains better "
+                "than ~0.2 %"
+            )
+        if self.geometry in ("vertical", "rolling"):
+            warnings.append(
+                "vertical wheel: the wheel axis has no upward side, so R is reported for the "
+                "positive spin direction (gains and offsets are unaffected)"
+            )
+        result = CalibrationResult(
+            params=params,
+            layout=layout,
+            names=names,
+            values=values,
+            covariance=cov,
+            time_s=t,
+            residual_mps2=residual,
+            centre_s=float(centre),
+            epoch_unix_ns=recording.epoch_unix_ns,
+            noise=noise,
+            converged=converged,
+            iterations=iterations,
+            warnings=tuple(warnings),
+            systematic=budget,
+            twin=twin,
+            identifiability=ident,
+            info=info,
+            source=recording.source,
+            topic=recording.topic,
+            notes=tuple(notes) + recording.notes,
+            gyro_noise=gyro_noise,
+        )
+        evaluated = last_residual.evaluated_at(params) if last_residual is not None else None
+        return result, evaluated
+
+    def _noise_model(self, residual: np.ndarray) -> NoiseModel:
+        if self.coloured_noise:
+            return NoiseModel.estimate(residual, self.max_ar_order)
+        return NoiseModel.white(np.std(residual, axis=0))
+
+
+class _LastResidual:
+    """``normal_fn`` whose cost-only and gradient evaluations keep their residual.
+
+    The LM's last point is reached by a gradient pass (a step below the
+    tolerance) or confirmed by a cost-only pass; keeping that pass's residual
+    (data − model) saves the result a model evaluation.  For a window of one
+    chunk and the paper's model the pass's whole evaluation is kept too
+    (:class:`~wheelcal.model.forward.EvaluatedModel`: ~100 B per sample), for
+    the motion check at the result.
+    """
+
+    def __init__(self, normal_fn, tc, v, layout: ParameterLayout, noise: NoiseModel) -> None:
+        self._normal_fn = normal_fn
+        self._args = (tc, v, layout)
+        self._noise = noise
+        self._params: CalibrationParams | None = None
+        self._residual: np.ndarray | None = None
+        self._evaluated: EvaluatedModel | None = None
+        self._keep = tc.size <= CHUNK_SAMPLES and not layout.effects
+
+    def _evaluated_at(self, params: CalibrationParams) -> EvaluatedModel | None:
+        if not self._keep:
+            return None
+        tc, _, layout = self._args
+        return EvaluatedModel(params, tc, evaluate(params, tc, layout))
+
+    def __call__(self, params: CalibrationParams, want_jacobian: bool) -> NormalEquations:
+        if want_jacobian:
+            return self._normal_fn(params, True)
+        evaluated = self._evaluated_at(params)
+        if evaluated is None:
+            residual = residual_of(params, *self._args)
+        else:
+            residual = np.subtract(self._args[1], evaluated.output.predicted_mps2)
+        self._params, self._residual, self._evaluated = params, residual, evaluated
+        rows = max(residual.shape[0] - self._noise.order, 0)
+        return NormalEquations(whitened_cost(residual, self._noise), None, None, 3 * rows)
+
+    def gradient(self, params: CalibrationParams) -> NormalEquations:
+        """Cost and gradient (:func:`gradient_pass`), the residual kept."""
+        tc, v, layout = self._args
+        residual = np.empty_like(v, dtype=float)
+        evaluated = self._evaluated_at(params)
+        output = evaluated.output if evaluated is not None else None
+        out = gradient_pass(
+            params, tc, v, layout, self._noise, residual_out=residual, output=output
+        )
+        self._params, self._residual, self._evaluated = params, residual, evaluated
+        return out
+
+    def at(self, params: CalibrationParams) -> np.ndarray | None:
+        """The kept residual if it was evaluated at ``params`` itself, else None."""
+        return self._residual if params is self._params else None
+
+    def evaluated_at(self, params: CalibrationParams) -> EvaluatedModel | None:
+        """The kept evaluation if it was at ``params`` itself (and kept at all), else None."""
+        return self._evaluated if params is self._params else None
+
+
+def _same_point(a: CalibrationParams, b: CalibrationParams) -> bool:
+    """True when a and b differ at most by ϑ₀ ± 2πk (same Jacobian, same normal equations)."""
+    return (
+        a.bench.tilt_rad == b.bench.tilt_rad
+        and np.array_equal(a.bench.misalignment.matrix, b.bench.misalignment.matrix)
+        and np.array_equal(a.sensor.offset_mps2, b.sensor.offset_mps2)
+        and np.array_equal(a.spin.omega_radps, b.spin.omega_radps)
+    )
+
+
+def _residual_fn(
+    tc: np.ndarray,
+    v: np.ndarray,
+    layout: ParameterLayout,
+    noise: NoiseModel,
+    nuisances: list[str] | None = None,
+    gyro: tuple | None = None,
+):
+    """Whitened normal equations of (model − data), for the LM (nuisances as extra columns).
+
+    ``gyro`` = (times, samples, noise model) adds the gyroscope's stream.
+    """
+    extra = nuisance_extra(nuisances) if nuisances else None
+    # The accelerometer does not see the gyro's reading: its stream is accumulated
+    # without those (zero) rows, which come last in the layout.
+    accel_layout = layout
+    if gyro is not None and layout.effects[-1].stage == "gyro":
+        accel_layout = dataclasses.replace(layout, effects=layout.effects[:-1])
+
+    def normal(params: CalibrationParams, want_jacobian: bool):
+        acc = accumulate(params, tc, v, accel_layout, noise, jacobian=want_jacobian, extra=extra)
+        if gyro is None:
+            return acc
+        gyro_t, gyro_v, gyro_noise = gyro
+        rate = accumulate_gyro(params, gyro_t, gyro_v, layout, gyro_noise, want_jacobian)
+        return combined(acc, rate, accel_layout.size)
+
+    return normal
+
+
+def _ladder(samples: int) -> list[int]:
+    """Sample counts of the stages between stage 1 and all ``samples``, smallest first."""
+    targets = []
+    target = samples // _LADDER_STEP
+    while target >= _LADDER_MIN_SAMPLES:
+        targets.append(target)
+        target //= _LADDER_STEP
+    return targets[::-1]
+
+
+def _gradient_fn(tc: np.ndarray, v: np.ndarray, layout: ParameterLayout, noise: NoiseModel):
+    """Cost and gradient of (model − data), no Hessian (see ``levenberg_marquardt``)."""
+
+    def gradient(params: CalibrationParams) -> NormalEquations:
+        return gradient_pass(params, tc, v, layout, noise)
+
+    return gradient
+
+
+def _rolling_of(effects: tuple):
+    return next((e for e in effects if e.stage == "force"), None)
+
+
+def gyro_samples(
+    recording: Recording, tc: np.ndarray, effects: tuple = ()
+) -> tuple[np.ndarray, np.ndarray]:
+    """Centred times and samples of the recording's usable gyro rows.
+
+    A rolling wheel's yaw (an effect of stage ``force`` in ``effects`` that knows
+    its share of the gyro) is taken out: the gyro's own model is the spin's.
+    """
+    gyro = getattr(recording, "gyro_radps", None)
+    if gyro is None:
+        raise RecordingError(f"{recording.source}: the recording has no gyroscope")
+    valid = np.all(np.isfinite(gyro), axis=1)
+    if valid.sum() < 100:
+        raise RecordingError(
+            f"{recording.source}: only {int(valid.sum())} usable gyro samples in the window"
+        )
+    rolling = _rolling_of(effects)
+    samples = np.asarray(gyro)[valid]
+    if rolling is not None:
+        samples = samples - rolling.gyro_share(tc[valid])
+    return tc[valid], samples
+
+
+def with_gyro_start(
+    params: CalibrationParams, layout: ParameterLayout, gyro_t: np.ndarray, gyro: np.ndarray
+) -> CalibrationParams:
+    """``params`` with the gyro reading's w and b from a regression of the gyro on ω(t)."""
+    reading = next(e for e in layout.effects if e.stage == "gyro")
+    kin = wheel_kinematics(params, gyro_t, layout.effects)
+    columns = [kin.omega_radps, np.ones_like(kin.omega_radps)]
+    if reading.g_sensitivity:
+        bench = params.bench
+        force = bench_force(kin, bench.tilt_rad, bench.radius_m, params.gravity_mps2)
+        columns += [force.accel_mps2[:, 0], force.accel_mps2[:, 1]]
+    coef, *_ = np.linalg.lstsq(np.column_stack(columns), gyro, rcond=None)  # rows: w, b, G_X, G_Y
+    effects = dict(params.effects)
+    effects[reading.name] = coef.reshape(-1)
+    return params.with_changes(effects=effects)

@@ -1,0 +1,1 @@
+"""The paper's four-step estimator (Pedersini, section III-A … D), kept for comparison."""

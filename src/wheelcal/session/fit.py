@@ -1,0 +1,504 @@
+"""A whole recording → a calibration that passed the gates, or a refusal.
+
+The joint fit (:mod:`wheelcal.estimate.joint.fit`) answers "what parameters
+explain this window best"; a calibration also needs "does this window fit the
+model at all, and is the answer plausible".  :class:`SessionFit` does both:
+
+1. the free-spin window (found, or given), capped at ``max_window_s``;
+2. the ``sampling`` gate on the window finder's fastest rate;
+3. the joint fit, then the independent noise reference (rests, else the
+   residual's spectrum) and the turn-by-turn motion check.  If the phase
+   errors drift — the spin law cannot follow the wheel (a very long spin, a
+   driven wheel) — the window is shortened (its start kept: the fastest,
+   most informative part) and fitted again, down to ``min_window_s``; then
+   the ``motion`` gate refuses;
+4. the post-fit gates (:mod:`wheelcal.session.gates`): sampling at the
+   fitted rate, turns, undetermined parameters, gain/offset ranges, units,
+   convergence;
+5. the warning band, and the rests' |a| = g check.
+
+The result carries an :class:`~wheelcal.session.gates.Assessment`; its
+warnings are appended to the result's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from wheelcal.estimate.gyro.block import gyro_by_product, gyro_from_fit
+from wheelcal.estimate.gyro.knots import choose_knot_spacing
+from wheelcal.estimate.gyro.rolling_fit import fit_window
+from wheelcal.estimate.joint.fit import JointFit, gyro_samples
+from wheelcal.estimate.joint.gyro_equations import gyro_effect
+from wheelcal.estimate.joint.initial import InitialGuess
+from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES
+from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.rests import RestSegment, find_rests
+from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
+from wheelcal.recording import CalibrationRefused, Recording, RecordingError
+from wheelcal.session.gates import (
+    Assessment,
+    Gates,
+    gyro_findings,
+    noise_warnings,
+    refuse_few_turns,
+    refuse_gain_scale,
+    refuse_implausible,
+    refuse_misfit,
+    refuse_undersampled,
+    rest_warnings,
+    tolerance_warnings,
+    undetermined_parameters,
+)
+from wheelcal.session.motion_check import MotionCheck, broadband_noise, check_motion
+from wheelcal.session.noise_reference import NoiseReference, noise_reference
+from wheelcal.session.rest_check import check_rests
+from wheelcal.session.window import (
+    MAX_BRIDGED_GAP_S,
+    FreeSpinWindow,
+    find_drive_window,
+    find_free_spin,
+    find_motion_window,
+)
+
+#: Each retry keeps this fraction of the window (its start).
+SHRINK = 0.6
+GYRO_MODES = ("auto", "on", "off")
+#: Refusals of the accelerometer-only fit that a gyroscope can overcome (``--gyro auto``).
+GYRO_CAN_HELP = ("motion", "undetermined", "turns")
+
+
+@dataclass(frozen=True, eq=False)
+class WindowChoice:
+    """The window a calibration used, and how it was chosen."""
+
+    recording: Recording  # cut to the window
+    found: FreeSpinWindow | None
+    reason: str
+
+
+def choose_window(
+    recording: Recording,
+    start_s: float | None = None,
+    end_s: float | None = None,
+    max_window_s: float | None = None,
+) -> WindowChoice:
+    """The free-spin window: given (``start_s``/``end_s``) or found, capped in length."""
+    if start_s is not None:
+        reason = f"window given on the command line: {start_s:g}–{end_s:g} s"
+        return WindowChoice(recording.window(start_s, end_s), None, reason)
+    found = find_free_spin(recording)
+    start, end, reason = found.start_s, found.end_s, found.reason
+    if max_window_s is not None and end - start > max_window_s:
+        end = start + max_window_s
+        reason += (
+            f"; capped to its first {max_window_s:g} s (eq. (2)'s cubic describes a spin-down "
+            "for minutes, not for the whole of a long spin)"
+        )
+    return WindowChoice(recording.window(start, end), found, reason)
+
+
+class Refinement(Protocol):
+    """What :class:`SessionFit` asks of a closed loop (the layer above provides it).
+
+    ``run`` takes the window and the fit of the paper's model there (and the model
+    as the fit's last pass evaluated it, or None), and returns an object whose
+    ``final`` is the calibration to judge and whose ``steps`` are the effects added.
+    """
+
+    def run(
+        self,
+        recording: Recording,
+        base: CalibrationResult,
+        evaluated: EvaluatedModel | None = None,
+        rests: tuple[RestSegment, ...] = (),
+    ):
+        """The closed loop's report on ``base`` (``final``, ``steps``)."""
+        ...
+
+
+@dataclass(frozen=True, eq=False)
+class SessionFitOutcome:
+    """A calibration that passed the gates, its window, and the rests it was judged by.
+
+    ``diagnosis`` is the closed loop's report when one ran (its ``final`` is ``result``
+    before the gates' assessment).
+    """
+
+    result: CalibrationResult
+    window: WindowChoice
+    rests: tuple[RestSegment, ...]
+    diagnosis: object | None = None
+
+
+@dataclass(frozen=True)
+class SessionFit:
+    """Window → joint fit → gates, for one recording (see the module docstring)."""
+
+    fitter: JointFit = field(default_factory=JointFit)
+    gates: Gates = field(default_factory=Gates)
+    start_s: float | None = None
+    end_s: float | None = None
+    #: "auto": the free spin's cubic unless only the gyro can follow the motion;
+    #: "on": always fit the gyro with a flexible wheel angle; "off": ignore it.
+    gyro: str = "auto"
+    #: The closed loop run on the fit before the gates judge it (None: the paper's
+    #: model as fitted).  The gates then judge the loop's final model.
+    closed_loop: Refinement | None = None
+
+    def __post_init__(self) -> None:
+        if self.gyro not in GYRO_MODES:
+            raise ValueError(f"gyro must be one of {GYRO_MODES}, got {self.gyro!r}")
+
+    def run(self, recording: Recording) -> SessionFitOutcome:
+        """Calibrate ``recording`` (rests, push and stop included).
+
+        Raises
+        ------
+        CalibrationRefused
+            When a gate refuses (the exception names the gate, the reason and the fix).
+        RecordingError
+            When the recording cannot be used at all (no free spin, no radius …).
+        """
+        has_gyro = _usable_gyro(recording)
+        if self.gyro == "on" and not has_gyro:
+            raise RecordingError(
+                f"{recording.source}: --gyro on, but the recording has no usable gyroscope"
+            )
+        if self.fitter.geometry == "rolling":  # the yaw rate comes from the gyro
+            if not has_gyro or self.gyro == "off":
+                raise RecordingError(
+                    f"{recording.source}: geometry 'rolling' needs the recording's gyroscope"
+                )
+            return self._run_with_gyro(recording, "a rolling wheel")
+        if has_gyro and self.gyro == "on":
+            return self._run_with_gyro(recording, "--gyro on")
+        try:
+            outcome = self._run_free_spin(recording)
+        except CalibrationRefused as exc:
+            if not (has_gyro and self.gyro == "auto" and exc.gate in GYRO_CAN_HELP):
+                raise
+            why = f"the accelerometer alone was refused ({exc.gate}: {exc.reason})"
+            return self._run_with_gyro(recording, why)
+        except RecordingError as exc:
+            if not (has_gyro and self.gyro == "auto"):
+                raise
+            return self._run_with_gyro(recording, f"no free spin ({exc})")
+        if has_gyro and self.gyro == "auto":
+            window = outcome.window.recording
+            result = outcome.result
+            gyro_t, gyro = gyro_samples(window, window.time_s - result.centre_s)
+            if gyro_effect(result.layout) is not None:  # the closed loop fitted it
+                block = gyro_from_fit(result, gyro_t, gyro)
+            else:
+                block = gyro_by_product(result, gyro_t, gyro, reading=self.fitter.gyro_reading())
+            findings = tuple(gyro_findings(result.source, block, outcome.rests, self.gates))
+            assessment = dataclasses.replace(
+                result.assessment, gyro=block, warnings=result.assessment.warnings + findings
+            )
+            result = dataclasses.replace(
+                result, assessment=assessment, warnings=result.warnings + findings
+            )
+            return dataclasses.replace(outcome, result=result)
+        return outcome
+
+    def _run_with_gyro(self, recording: Recording, why: str) -> SessionFitOutcome:
+        """The gyro-aided fit: the whole motion, a spline wheel angle, both streams."""
+        gates = self.gates
+        if self.start_s is not None:
+            found = None
+            window = recording.window(self.start_s, self.end_s)
+            reason = f"window given on the command line: {self.start_s:g}–{self.end_s:g} s"
+        else:
+            finder = find_drive_window if self.fitter.geometry == "rolling" else find_motion_window
+            found = finder(recording)
+            start, end = found.start_s, min(found.end_s, found.start_s + gates.max_window_s)
+            window = recording.window(start, end)
+            reason = found.reason + (
+                f"; capped to its first {gates.max_window_s:g} s" if end < found.end_s else ""
+            )
+        _refuse_long_gap(window)
+        rests = find_rests(recording, (float(window.time_s[0]), float(window.time_s[-1])))
+        tc = window.time_s - 0.5 * (window.time_s[0] + window.time_s[-1])
+        gyro_t, gyro = gyro_samples(window, tc)
+        knots = choose_knot_spacing(gyro_t, gyro)
+        fitter = dataclasses.replace(self.fitter, use_gyro=True, spline_spacing_s=knots.spacing_s)
+        guess = fitter.start(window)
+        _check_implied_radius(guess, window, gates)
+        result = fit_window(fitter, window, guess=guess)
+        notes = [
+            f"gyro-aided ({why}): wheel angle = cubic + spline with knots every "
+            f"{knots.spacing_s:g} s (chosen by BIC on the gyro's rate)"
+        ]
+        result, window, disturbed_note = _without_disturbances(fitter, result, window)
+        notes.append(disturbed_note)
+        if window.clip_limits_mps2 is not None:
+            result, window, rail_note = _clear_of_rails(fitter, result, window)
+            notes.append(rail_note)
+        fastest = float(np.max(np.abs(gyro @ result.params.effect("gyro", 6)[:3])))
+        fastest /= max(float(np.sum(result.params.effect("gyro", 6)[:3] ** 2)), 1e-12)
+        refuse_undersampled(recording.source, window.rate_hz, fastest, gates)
+        refuse_few_turns(result)
+        if fitter.geometry == "rolling":  # the gyro block judges the spin's share only
+            gyro_t, gyro = gyro_samples(
+                window, window.time_s - result.centre_s, result.layout.effects
+            )
+        result, diagnosis = self._refined(result, window, rests)
+        block = gyro_from_fit(result, gyro_t, gyro)
+        choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
+        return SessionFitOutcome(
+            assess(result, rests, gates, None, block), choice, rests, diagnosis
+        )
+
+    def _refined(
+        self,
+        result: CalibrationResult,
+        window: Recording,
+        rests: tuple[RestSegment, ...],
+        evaluated: EvaluatedModel | None = None,
+    ) -> tuple[CalibrationResult, object | None]:
+        """The closed loop's final model (and its report), or the fit as it is."""
+        if self.closed_loop is None:
+            return result, None
+        diagnosis = self.closed_loop.run(window, base=result, evaluated=evaluated, rests=rests)
+        return diagnosis.final, diagnosis
+
+    def _run_free_spin(self, recording: Recording) -> SessionFitOutcome:
+        """The accelerometer-only fit of the free spin (the paper's cubic)."""
+        gates = self.gates
+        choice = choose_window(recording, self.start_s, self.end_s, gates.max_window_s)
+        fastest = None
+        if choice.found is not None:
+            fastest = max(abs(choice.found.omega_start_radps), abs(choice.found.omega_end_radps))
+            refuse_undersampled(recording.source, recording.rate_hz, fastest, gates)
+        spin_s = choice.recording.time_s[[0, -1]]
+        exclude = (choice.found.start_s, choice.found.end_s) if choice.found else tuple(spin_s)
+        rests = find_rests(recording, exclude)
+        window = choice.recording
+        note = rail_note = ""
+        while True:
+            guess = self.fitter.start(window, fastest)  # a shortened window: no faster
+            _check_implied_radius(guess, window, gates)
+            result, evaluated = self.fitter.fit_evaluated(window, guess=guess)
+            fitted = window
+            if window.clip_limits_mps2 is not None:
+                result, fitted, rail_note = _clear_of_rails(self.fitter, result, window)
+            # The closed loop before the motion check: an effect of the spin (a spin-down
+            # beyond the cubic, an imbalance) is what the check would otherwise cut away.
+            final, diagnosis = self._refined(result, fitted, rests, evaluated)
+            motion, reference = _motion(final, fitted, rests, evaluated)
+            if motion is None or not motion.inadequate(gates.motion_z, gates.motion_shift_sigma):
+                break
+            if window.duration_s * SHRINK < gates.min_window_s:
+                raise CalibrationRefused(
+                    recording.source,
+                    "motion",
+                    "the wheel's motion is not a free spin that eq. (2) can describe: letting "
+                    f"the wheel angle follow a smooth spline would move {motion.worst()} "
+                    f"(score χ² = {motion.statistic:.0f} on {motion.dof} dof) — a driven "
+                    "wheel, a second push, or speed changes",
+                    "record a free spin (push once, then let go), choose its window with "
+                    "--start-s/--end-s, or record the gyroscope",
+                )
+            t0 = float(window.time_s[0])
+            shorter = window.duration_s * SHRINK
+            note = (
+                f"the spin law could not follow the whole window (freeing the motion moved "
+                f"{motion.worst()}); shortened to its first {shorter:.0f} s"
+            )
+            window = window.window(t0, t0 + shorter)
+        window = fitted
+        note = "; ".join(x for x in (note, rail_note) if x)
+        if note:
+            choice = WindowChoice(window, choice.found, choice.reason + "; " + note)
+        omega = final.params.spin.omega_at(final.centred_time_s[[0, -1]])
+        refuse_undersampled(recording.source, window.rate_hz, float(np.max(np.abs(omega))), gates)
+        refuse_few_turns(final)
+        outcome = assess(final, rests, gates, motion, reference=reference)
+        return SessionFitOutcome(outcome, choice, rests, diagnosis)
+
+
+#: Stretches of the motion window whose residual exceeds this × the typical are left out.
+DISTURBANCE_FACTOR = 2.0
+DISTURBANCE_BLOCK_S = 0.5
+
+
+def _without_disturbances(
+    fitter: JointFit, result: CalibrationResult, window: Recording
+) -> tuple[CalibrationResult, Recording, str]:
+    """Refit without the stretches where something outside the model shook the sensor.
+
+    A gyro-aided window follows the whole motion, and a motion can include a
+    hand starting or braking the wheel, whose forces are not in the model.  The
+    residual shows them: blocks of ``DISTURBANCE_BLOCK_S`` whose RMS exceeds
+    ``DISTURBANCE_FACTOR`` × the median block are left out (with a block on
+    each side), and the fit is repeated once.
+    """
+    n = max(4, round(DISTURBANCE_BLOCK_S * window.rate_hz))
+    samples = result.residual_mps2.shape[0]
+    block = np.arange(samples) // n  # the last block may be partial: it is judged too
+    if block[-1] < 8:
+        return result, window, ""
+    power = np.bincount(block, weights=np.sum(result.residual_mps2**2, axis=1))
+    rms = np.sqrt(power / (3 * np.bincount(block)))
+    bad = rms > DISTURBANCE_FACTOR * np.median(rms)
+    if not np.any(bad):
+        return result, window, ""
+    bad = bad | np.concatenate([[False], bad[:-1]]) | np.concatenate([bad[1:], [False]])
+    keep = ~bad[block]
+    kept = window.select(keep)
+    # The refit keeps the window's time origin and knots: it restarts where it was.
+    frame = (float(window.time_s[0]), float(window.time_s[-1]))
+    refit = fit_window(fitter, kept, initial=result.params, frame=frame)
+    seconds = float(np.sum(~keep) / window.rate_hz)
+    note = (
+        f"left out {seconds:.1f} s where the residual exceeded {DISTURBANCE_FACTOR:g}× the "
+        "typical (a hand starting or braking the wheel, a knock)"
+    )
+    return refit, kept, note
+
+
+#: Samples the model puts within this many noise σ of a rail are left out.
+RAIL_MARGIN_SIGMA = 4.0
+
+
+def _clear_of_rails(
+    fitter: JointFit, result: CalibrationResult, window: Recording
+) -> tuple[CalibrationResult, Recording, str]:
+    """Refit without the stretches the model predicts near a clipping rail.
+
+    The reader dropped the samples at the rails; keeping their neighbours
+    whose noise stayed just below would select on the noise and bias the
+    peaks.  Selecting on the *prediction* instead is free of that bias.
+    """
+    predicted = window.accel_mps2 - result.residual_mps2
+    margin = RAIL_MARGIN_SIGMA * result.noise.marginal_std_mps2
+    low, high = window.clip_limits_mps2[:, 0], window.clip_limits_mps2[:, 1]
+    with np.errstate(invalid="ignore"):
+        near = np.any((predicted >= high - margin) | (predicted <= low + margin), axis=1)
+    if not np.any(near):
+        return result, window, ""
+    kept = window.select(~near)
+    frame = (float(window.time_s[0]), float(window.time_s[-1]))  # see _without_disturbances
+    refit = fit_window(fitter, kept, initial=result.params, frame=frame)
+    note = (
+        f"left out {int(near.sum())} samples that the model puts within "
+        f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"
+    )
+    return refit, kept, note
+
+
+def _refuse_long_gap(window: Recording) -> None:
+    """A spline of the wheel angle has knots over the window's time span, not its samples.
+
+    Windows found automatically never span a long gap; a window given with
+    --start-s/--end-s might, and its knots would then grow with the gap.
+    """
+    steps = np.diff(window.time_s)
+    longest = float(steps.max()) if steps.size else 0.0
+    if longest > MAX_BRIDGED_GAP_S:
+        raise RecordingError(
+            f"{window.source}: the window spans a gap of {longest:.3g} s without samples "
+            f"(longer than {MAX_BRIDGED_GAP_S:g} s): the gyro-aided fit's wheel angle cannot "
+            "bridge it; choose a window on one side with --start-s/--end-s"
+        )
+
+
+def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) -> None:
+    """Refuse before fitting when the start already puts the gains far from 1.
+
+    With a radius off by ×1000 (mm typed as m) the fit itself wanders off and
+    fails for reasons that hide the cause; the closed-form start already
+    shows it: gains average r_implied / r.
+    """
+    radius = window.info.radius_m
+    if guess.implied_radius_m is None or radius is None:
+        return
+    mean_gain = guess.implied_radius_m / radius
+    lo, hi = gates.gain_range
+    if not lo <= mean_gain <= hi:
+        refuse_gain_scale(
+            window.source, mean_gain, radius, f"the gains average ≈ {mean_gain:.4g}", gates
+        )
+
+
+def _motion(
+    result: CalibrationResult,
+    window: Recording,
+    rests: tuple[RestSegment, ...],
+    evaluated: EvaluatedModel | None = None,
+) -> tuple[MotionCheck | None, NoiseReference]:
+    """The motion check with the residual's broadband level as the noise, and that reference.
+
+    ``evaluated``: the model at the result as the fit's last pass left it (its ϑ
+    and bench force then serve both).
+    """
+    reference = noise_reference(result.residual_mps2, _theta(result, evaluated), rests)
+    noise = broadband_noise(result.noise, reference.broadband_mps2)
+    return check_motion(result, window.accel_mps2, noise, evaluated=evaluated), reference
+
+
+def _theta(result: CalibrationResult, evaluated: EvaluatedModel | None = None) -> np.ndarray:
+    """The fitted wheel angle ϑ(t) at every sample (the kinematics only, in chunks)."""
+    tc = result.centred_time_s
+    output = evaluated.output_at(result.params, tc) if evaluated is not None else None
+    if output is not None:
+        return output.kinematics.theta_rad
+    theta = np.empty_like(tc)
+    for start in range(0, tc.size, CHUNK_SAMPLES):
+        stop = min(tc.size, start + CHUNK_SAMPLES)
+        kin = wheel_kinematics(result.params, tc[start:stop], result.layout.effects)
+        theta[start:stop] = kin.theta_rad
+    return theta
+
+
+def _usable_gyro(recording: Recording) -> bool:
+    gyro = getattr(recording, "gyro_radps", None)
+    return gyro is not None and int(np.sum(np.all(np.isfinite(gyro), axis=1))) >= 100
+
+
+def assess(
+    result: CalibrationResult,
+    rests: tuple[RestSegment, ...],
+    gates: Gates,
+    motion: MotionCheck | None = None,
+    gyro=None,
+    reference: NoiseReference | None = None,
+) -> CalibrationResult:
+    """Apply the post-fit gates to ``result``; return it with its :class:`Assessment`.
+
+    ``reference`` is the noise reference of this very result with these rests,
+    when the caller has it already (the motion check needs it too).
+
+    Raises :class:`CalibrationRefused` when the refusal band is hit.
+    """
+    undetermined = undetermined_parameters(result, gates)
+    refuse_implausible(result, gates, undetermined)
+    bad = {name for name, _ in undetermined}
+    noise = reference or noise_reference(result.residual_mps2, _theta(result), rests)
+    refuse_misfit(result.source, noise, gates)
+    checks = () if bad else check_rests(result, rests, gates.rest_alpha)
+    gyro_notes = [] if gyro is None else gyro_findings(result.source, gyro, rests, gates)
+    warnings = (
+        gyro_notes
+        + tolerance_warnings(result, gates, bad)
+        + noise_warnings(noise, gates, result.residual_mps2, result.time_s)
+        + rest_warnings(checks, gates)
+        + [f"{name} is undetermined: {reason}" for name, reason in undetermined]
+    )
+    assessment = Assessment(
+        gates=gates,
+        noise=noise,
+        motion=motion,
+        rest_checks=checks,
+        undetermined=tuple(undetermined),
+        warnings=tuple(warnings),
+        gyro=gyro,
+    )
+    return dataclasses.replace(
+        result, assessment=assessment, warnings=result.warnings + tuple(warnings)
+    )
