@@ -6,10 +6,12 @@
 * Every command they show names a real command, real options and real files, and the quick
   ones (simulate, calibrate, diagnose, export, apply, convert, plan) run, in order, in a
   temporary folder, and write what they say.
+* The modules, attributes and files they name (`wheelcal.x.y`, `estimate/joint/fit.py`) exist.
 """
 
 import dataclasses
 import functools
+import importlib
 import json
 import re
 import shlex
@@ -473,3 +475,47 @@ def test_the_pipeline_file_shown_loads_and_every_key_is_documented(tmp_path):
     missing = {f"[{s}] {k}" for s, keys in sections.items() for k in keys if k not in documented}
     assert not missing, f"{_page_id(page)} does not list {sorted(missing)}"
     assert all(f"`[{s}]`" in page.read_text() for s in sections)
+
+
+#: Names in backticks that look like Python but name a JSON schema or a metadata record.
+NOT_PYTHON = {"wheelcal.AccelBatch"}
+
+
+def _resolves(dotted: str) -> bool:
+    """A module, or an attribute chain under the longest importable module."""
+    parts = dotted.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        try:
+            for attr in parts[cut:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return False
+        return True
+    return False
+
+
+def _source_file(name: str) -> bool:
+    """A file named in the text: from the project's root, under src/ or src/wheelcal, or a
+    bare script name in one of the script folders."""
+    bases = (ROOT, ROOT / "src", ROOT / "src" / "wheelcal")
+    if any((base / name).is_file() for base in bases):
+        return True
+    folders = ("benchmarks", "tools", "docs", "tests")
+    return "/" not in name and any(any((ROOT / f).rglob(name)) for f in folders)
+
+
+@pytest.mark.parametrize("page", PAGES, ids=_page_id)
+def test_the_modules_and_files_named_exist(page):
+    """`wheelcal.x.y` names and `.py` files the text gives exist in the code as it is."""
+    missing = []
+    for span in _code_spans(page.read_text()):
+        for name in re.findall(r"(?<![\w.])wheelcal(?:\.\w+)+(?![\w/])", span):
+            if name not in NOT_PYTHON and not _resolves(name):
+                missing.append(f"`{name}` (in `{span}`)")
+        if re.fullmatch(r"[\w./-]+\.py", span) and not _source_file(span):
+            missing.append(f"file `{span}`")
+    assert not missing, f"{_page_id(page)} names what does not exist: " + ", ".join(missing)
