@@ -1,4 +1,4 @@
-"""Regenerate the README's before/after table of the closed loop.
+"""Regenerate the before/after table of the closed loop (docs/guide/closed-loop.md).
 
 For each effect at the size the issue names (undeclared in the data), one Table I
 recording (σ_n = 0.08 m/s², 90 s at 200 Hz; gain drift at 0.02 m/s², see below)

@@ -1,4 +1,4 @@
-"""Print the README's figures for the sensor-level closure's example (a faint nonlinearity).
+"""Print the figures of the sensor-level closure's example, a faint nonlinearity (docs/guide/closed-loop.md).
 
 Ten Table II recordings of one sensor, mounted so that the x axis sees a
 4·10⁻⁴ /(m/s²) quadratic nonlinearity only faintly, go through the batch runner

@@ -1,4 +1,4 @@
-"""Regenerate the README's before/after table of an undeclared rolling wheel.
+"""Regenerate the before/after table of an undeclared rolling wheel (docs/guide/gyroscope-and-rolling.md).
 
 Simulated drives (90 s at 200 Hz, σ_n = 0.08 m/s², 0.5 m/s² road vibration,
 speed changes, a stop, turns up to 0.3 rad/s; :mod:`wheelcal.simulate.rolling`)

@@ -1,4 +1,4 @@
-"""The README's gyro Monte Carlo figures (the slow tests of tests/test_gyro_accuracy.py, printed).
+"""The gyro Monte Carlo figures of docs/guide/gyroscope-and-rolling.md (the slow tests of tests/test_gyro_accuracy.py, printed).
 
 * Table I with a gyro, flexible wheel angle (2 s knots), and with a 0.4 rad/s²
   imbalance (imbalance effect + gyro): spread / CRLB, reported σ / spread, and

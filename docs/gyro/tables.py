@@ -1,4 +1,4 @@
-"""The README's gyroscope tables: what the flexible wheel angle and an imbalance cost.
+"""The gyroscope tables of docs/guide/gyroscope-and-rolling.md: what the flexible wheel angle and an imbalance cost.
 
 Analytic Cramér–Rao bounds at the truth (σ of gains, offsets and tilt), for
 the paper's Table I and Table II setups (90 s, 200 Hz, σ_n = 0.08 m/s², an

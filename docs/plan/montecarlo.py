@@ -1,4 +1,4 @@
-"""Print the README's Monte Carlo figures for `wheelcal plan` (predicted σ vs joint-fit spread).
+"""Print the Monte Carlo figures for `wheelcal plan` (predicted σ vs joint-fit spread; docs/guide/planning.md).
 
 For the four setups of ``tests/test_plan_montecarlo.py`` (paper bench, paper bench
 with the recommended mounting, tilt mode with low-pass noise, vertical wheel) the

@@ -1,4 +1,4 @@
-"""Monte Carlo of rolling-wheel calibration: the figures the README quotes (issue 13).
+"""Monte Carlo of rolling-wheel calibration: the figures docs/guide/gyroscope-and-rolling.md quotes (issue 13).
 
 Simulated drives (:func:`wheelcal.simulate.rolling.rolling_scenario`: speed
 changes at 0.8–1.5 m/s², a stop, turns up to 0.3 rad/s, 0.5 m/s² road
