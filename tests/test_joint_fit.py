@@ -166,3 +166,59 @@ def test_result_reports_contract_parameter_names(table1_session):
     names, _, _ = report_transform(result.params, result.layout)
     assert names == result.names
     assert result.t0_unix_ns == result.epoch_unix_ns + 45_000_000_000
+
+
+def _whitened_chi2(residual_mps2: np.ndarray, noise) -> float:
+    """‖r̃‖² written out: each axis's AR filter (scipy), then the innovations' Mahalanobis norm."""
+    from scipy.signal import lfilter
+
+    p = noise.order
+    innovations = np.array(
+        [lfilter(a, [1.0], residual_mps2[:, k])[p:] for k, a in enumerate(noise.ar_polynomials)]
+    )
+    cov = np.asarray(noise.innovation_cov)
+    return float(np.sum(innovations * np.linalg.solve(cov, innovations)))
+
+
+def _fits_of_three_pushes():
+    """The session's final fit (accelerometer only, gyro-aided), and a gyro-aided window fit
+    whose iterations end on a step confirmed by the cost alone (its χ² is that step's cost)."""
+    from wheelcal.estimate.gyro.knots import choose_knot_spacing
+    from wheelcal.estimate.joint.fit import gyro_samples
+    from wheelcal.session.fit import SessionFit
+    from wheelcal.session.window import find_motion_window
+    from wheelcal.simulate import hostile
+    from wheelcal.simulate.gyro import GyroSpec
+
+    recording = hostile.three_pushes(np.random.default_rng(9), gyro=GyroSpec()).recording
+    for gyro in ("off", "on"):
+        out = SessionFit(gyro=gyro).run(recording)
+        yield out.result, out.window.recording
+    found = find_motion_window(recording)
+    window = recording.window(found.start_s, found.end_s)
+    tc = window.time_s - 0.5 * (window.time_s[0] + window.time_s[-1])
+    spacing = choose_knot_spacing(*gyro_samples(window, tc)).spacing_s
+    yield JointFit(use_gyro=True, spline_spacing_s=spacing).fit(window), window
+
+
+def test_goodness_of_fit_is_the_whitened_cost_at_the_result():
+    # χ² is taken from the iterations' last cost (no extra pass): it must be the
+    # whitened residual's squared norm at the reported parameters, every stream.
+    from wheelcal.estimate.joint.fit import gyro_samples
+    from wheelcal.estimate.joint.gyro_equations import accumulate_gyro
+
+    for r, window in _fits_of_three_pushes():
+        chi2 = _whitened_chi2(r.residual_mps2, r.noise)
+        entries = 3 * (r.residual_mps2.shape[0] - r.noise.order)
+        if r.gyro_noise is not None:
+            gyro_t, rates = gyro_samples(window, window.time_s - r.centre_s)
+            part = accumulate_gyro(r.params, gyro_t, rates, r.layout, r.gyro_noise, False)
+            chi2, entries = chi2 + part.cost, entries + part.entries
+        assert r.chi2 == pytest.approx(chi2, rel=1e-9)
+        assert r.entries == entries
+        k = r.layout.size
+        assert r.chi2_reduced == pytest.approx(chi2 / (entries - k), rel=1e-9)
+        assert r.aic == pytest.approx(chi2 + 2 * k, rel=1e-12)
+        assert r.bic == pytest.approx(chi2 + k * np.log(entries), rel=1e-12)
+        # the estimated noise model makes χ²ᵣ ≈ 1 (documented: not a test of the model)
+        assert abs(r.chi2_reduced - 1) < 0.02

@@ -42,6 +42,12 @@ class CalibrationResult:
 
     each up to the constant −2 ln L − χ² of the fitted noise model (the same for
     two models of one recording and noise model, so differences compare them).
+
+    The noise model is estimated from this fit's own residual, so χ²ᵣ ≈ 1 by
+    construction — a model that lacks an effect inflates its noise model instead
+    (an imbalanced wheel: χ²ᵣ 0.9994 for the paper's model, 0.9992 with the
+    imbalance).  It is not a test of the model: that is the independent noise
+    floor (the rests; ``Assessment.noise``) and the closed loop's score tests.
     What the gates made of a fit is not here: a session's
     :class:`~wheelcal.session.result.SessionResult` holds it.
     """
