@@ -135,9 +135,7 @@ class Calibration(Mapping):
 
     # construction -----------------------------------------------------------------
     @classmethod
-    def from_session(
-        cls, session: SessionResult, provenance: dict | None = None
-    ) -> Calibration:
+    def from_session(cls, session: SessionResult, provenance: dict | None = None) -> Calibration:
         """The calibration of a calibrated session (:mod:`wheelcal.session.compute`)."""
         from wheelcal.calibration.session_json import calibration_dict
 

@@ -119,9 +119,7 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
             "gain": [_num(values[f"gain_{a}"]) for a in AXES],
             "offset_std_mps2": [_num(std[f"offset_{a}_mps2"]) for a in AXES],
             "gain_std": [_num(std[f"gain_{a}"]) for a in AXES],
-            "undetermined": [
-                {"parameter": n, "reason": r} for n, r in assessment.undetermined
-            ],
+            "undetermined": [{"parameter": n, "reason": r} for n, r in assessment.undetermined],
         },
         "bench": bench,
         "motion": motion,
@@ -178,11 +176,7 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
             },
             "note": _SYSTEMATIC_NOTE,
         },
-        **(
-            {"gyro": _clean(assessment.gyro.to_dict())}
-            if assessment.gyro is not None
-            else {}
-        ),
+        **({"gyro": _clean(assessment.gyro.to_dict())} if assessment.gyro is not None else {}),
         "correction": {
             "bias_mps2": _vec(correction.bias_mps2),
             "matrix": correction.matrix.tolist(),

@@ -26,8 +26,7 @@ def session_summary(outcome: SessionOutcome) -> str:
     lines = [
         f"{outcome.source}  topic {r.topic or '-'}",
         f"  window {w0:.2f}–{w1:.2f} s, {r.time_s.size} samples, "
-        f"ω {omega[0]:+.2f} → {omega[1]:+.2f} rad/s"
-        + (f"  [{reason}]" if reason else ""),
+        f"ω {omega[0]:+.2f} → {omega[1]:+.2f} rad/s" + (f"  [{reason}]" if reason else ""),
     ]
     undetermined = set(session.undetermined)
 
