@@ -132,13 +132,14 @@ class WheelGeometry:
     @classmethod
     def rolling(
         cls,
+        *,
         camber_deg: float,
         radius_m: float,
         rolling_radius_m: float,
-        side: int = 1,
-        axle_offset_m: float = 0.0,
+        axle_offset_m: float,
+        side: int,
     ) -> WheelGeometry:
-        """A vehicle's wheel with camber γ (0 ≤ γ < 90°), top inboard."""
+        """A vehicle's wheel with camber γ (0 ≤ γ < 90°), top inboard; every value named."""
         if not 0.0 <= camber_deg < 90.0:
             raise ValueError(f"camber must be in [0°, 90°), got {camber_deg}°")
         tilt = np.deg2rad(90.0 - camber_deg)

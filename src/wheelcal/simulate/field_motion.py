@@ -22,7 +22,7 @@ first sample at t = 0); a law must cover every sample time.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -116,6 +116,10 @@ class MotionState:
     speed_mps: np.ndarray
     speed_dot_mps2: np.ndarray
     distance_m: np.ndarray
+
+    def take(self, rows: np.ndarray) -> MotionState:
+        """The state at some of its samples (``rows``: indices or a mask)."""
+        return MotionState(*(getattr(self, f.name)[rows] for f in fields(self)))
 
 
 @dataclass(frozen=True, eq=False)

@@ -34,7 +34,7 @@ from wheelcal.model import (
 from wheelcal.model.kinematics import Kinematics
 from wheelcal.recording import Recording, SessionInfo
 from wheelcal.simulate.field_kinematics import WheelGeometry, wheel_kinematics
-from wheelcal.simulate.field_motion import AxleSpin, VehiclePath
+from wheelcal.simulate.field_motion import AxleSpin, MotionState, VehiclePath
 from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.logger_glitches import (
     Glitches,
@@ -49,6 +49,8 @@ from wheelcal.simulate.road import VibrationSpec
 
 #: Geometry labels (CONTRACT ``bench.geometry``).
 GEOMETRIES = ("bench", "vertical", "rolling")
+#: What the truth keeps of the scenario's specs, by the same names.
+_SPECS = ("gyro", "noise", "vibration", "quantiser", "glitches", "free_spin")
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,11 +133,13 @@ class FieldTruth:
         axle), ``camber_rad`` γ (``None`` on a fixed axle), ``side`` σ (+1
         left, −1 right: the axle's upper end is outboard), ``axle_offset_m`` h.
     Motion, at ``time_s`` (recording seconds)
+        ``motion`` (a :class:`~wheelcal.simulate.field_motion.MotionState`):
         ``theta_rad`` ϑ (the wheel's angle relative to its carrier, CONTRACT
         origin: X up the wheel plane at ϑ = 0), ``omega_radps`` ω = dϑ/dt,
         ``omega_dot_radps2``; ``heading_rad`` ψ, ``yaw_rate_radps`` ψ̇,
         ``yaw_accel_radps2`` ψ̈ (about the world vertical); ``speed_mps`` v ≥ 0
-        and ``speed_dot_mps2`` v̇ of the hub.  On a rolling wheel ω = ψ̇ sin γ − σ v/ρ.
+        and ``speed_dot_mps2`` v̇ of the hub, ``distance_m`` from t = 0.  On a
+        rolling wheel ω = ψ̇ sin γ − σ v/ρ.
     Signals
         ``specific_force_mps2`` a (bench frame, exact, without vibration);
         ``body_rate_radps`` Ω_B = ψ̇ n − ω e_Z (bench frame, n the vertical in
@@ -161,14 +165,7 @@ class FieldTruth:
     axle_offset_m: float
     gravity_mps2: float
     time_s: np.ndarray
-    theta_rad: np.ndarray
-    omega_radps: np.ndarray
-    omega_dot_radps2: np.ndarray
-    heading_rad: np.ndarray
-    yaw_rate_radps: np.ndarray
-    yaw_accel_radps2: np.ndarray
-    speed_mps: np.ndarray
-    speed_dot_mps2: np.ndarray
+    motion: MotionState
     specific_force_mps2: np.ndarray
     body_rate_radps: np.ndarray
     clean_accel_mps2: np.ndarray
@@ -198,9 +195,20 @@ class FieldTruth:
         """r, the sensor's distance from the axle."""
         return self.bench.radius_m
 
+    @property
+    def axle_twin_misalignment(self) -> Rotation:
+        """R · diag(1, −1, −1): R of the same wheel described with Z reversed (ϑ, ω → −ϑ, −ω).
+
+        At α = 90° (a vertical wheel, rolling or on a stand) neither end of the
+        axle points up, and both descriptions fit the data exactly (CONTRACT's
+        twin); this simulator takes Z outboard, an estimate may report the other.
+        """
+        return Rotation.composed(self.bench.misalignment.matrix @ np.diag([1.0, -1.0, -1.0]))
+
     def kinematics(self) -> Kinematics:
         """ϑ, ω, ω̇ at the samples, as the model's type."""
-        return Kinematics(self.theta_rad, self.omega_radps, self.omega_dot_radps2)
+        m = self.motion
+        return Kinematics(m.theta_rad, m.omega_radps, m.omega_dot_radps2)
 
     def params(self) -> CalibrationParams:
         """Bench, sensor and gravity as :class:`~wheelcal.model.CalibrationParams`.
@@ -208,7 +216,7 @@ class FieldTruth:
         Its ``spin`` is only a placeholder (ϑ, ω at the first sample): the motion
         is :meth:`kinematics` (pass it to :func:`wheelcal.model.evaluate`).
         """
-        spin = SpinParams(self.theta_rad[0], (self.omega_radps[0],))
+        spin = SpinParams(self.motion.theta_rad[0], (self.motion.omega_radps[0],))
         return CalibrationParams(spin, self.bench, self.sensor, self.gravity_mps2)
 
 
@@ -308,27 +316,15 @@ def simulate_field(scenario: FieldScenario, rng: np.random.Generator) -> FieldSi
         axle_offset_m=wheel.axle_offset_m,
         gravity_mps2=scenario.gravity_mps2,
         time_s=time_s,
-        theta_rad=state.theta_rad[keep],
-        omega_radps=state.omega_radps[keep],
-        omega_dot_radps2=state.omega_dot_radps2[keep],
-        heading_rad=state.heading_rad[keep],
-        yaw_rate_radps=state.yaw_rate_radps[keep],
-        yaw_accel_radps2=state.yaw_accel_radps2[keep],
-        speed_mps=state.speed_mps[keep],
-        speed_dot_mps2=state.speed_dot_mps2[keep],
+        motion=state.take(keep),
         specific_force_mps2=force[keep],
         body_rate_radps=body_rate[keep],
         clean_accel_mps2=clean[keep],
         vibration_mps2=shake_out[keep],
         vibration_envelope=envelope[keep],
-        gyro=scenario.gyro,
-        noise=scenario.noise,
-        vibration=scenario.vibration,
-        quantiser=scenario.quantiser,
-        glitches=scenario.glitches,
         glitch_rows=rows,
         window_s=_window(scenario, t, state.speed_mps),
-        free_spin=scenario.free_spin,
+        **{name: getattr(scenario, name) for name in _SPECS},
     )
     return FieldSimulation(
         recording=recording,
