@@ -1,5 +1,19 @@
 """Simulated recordings with known truth (speaks the model's parameter types)."""
 
+from wheelcal.simulate.field import (
+    FieldScenario,
+    FieldSimulation,
+    FieldTruth,
+    Glitches,
+    VibrationSpec,
+    WheelGeometry,
+    bench_spin,
+    car_drive,
+    robot_drive,
+    simulate_field,
+    stand_spin,
+    wheelchair_coast,
+)
 from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.noise import NoiseSpec, Quantiser
 from wheelcal.simulate.presets import PRESETS, hand_spin, preset, random_setup, table1, table2
@@ -9,6 +23,10 @@ from wheelcal.simulate.temperature import TemperatureSpec
 
 __all__ = [
     "PRESETS",
+    "FieldScenario",
+    "FieldSimulation",
+    "FieldTruth",
+    "Glitches",
     "GyroSpec",
     "NoiseSpec",
     "Quantiser",
@@ -17,11 +35,19 @@ __all__ = [
     "SimulatedFullSession",
     "SimulatedSession",
     "TemperatureSpec",
+    "VibrationSpec",
+    "WheelGeometry",
+    "bench_spin",
+    "car_drive",
     "hand_spin",
     "preset",
     "random_setup",
+    "robot_drive",
     "simulate",
+    "simulate_field",
     "simulate_session",
+    "stand_spin",
     "table1",
     "table2",
+    "wheelchair_coast",
 ]
