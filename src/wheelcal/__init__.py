@@ -1,10 +1,21 @@
 """wheelcal — calibrate triaxial accelerometers with a spinning, tilted bicycle wheel.
 
-Layers, one direction (each imports only from those above it):
+Layers, lowest first.  A module imports only from its own package and from
+lower layers (lazy imports included); packages on one line are siblings and do
+not import each other (``tests/test_layers.py`` holds the code to this list):
 
-``model`` (pure numpy) ← ``simulate`` / ``estimate`` ← ``diagnose`` ←
-``io`` (MCAP), ``viz`` (Rerun), ``batch``, ``cli``; the Python API
-(:mod:`wheelcal.api`, :mod:`wheelcal.calibration`) sits on top.
+    1. model, runtime        the physics (pure numpy); process settings
+    2. recording             a recording, checked at construction; its errors
+    3. io, simulate, estimate   files in and out; the simulator; the estimators
+    4. closedloop            the effects the paper's model lacks, found and added
+    5. session               one recording → one calibration: window, fit, loop, gates
+    6. calibration           the documents (JSON), export, apply
+    7. viz, plan             Rerun recordings; planning a bench
+    8. study, batch          Monte Carlo studies; many sessions
+    9. api, cli              the Python API; the command line
+
+The root package only holds ``__version__`` (which any layer may import) and the
+lazy names below.
 
 The API, imported lazily so that ``import wheelcal`` stays light::
 

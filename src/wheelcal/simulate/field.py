@@ -43,7 +43,7 @@ import numpy as np
 from wheelcal.model import Rotation, SensorParams, SpinParams
 from wheelcal.model.rotation import exp_so3
 from wheelcal.simulate.field_drives import CAR_PLAN, ROBOT_PLAN, DrivePlan, coast_path, drive_path
-from wheelcal.simulate.field_kinematics import WheelGeometry, wheel_kinematics
+from wheelcal.simulate.field_kinematics import wheel_kinematics
 from wheelcal.simulate.field_motion import AxleSpin, MotionState, SmoothLaw, VehiclePath
 from wheelcal.simulate.field_record import (
     GEOMETRIES,
@@ -52,6 +52,7 @@ from wheelcal.simulate.field_record import (
     FieldTruth,
     simulate_field,
 )
+from wheelcal.simulate.field_wheel import WheelGeometry
 from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.logger_glitches import Glitches, LoggedSamples
 from wheelcal.simulate.noise import NoiseSpec

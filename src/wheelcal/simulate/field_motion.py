@@ -13,7 +13,7 @@ first sample at t = 0); a law must cover every sample time.
       ω = ψ̇ sin γ − σ v / ρ,    ϑ = ϑ₀ + sin γ (ψ − ψ₀) − σ s / ρ,
 
   with s(t) = ∫ v dt the distance travelled, γ the camber, σ the side and ρ
-  the rolling radius of :class:`~wheelcal.simulate.field_kinematics.WheelGeometry`
+  the rolling radius of :class:`~wheelcal.simulate.field_wheel.WheelGeometry`
   (derivation there).
 * :class:`AxleSpin` — a fixed axle (the paper's bench, or a vertical wheel
   on a stand): v = 0, ψ constant, and ω(t) any law (rests, a hand push, a
@@ -29,7 +29,7 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator, PPoly
 
 if TYPE_CHECKING:
-    from wheelcal.simulate.field_kinematics import WheelGeometry
+    from wheelcal.simulate.field_wheel import WheelGeometry
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,7 +143,7 @@ class VehiclePath:
     def state(self, t_s: np.ndarray, wheel: WheelGeometry) -> MotionState:
         """ϑ, ω, ω̇ from rolling without slip (module docstring), ψ, v at times ``t_s``.
 
-        ``wheel`` is the :class:`~wheelcal.simulate.field_kinematics.WheelGeometry`
+        ``wheel`` is the :class:`~wheelcal.simulate.field_wheel.WheelGeometry`
         (its camber γ, side σ and rolling radius ρ).
         """
         if wheel.rolling_radius_m is None:

@@ -33,8 +33,9 @@ from wheelcal.model import (
 )
 from wheelcal.model.kinematics import Kinematics
 from wheelcal.recording import Recording, SessionInfo
-from wheelcal.simulate.field_kinematics import WheelGeometry, wheel_kinematics
+from wheelcal.simulate.field_kinematics import wheel_kinematics
 from wheelcal.simulate.field_motion import AxleSpin, MotionState, VehiclePath
+from wheelcal.simulate.field_wheel import WheelGeometry
 from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.logger_glitches import (
     Glitches,
