@@ -49,6 +49,7 @@ class SpinDelta:
     d_own_omega_dot: np.ndarray | None = None
     by_theta: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # ∂(Δϑ, Δω, Δω̇)/∂ϑ
     by_omega: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # ∂(Δϑ, Δω, Δω̇)/∂ω
+    by_tilt: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # ∂(Δϑ, Δω, Δω̇)/∂α
 
 
 @dataclass(frozen=True, eq=False)

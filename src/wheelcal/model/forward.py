@@ -48,6 +48,9 @@ class ModelOutput:
     sensed_mps2: np.ndarray
     #: ∂Δa/∂r (N, 3) of the force-stage effects (with a Jacobian), for the radius' budget.
     force_by_radius: np.ndarray | None = None
+    #: The effects' share of ∂v/∂α (3, N) (with a Jacobian; tilt-aware effects only),
+    #: for the tilt's budget when α is held.
+    effects_by_tilt: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,23 +76,39 @@ class EvaluatedModel:
 
 
 def _apply_spin_effect(
-    effect, values: np.ndarray, t: np.ndarray, kin: Kinematics, jacobian: bool
+    effect, values: np.ndarray, t: np.ndarray, kin: Kinematics, jacobian: bool, tilt_rad: float
 ) -> Kinematics:
-    """Add a spin effect to ϑ, ω, ω̇; chain its partials into the existing rows, append its own."""
-    d = effect.spin_delta(values, t, kin, jacobian)
+    """Add a spin effect to ϑ, ω, ω̇; chain its partials into the existing rows, append its own.
+
+    An effect that depends on the tilt (``uses_tilt``) gets it, and its ∂/∂α rows
+    add to the kinematics' ``d_tilt``.
+    """
+    if getattr(effect, "uses_tilt", False):
+        d = effect.spin_delta(values, t, kin, jacobian, tilt_rad=tilt_rad)
+    else:
+        d = effect.spin_delta(values, t, kin, jacobian)
     theta = kin.theta_rad + d.theta
     omega = kin.omega_radps + d.omega
     omega_dot = kin.omega_dot_radps2 + d.omega_dot
     if not jacobian:
         return Kinematics(theta, omega, omega_dot)
     rows = [kin.d_theta.copy(), kin.d_omega.copy(), kin.d_omega_dot.copy()]
+    d_tilt = None if kin.d_tilt is None else kin.d_tilt.copy()
     for partials, base in ((d.by_theta, kin.d_theta), (d.by_omega, kin.d_omega)):
         if partials is not None:
             for k in range(3):
                 rows[k] += partials[k] * base
+    for partials, k_base in ((d.by_theta, 0), (d.by_omega, 1)):
+        if partials is not None and d_tilt is not None:
+            base_row = kin.d_tilt[k_base].copy()
+            for k in range(3):
+                d_tilt[k] += partials[k] * base_row
+    by_tilt = getattr(d, "by_tilt", None)
+    if by_tilt is not None:
+        d_tilt = np.array(by_tilt) if d_tilt is None else d_tilt + np.array(by_tilt)
     own = (d.d_own_theta, d.d_own_omega, d.d_own_omega_dot)
     rows = [np.vstack([r, o]) for r, o in zip(rows, own, strict=True)]
-    return Kinematics(theta, omega, omega_dot, *rows)
+    return Kinematics(theta, omega, omega_dot, *rows, d_tilt=d_tilt)
 
 
 def _sensor_w(gain: np.ndarray, rot: np.ndarray, terms: list) -> np.ndarray:
@@ -151,7 +170,8 @@ def candidate_columns(
     if candidate.stage == "force":
         w3 = _layout_w(params, t, layout, out)
         r = params.bench.radius_m
-        d = candidate.force_delta(np.zeros(candidate.size), t, out.kinematics, r, True)
+        tilt = params.bench.tilt_rad
+        d = candidate.force_delta(np.zeros(candidate.size), t, out.kinematics, r, True, tilt)
         return np.stack([_through_w(w3, column) for column in d.d_own])
     force = out.force
     rows = candidate.own_rows(t, out.kinematics, force.sin_theta, force.cos_theta)
@@ -258,7 +278,7 @@ def wheel_kinematics(
     for effect in effects:
         if effect.stage == "spin":
             values = params.effect(effect.name, effect.size)
-            kin = _apply_spin_effect(effect, values, t, kin, jacobian)
+            kin = _apply_spin_effect(effect, values, t, kin, jacobian, params.bench.tilt_rad)
     return kin
 
 
@@ -299,7 +319,9 @@ def evaluate(
     for effect in effects:
         if effect.stage == "force":  # Δa of the bench frame (e.g. a rolling wheel's hub)
             values = params.effect(effect.name, effect.size)
-            term = effect.force_delta(values, t, kin, params.bench.radius_m, jacobian)
+            term = effect.force_delta(
+                values, t, kin, params.bench.radius_m, jacobian, params.bench.tilt_rad
+            )
             force_terms.append((effect, term))
     if force_terms:
         total = force.accel_mps2 + sum(term.delta for _, term in force_terms)
@@ -396,8 +418,11 @@ def _with_jacobian(
         _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r, out=jac[spin])
     if force_terms:
         _add_force_rows(jac, layout, w3, kin, force_terms, spin_effects)
+    by_tilt = _effects_by_tilt(w3, force, kin, r, force_terms)
     if layout.fit_tilt:
         jac[blocks["tilt"].start] = _through_w(w3, d_force_d_tilt(force))
+        if by_tilt is not None:
+            jac[blocks["tilt"].start] += by_tilt
     if layout.fit_radius:
         da_dr = d_force_d_radius(kin)
         for _, term in force_terms:
@@ -421,7 +446,29 @@ def _with_jacobian(
         if term.d_gain is not None:
             jac[blocks["gain"]] += term.d_gain
     by_radius = sum(term.by_radius for _, term in force_terms) if force_terms else None
-    return ModelOutput(predicted, jac, kin, force, sensed, by_radius)
+    return ModelOutput(predicted, jac, kin, force, sensed, by_radius, by_tilt)
+
+
+def _effects_by_tilt(w3, force, kin: Kinematics, radius_m: float, force_terms) -> np.ndarray | None:
+    """The effects' share of ∂v/∂α (3, N): force effects' ∂Δa/∂α, and the wheel angle's.
+
+    A tilt-aware spin effect moves ϑ, ω, ω̇ with α (``kin.d_tilt``): that acts
+    through eq. (1) and through the force effects' ∂Δa/∂(ϑ, ω, ω̇).
+    """
+    tilted = [term.by_tilt for _, term in force_terms if term.by_tilt is not None]
+    if not tilted and kin.d_tilt is None:
+        return None
+    da = sum(tilted) if tilted else np.zeros_like(force.accel_mps2)
+    if kin.d_tilt is not None:
+        d_theta, d_omega, d_omega_dot = kin.d_tilt
+        for _, term in force_terms:
+            da = da + term.by_theta * d_theta[:, None]
+            da = da + term.by_omega * d_omega[:, None] + term.by_omega_dot * d_omega_dot[:, None]
+    out = _through_w(w3, da)
+    if kin.d_tilt is not None:
+        rows = tuple(row[None] for row in kin.d_tilt)
+        out = out + _spin_rows_to_v(w3, force, rows, kin.omega_radps, radius_m)[0]
+    return out
 
 
 def jacobian_transpose_times(
@@ -560,6 +607,8 @@ def nuisance_sensitivity(
         da = d_force_d_gravity(out.force, params.bench.tilt_rad)
     elif nuisance == "tilt_rad":
         da = d_force_d_tilt(out.force)
+        if out.effects_by_tilt is not None:  # a cambered rolling wheel's, a gyro angle's
+            return da @ np.ascontiguousarray(w_mat.T) + out.effects_by_tilt.T
     else:
         raise ValueError(f"unknown nuisance quantity {nuisance!r}")
     return da @ np.ascontiguousarray(w_mat.T)  # (C-ordered: see evaluate)

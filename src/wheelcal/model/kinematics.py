@@ -28,6 +28,8 @@ class Kinematics:
     d_theta: np.ndarray | None = None
     d_omega: np.ndarray | None = None
     d_omega_dot: np.ndarray | None = None
+    #: (3, N): ∂(ϑ, ω, ω̇)/∂α where a tilt-aware spin effect makes them depend on the tilt.
+    d_tilt: np.ndarray | None = None
 
 
 def spin_kinematics(spin: SpinParams, t_s: np.ndarray, derivatives: bool = False) -> Kinematics:

@@ -40,7 +40,8 @@ class ParameterLayout:
         Degree K of the ω(t) polynomial (3 = the paper's cubic).
     fit_tilt, fit_radius:
         Geometry mode.  The paper fixes r (``fit_radius=False``); eq. (9)–(13)
-        show that r and α cannot both be free.
+        show that r and α cannot both be free — unless an effect ``ties_tilt``
+        (measures α otherwise: a gyro angle that turns with a cambered wheel's yaw).
     effects:
         Optional model extensions, each with named parameters (see
         :mod:`wheelcal.model.effects`).
@@ -52,8 +53,13 @@ class ParameterLayout:
     effects: tuple = field(default=())
 
     def __post_init__(self) -> None:
-        if self.fit_tilt and self.fit_radius:
-            raise ValueError("tilt and radius cannot both be free: eq. (9)-(13) null space")
+        if self.fit_tilt and self.fit_radius and not any(
+            getattr(e, "ties_tilt", False) for e in self.effects
+        ):
+            raise ValueError(
+                "tilt and radius cannot both be free: eq. (9)-(13) null space (unless an "
+                "effect measures the tilt otherwise, e.g. a cambered wheel's turns)"
+            )
         if self.spin_degree < 0:
             raise ValueError("spin_degree must be >= 0")
 

@@ -1,16 +1,31 @@
 """A wheel rolling on the ground: rigid-body kinematics of the hub (the ``rolling`` effect).
 
-Scope: a **vertical wheel** (α = 90°, the axle horizontal) **rolling without
-slip on level ground**, steered or yawing at a rate ψ̇ about the vertical — a
-robot's or a car's wheel with an IMU on it.  A leaning wheel (a bicycle in a
-turn, a cambered car wheel) is *not* in scope: its axle is not horizontal, so
-gravity leaves the wheel plane and the hub's path is not the contact point's;
-lean would have to be a state of its own.  Grades and banked roads are out of
-scope too (the vertical is assumed to lie in the wheel plane at all times).
+Scope: a wheel **rolling without slip on level ground** at a **constant camber**
+γ = 90° − α (a vertical wheel: γ = 0; a wheelchair's 16–20°), steered or
+yawing at a rate ψ̇ about the vertical — a robot's, a car's or a wheelchair's
+wheel with an IMU on it.  Out of scope: lean that changes during the drive (a
+bicycle in a turn), grades and banked roads, wheel slip.
 
-Frames (CONTRACT): bench frame fixed to the wheel, Z the axle, X radial from
-the sensor to the hub, Y = Z × X.  With α = 90° the upward unit vector in the
-bench frame is u = (cos ϑ, sin ϑ, 0) and the wheel's angular velocity is
+Frames (CONTRACT): bench frame fixed to the wheel, Z the axle (its upper end,
+outboard on a cambered wheel), X radial from the sensor to the hub, Y = Z × X.
+The upward unit vector in the bench frame is n = (cos γ cos ϑ, cos γ sin ϑ,
+sin γ) and the wheel's angular velocity Ω = ψ̇ n − ω e_Z, ω = ϑ̇ its rate on its
+carrier.  Rolling without slip: σ v = ρ Ω_z with Ω_z = ψ̇ sin γ − ω (σ = ±1 the
+vehicle's side, v ≥ 0 the hub's speed, ρ the rolling radius).  The exact
+specific force (derived in the world frame in
+:mod:`wheelcal.simulate.field_kinematics`) less eq. (1) at α = 90° − γ is
+this effect's Δa (s = sin ϑ, c = cos ϑ, sγ = sin γ, cγ = cos γ,
+Ω̇_z = ψ̈ sγ − ω̇):
+
+    Δa_X = −ρ Ω̇_z s − ρ Ω_z ψ̇ sγ c + r (ψ̇² cγ² s² + ψ̇² sγ² − 2 ω ψ̇ sγ)
+    Δa_Y =  ρ Ω̇_z c − ρ Ω_z ψ̇ sγ s − r ψ̈ sγ − r ψ̇² cγ² s c
+    Δa_Z =  ρ Ω_z ψ̇ cγ + r cγ (ψ̈ s + 2 ω ψ̇ c − ψ̇² sγ c)
+
+(the sensor on the wheel's mid-plane; an offset h along the axle is left out).
+On a vertical wheel (γ = 0) it reads as below.
+
+A vertical wheel (α = 90°, the axle horizontal): u = (cos ϑ, sin ϑ, 0) is the
+upward unit vector in the bench frame and the wheel's angular velocity is
 
     Ω = −ω e_Z + ψ̇ u                                              (bench frame)
 
@@ -36,14 +51,16 @@ rest, Δa, is this effect (s = sin ϑ, c = cos ϑ):
     Δa_Y = −ρ ω̇ c − r ψ̇² s c
     Δa_Z = −ρ ω ψ̇ + r ψ̈ s + 2 r ω ψ̇ c
 
-The cross term 2 r ω ψ̇ cos ϑ turns once per turn along the axle, at the
-frequency of gravity: a car wheel at 10 m/s (ρ = 0.3 m, ω ≈ 33 rad/s) in a
-0.3 rad/s turn with the sensor at r = 0.2 m feels ±4 m/s² of it.
+(the γ = 0 case of the formulas above).  The cross term 2 r ω ψ̇ cos ϑ turns
+once per turn along the axle, at the frequency of gravity: a car wheel at
+10 m/s (ρ = 0.3 m, ω ≈ 33 rad/s) in a 0.3 rad/s turn with the sensor at r = 0.2 m feels ±4 m/s² of it.
 
 **The yaw rate comes from the gyro**: ψ̇(t) is the gyro's reading along the
 upward direction, demodulated with the wheel angle
 (:mod:`wheelcal.estimate.gyro.yaw`).  The gyro's scale across the wheel axis is not
-calibrated by the spin, so the effect fits a scale κ with ψ̇ = κ ψ̇_gyro:
+calibrated by the spin, so the effect may fit a scale κ with ψ̇ = κ ψ̇_gyro (or,
+``yaw_scale_free=False``, take the yaw as measured by a calibrated gyro; with
+``yaw_across_axle`` the series is the yaw's share across the axle, ψ̇ cos γ):
 
     parameters  ρ (``radius_m``)  and  κ (``yaw_scale``),
 
@@ -68,7 +85,8 @@ class ForceDelta:
 
     ``d_own`` (k, N, 3) w.r.t. the effect's parameters; ``by_theta``,
     ``by_omega``, ``by_omega_dot`` (N, 3) w.r.t. ϑ, ω, ω̇ (chain rule into the
-    spin rows); ``by_radius`` (N, 3) w.r.t. the bench radius r.
+    spin rows); ``by_radius`` (N, 3) w.r.t. the bench radius r; ``by_tilt`` (N, 3)
+    w.r.t. the tilt α (a cambered wheel's γ = 90° − α).
     """
 
     delta: np.ndarray
@@ -77,10 +95,11 @@ class ForceDelta:
     by_omega: np.ndarray | None = None
     by_omega_dot: np.ndarray | None = None
     by_radius: np.ndarray | None = None
+    by_tilt: np.ndarray | None = None
 
 
 class Rolling(Effect):
-    """A vertical wheel rolling on level ground (see the module docstring for the physics).
+    """A wheel rolling on level ground, vertical or cambered (module docstring).
 
     Parameters
     ----------
@@ -96,7 +115,11 @@ class Rolling(Effect):
         own model knows only the spin about the axle.
     yaw_scale_free:
         Fit κ and ε (default).  ``False`` holds κ = 1, ε = 0 and fits ρ alone (parameters:
-        ``radius_m``) — a first pass before the yaw is known.
+        ``radius_m``): the yaw rate taken as given (from a calibrated gyro).
+    yaw_across_axle:
+        The series is y = ψ̇ cos γ = ψ̇ sin α, the yaw rate's share across the axle (what
+        a gyro's rotating components show), so ψ̇ = κ y / sin α + ε with the fitted
+        tilt.  ``False`` (default): the series is ψ̇ itself.
     """
 
     name = "rolling"
@@ -111,6 +134,7 @@ class Rolling(Effect):
         yaw_accel_radps2: np.ndarray | None = None,
         gyro_yaw_radps: np.ndarray | None = None,
         yaw_scale_free: bool = True,
+        yaw_across_axle: bool = False,
     ) -> None:
         t = np.asarray(time_s, dtype=float)
         rate = np.asarray(yaw_rate_radps, dtype=float)
@@ -129,8 +153,14 @@ class Rolling(Effect):
         self.time_s, self.yaw_rate_radps, self.yaw_accel_radps2 = t, rate, accel
         self.gyro_yaw_radps = gyro_yaw_radps
         self.yaw_scale_free = bool(yaw_scale_free)
+        self.yaw_across_axle = bool(yaw_across_axle)
         if not self.yaw_scale_free:
             self.param_names = ("radius_m",)
+
+    @property
+    def ties_tilt(self) -> bool:
+        """A yaw measured across the axle makes the turns' forces depend on α."""
+        return self.yaw_across_axle
 
     def settings(self) -> dict:
         """The yaw rate's size over the recording (reports only)."""
@@ -171,45 +201,159 @@ class Rolling(Effect):
         kin: Kinematics,
         radius_m: float,
         jacobian: bool,
+        tilt_rad: float = np.pi / 2,
     ) -> ForceDelta:
-        """Δa of the module docstring, and its partials when ``jacobian``."""
+        """Δa of the module docstring at tilt α = ``tilt_rad`` (camber γ = 90° − α).
+
+        With its partials when ``jacobian`` (``by_tilt``: ∂Δa/∂α, through the
+        camber and, for a yaw measured across the axle, through ψ̇ = κ y / sin α).
+        """
         values = np.asarray(values, dtype=float)
         rho = float(values[0])
         kappa, offset = (float(values[1]), float(values[2])) if self.yaw_scale_free else (1.0, 0.0)
         rate_g, accel_g = self.yaw(t_s)
-        yaw, yaw_dot = kappa * rate_g + offset, kappa * accel_g  # ψ̇ = κ ψ̇_gyro + ε
+        sg, cg = float(np.cos(tilt_rad)), float(np.sin(tilt_rad))  # sin γ, cos γ
+        m = 1.0 / cg if self.yaw_across_axle else 1.0
+        yaw, yaw_dot = kappa * m * rate_g + offset, kappa * m * accel_g  # ψ̇, ψ̈
         s, c = np.sin(kin.theta_rad), np.cos(kin.theta_rad)
-        w, w_dot = kin.omega_radps, kin.omega_dot_radps2
-        r = radius_m
-        yaw2 = yaw * yaw
-        delta = np.empty((s.size, 3))
-        delta[:, 0] = rho * w_dot * s + r * yaw2 * s * s
-        delta[:, 1] = -rho * w_dot * c - r * yaw2 * s * c
-        delta[:, 2] = -rho * w * yaw + r * yaw_dot * s + 2 * r * w * yaw * c
+        terms = _CamberTerms(rho, radius_m, yaw, yaw_dot, kin, s, c, sg, cg)
+        delta = terms.delta()
         if not jacobian:
             return ForceDelta(delta)
+        by_yaw, by_yaw_dot = terms.by_yaw(), terms.by_yaw_dot()
         d_own = np.empty((self.size, s.size, 3))
-        d_own[0, :, 0] = w_dot * s  # ∂/∂ρ
-        d_own[0, :, 1] = -w_dot * c
-        d_own[0, :, 2] = -w * yaw
+        d_own[0] = terms.by_rho()
         if self.yaw_scale_free:
-            by_yaw = np.column_stack(
-                [2 * r * yaw * s * s, -2 * r * yaw * s * c, -rho * w + 2 * r * w * c]
-            )
-            d_own[1] = by_yaw * rate_g[:, None]  # ∂/∂κ through ψ̇ and ψ̈
-            d_own[1, :, 2] += r * s * accel_g
+            d_own[1] = by_yaw * (m * rate_g)[:, None] + by_yaw_dot * (m * accel_g)[:, None]
             d_own[2] = by_yaw  # ∂/∂ε
-        by_theta = np.empty_like(delta)
-        by_theta[:, 0] = rho * w_dot * c + 2 * r * yaw2 * s * c
-        by_theta[:, 1] = rho * w_dot * s - r * yaw2 * (c * c - s * s)
-        by_theta[:, 2] = r * yaw_dot * c - 2 * r * w * yaw * s
-        by_omega = np.zeros_like(delta)
-        by_omega[:, 2] = -rho * yaw + 2 * r * yaw * c
-        by_omega_dot = np.zeros_like(delta)
-        by_omega_dot[:, 0] = rho * s
-        by_omega_dot[:, 1] = -rho * c
-        by_radius = np.empty_like(delta)
-        by_radius[:, 0] = yaw2 * s * s
-        by_radius[:, 1] = -yaw2 * s * c
-        by_radius[:, 2] = yaw_dot * s + 2 * w * yaw * c
-        return ForceDelta(delta, d_own, by_theta, by_omega, by_omega_dot, by_radius)
+        by_tilt = terms.by_sin_camber() * (-cg) + terms.by_cos_camber() * sg
+        if self.yaw_across_axle:  # ∂m/∂α = −sin γ / cos²γ
+            dm = -sg / (cg * cg)
+            by_tilt += by_yaw * (kappa * dm * rate_g)[:, None]
+            by_tilt += by_yaw_dot * (kappa * dm * accel_g)[:, None]
+        return ForceDelta(
+            delta,
+            d_own,
+            terms.by_theta(),
+            terms.by_omega(),
+            terms.by_omega_dot(),
+            terms.by_radius(),
+            by_tilt,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class _CamberTerms:
+    """Δa of a rolling wheel with camber, and its partials (module docstring's formulas).
+
+    P = ψ̇, Pd = ψ̈, w = ω, wd = ω̇; s, c = sin ϑ, cos ϑ; sg, cg = sin γ, cos γ;
+    Ω_z = P sg − w and Ω̇_z = Pd sg − wd (the wheel's rate about its axle, and its
+    change: the rate the hub's travel follows, σ v = ρ Ω_z).
+    """
+
+    rho: float
+    r: float
+    P: np.ndarray
+    Pd: np.ndarray
+    kin: Kinematics
+    s: np.ndarray
+    c: np.ndarray
+    sg: float
+    cg: float
+
+    @property
+    def w(self) -> np.ndarray:
+        return self.kin.omega_radps
+
+    @property
+    def wd(self) -> np.ndarray:
+        return self.kin.omega_dot_radps2
+
+    def _stack(self, x, y, z) -> np.ndarray:
+        out = np.empty((self.s.size, 3))
+        out[:, 0], out[:, 1], out[:, 2] = x, y, z
+        return out
+
+    def delta(self) -> np.ndarray:
+        rho, r, P, Pd, w, s, c, sg, cg = self._vars()
+        oz, ozd = P * sg - w, Pd * sg - self.wd
+        P2 = P * P
+        return self._stack(
+            -rho * ozd * s
+            - rho * oz * P * sg * c
+            + r * (P2 * cg * cg * s * s + P2 * sg * sg - 2 * w * P * sg),
+            rho * ozd * c - rho * oz * P * sg * s - r * Pd * sg - r * P2 * cg * cg * s * c,
+            rho * oz * P * cg + r * cg * (Pd * s + 2 * w * P * c - P2 * sg * c),
+        )
+
+    def _vars(self):
+        return self.rho, self.r, self.P, self.Pd, self.w, self.s, self.c, self.sg, self.cg
+
+    def by_rho(self) -> np.ndarray:
+        _, _, P, Pd, w, s, c, sg, cg = self._vars()
+        oz, ozd = P * sg - w, Pd * sg - self.wd
+        return self._stack(-ozd * s - oz * P * sg * c, ozd * c - oz * P * sg * s, oz * P * cg)
+
+    def by_radius(self) -> np.ndarray:
+        _, _, P, Pd, w, s, c, sg, cg = self._vars()
+        P2 = P * P
+        return self._stack(
+            P2 * cg * cg * s * s + P2 * sg * sg - 2 * w * P * sg,
+            -Pd * sg - P2 * cg * cg * s * c,
+            cg * (Pd * s + 2 * w * P * c - P2 * sg * c),
+        )
+
+    def by_theta(self) -> np.ndarray:
+        rho, r, P, Pd, w, s, c, sg, cg = self._vars()
+        oz, ozd = P * sg - w, Pd * sg - self.wd
+        P2 = P * P
+        return self._stack(
+            -rho * ozd * c + rho * oz * P * sg * s + 2 * r * P2 * cg * cg * s * c,
+            -rho * ozd * s - rho * oz * P * sg * c - r * P2 * cg * cg * (c * c - s * s),
+            r * cg * (Pd * c - 2 * w * P * s + P2 * sg * s),
+        )
+
+    def by_omega(self) -> np.ndarray:
+        rho, r, P, _, _, s, c, sg, cg = self._vars()
+        return self._stack(
+            rho * P * sg * c - 2 * r * P * sg, rho * P * sg * s, -rho * P * cg + 2 * r * cg * P * c
+        )
+
+    def by_omega_dot(self) -> np.ndarray:
+        rho, s, c = self.rho, self.s, self.c
+        return self._stack(rho * s, -rho * c, np.zeros_like(s))
+
+    def by_yaw(self) -> np.ndarray:
+        rho, r, P, _, w, s, c, sg, cg = self._vars()
+        d_ozp = 2 * P * sg - w  # ∂(Ω_z ψ̇)/∂ψ̇
+        return self._stack(
+            -rho * sg * c * d_ozp + r * (2 * P * cg * cg * s * s + 2 * P * sg * sg - 2 * w * sg),
+            -rho * sg * s * d_ozp - 2 * r * P * cg * cg * s * c,
+            rho * cg * d_ozp + r * cg * (2 * w * c - 2 * P * sg * c),
+        )
+
+    def by_yaw_dot(self) -> np.ndarray:
+        rho, r, s, c, sg, cg = self.rho, self.r, self.s, self.c, self.sg, self.cg
+        return self._stack(-rho * sg * s, rho * sg * c - r * sg, r * cg * s)
+
+    def by_sin_camber(self) -> np.ndarray:
+        """∂Δa/∂(sin γ) with ψ̇, ψ̈ held."""
+        rho, r, P, Pd, w, s, c, sg, cg = self._vars()
+        oz = P * sg - w
+        P2 = P * P
+        return self._stack(
+            -rho * Pd * s - rho * P * c * (P * sg + oz) + r * (2 * P2 * sg - 2 * w * P),
+            rho * Pd * c - rho * P * s * (P * sg + oz) - r * Pd,
+            rho * P2 * cg - r * cg * P2 * c,
+        )
+
+    def by_cos_camber(self) -> np.ndarray:
+        """∂Δa/∂(cos γ) with ψ̇, ψ̈ held."""
+        rho, r, P, Pd, w, s, c, sg, cg = self._vars()
+        oz = P * sg - w
+        P2 = P * P
+        return self._stack(
+            2 * r * P2 * cg * s * s,
+            -2 * r * P2 * cg * s * c,
+            rho * oz * P + r * (Pd * s + 2 * w * P * c - P2 * sg * c),
+        )

@@ -1,0 +1,120 @@
+"""The wheel angle from the gyroscope: ϑ(t) integrated from the measured rate (``gyro_angle``).
+
+A wheel in the field is driven, braked, steered: no polynomial follows its
+angle for long, and a spline with knots every half second costs hundreds of
+parameters.  Its gyroscope measures the rate itself.  About the axle it reads
+(:mod:`wheelcal.model.rolling`; k the gyro's scale, γ = 90° − α the camber)
+
+    ω_g = k (ω − ψ̇ sin γ)            (−k Ω_z: the wheel's rate about its axle)
+
+and across the axle the carrier's yaw, turning with the wheel,
+
+    y = k ψ̇ cos γ                     (demodulated with ϑ: wheelcal.estimate.field)
+
+so that ω = s (ω_g + y cot α) with s = 1/k.  This effect adds
+
+    Δϑ = s (Θ_g + Ψ_y cot α),   Δω = s (ω_g + y cot α),   Δω̇ = s (ω̇_g + ẏ cot α)
+
+with Θ_g = ∫ ω_g dt and Ψ_y = ∫ y dt from the window's centre, to a spin
+polynomial of degree 0 (ϑ₀ + ω₀ t: the phase, and the gyro's bias along the
+axle, −ω₀/s).  Parameter: ``scale`` s (rad per rad of the integrated gyro).
+On a vertical wheel (α = 90°) cot α = 0: the yaw does not enter; on a cambered
+one the wheel turns on its carrier by ψ̇ sin γ in a turn, and the accelerometer
+sees that turn of gravity's phase — which is what measures the camber.
+
+The gyro's noise, integrated, walks the angle by σ_ω √(T/f_s) (≈ 2 mrad over
+two minutes of a consumer gyro), far below what the accelerometer can resolve
+against road vibration: the angle is taken as measured, and its three
+parameters (ϑ₀, ω₀, s) are fitted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wheelcal.model.effects import SpinDelta, _SpinEffect
+
+
+def _integral(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """∫ rate dt by the trapezoid rule, zero at t = 0 (the window's centre)."""
+    out = np.empty_like(rate)
+    out[0] = 0.0
+    np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t), out=out[1:])
+    return out - np.interp(0.0, t, out)
+
+
+class GyroAngle(_SpinEffect):
+    """The wheel angle integrated from the gyro (module docstring).
+
+    Parameters
+    ----------
+    time_s:
+        Centred times of the series (strictly increasing).
+    axle_rate_radps:
+        ω_g, the gyro's reading about the wheel axle, oriented so that s > 0.
+    axle_rate_dot_radps2:
+        ω̇_g (smoothed: the motion's, not the noise's).
+    yaw_across_radps, yaw_across_dot_radps2:
+        y and ẏ, the yaw's share across the axle (zeros: not known yet, or a fixed axle).
+    """
+
+    name = "gyro_angle"
+    param_names = ("scale",)
+    description = "wheel angle integrated from the gyroscope (scale s = 1/k)"
+    uses_tilt = True
+    #: On a cambered wheel in turns the phase measures α: r and α may both be free.
+    ties_tilt = True
+
+    def __init__(
+        self,
+        time_s: np.ndarray,
+        axle_rate_radps: np.ndarray,
+        axle_rate_dot_radps2: np.ndarray,
+        yaw_across_radps: np.ndarray | None = None,
+        yaw_across_dot_radps2: np.ndarray | None = None,
+    ) -> None:
+        t = np.asarray(time_s, dtype=float)
+        if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
+            raise ValueError("need strictly increasing times")
+        series = [axle_rate_radps, axle_rate_dot_radps2, yaw_across_radps, yaw_across_dot_radps2]
+        series = [np.zeros_like(t) if x is None else np.asarray(x, dtype=float) for x in series]
+        if any(x.shape != t.shape or not np.all(np.isfinite(x)) for x in series):
+            raise ValueError("one finite value per time in every series")
+        self.time_s = t
+        self.rate, self.rate_dot, self.yaw, self.yaw_dot = series
+        self.angle = _integral(t, self.rate)
+        self.yaw_angle = _integral(t, self.yaw)
+
+    def settings(self) -> dict:
+        """The gyro's rate over the window (reports only)."""
+        return {"axle_rate_max_radps": float(np.max(np.abs(self.rate)))}
+
+    def __eq__(self, other: object) -> bool:
+        """Only the same instance: the effect carries its recording's series."""
+        return self is other
+
+    def __hash__(self) -> int:
+        """Identity hash (see :meth:`__eq__`)."""
+        return id(self)
+
+    def _at(self, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return np.interp(t, self.time_s, x)
+
+    def spin_delta(self, values, t_s, kin, jacobian, tilt_rad: float = np.pi / 2):
+        """Δϑ, Δω, Δω̇ at centred times ``t_s`` and tilt α (module docstring)."""
+        t = np.asarray(t_s, dtype=float)
+        scale = float(values[0])
+        cot = float(np.cos(tilt_rad) / np.sin(tilt_rad))
+        base = [self._at(t, x) for x in (self.angle, self.rate, self.rate_dot)]
+        yaw = [self._at(t, x) for x in (self.yaw_angle, self.yaw, self.yaw_dot)]
+        total = [b + cot * y for b, y in zip(base, yaw, strict=True)]
+        if not jacobian:
+            return SpinDelta(*(scale * x for x in total))
+        d_cot = -1.0 / np.sin(tilt_rad) ** 2  # ∂ cot α / ∂α
+        return SpinDelta(
+            *(scale * x for x in total),
+            d_own_theta=total[0][None],
+            d_own_omega=total[1][None],
+            d_own_omega_dot=total[2][None],
+            by_tilt=tuple(scale * d_cot * y for y in yaw),
+        )

@@ -1,0 +1,189 @@
+"""The field model: a cambered wheel rolling on level ground, and the wheel angle from the gyro.
+
+The oracle is the field simulator (``wheelcal.simulate.field_kinematics``): the
+wheel's world-frame positions and attitudes, derived without wheelcal's model
+code.  The model (``wheelcal.model.rolling`` with camber, ``wheelcal.model.gyro_angle``)
+must reproduce its specific force on whole drives — cambered wheelchairs and cars,
+in turns — and its Jacobian must match central differences.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from wheelcal.model import (
+    BenchParams,
+    CalibrationParams,
+    ParameterLayout,
+    Rotation,
+    SensorParams,
+    SpinParams,
+    evaluate,
+    predict,
+)
+from wheelcal.model.gyro_angle import GyroAngle
+from wheelcal.model.rolling import Rolling
+from wheelcal.simulate.field import car_drive, robot_drive, simulate_field, wheelchair_coast
+
+
+def _camber(truth) -> float:
+    return float(truth.camber_rad)
+
+
+def _truth(kind: str, seed: int, **options):
+    make = {"car": car_drive, "robot": robot_drive, "wheelchair": wheelchair_coast}[kind]
+    rng = np.random.default_rng(seed)
+    return simulate_field(make(rng, **options), rng).truth
+
+
+def _rolling(truth, across: bool) -> tuple[Rolling, dict]:
+    """The rolling effect with the truth's yaw: ψ̇ itself, or its share across the axle."""
+    m = truth.motion
+    scale = np.cos(_camber(truth)) if across else 1.0  # y = ψ̇ cos γ
+    effect = Rolling(
+        truth.time_s,
+        scale * m.yaw_rate_radps,
+        scale * m.yaw_accel_radps2,
+        yaw_scale_free=False,
+        yaw_across_axle=across,
+    )
+    return effect, {effect.name: np.array([truth.rolling_radius_m])}
+
+
+@pytest.mark.parametrize("across", [False, True])
+@pytest.mark.parametrize(
+    "kind, seed, options",
+    [
+        ("wheelchair", 3, {}),
+        ("wheelchair", 4, {"side": -1}),
+        ("car", 5, {"camber_deg": 8.0}),
+        ("car", 6, {"camber_deg": 0.0}),
+        ("robot", 7, {}),
+    ],
+)
+def test_a_cambered_wheel_rolling_in_turns_is_the_rolling_model(kind, seed, options, across):
+    truth = _truth(kind, seed, **options)
+    assert np.abs(truth.motion.yaw_rate_radps).max() > 0.02, "the drive turns"
+    effect, values = _rolling(truth, across)
+    params = truth.params().with_changes(effects=values)
+    model = evaluate(params, truth.time_s, effects=(effect,), kinematics=truth.kinematics())
+    bare = evaluate(truth.params(), truth.time_s, kinematics=truth.kinematics())
+    moving = np.abs(truth.clean_accel_mps2 - bare.predicted_mps2).max()
+    assert moving > 0.05, "the rolling shows"
+    assert np.abs(model.predicted_mps2 - truth.clean_accel_mps2).max() < 1e-6
+
+
+def test_a_cambered_wheel_needs_the_camber_terms():
+    # The vertical wheel's formulas at the cambered wheel's tilt are off by the turns'
+    # camber terms: the test above would fail without them.
+    truth = _truth("wheelchair", 3)
+    effect, values = _rolling(truth, across=False)
+    params = truth.params()
+    vertical = params.with_changes(
+        bench=dataclasses.replace(params.bench, tilt_rad=np.pi / 2), effects=values
+    )
+    kin = truth.kinematics()
+    wrong = evaluate(vertical, truth.time_s, effects=(effect,), kinematics=kin).predicted_mps2
+    # compare only the rolling share: both with their own eq. (1)
+    bare_vertical = evaluate(vertical, truth.time_s, kinematics=kin).predicted_mps2
+    bare = evaluate(params, truth.time_s, kinematics=kin).predicted_mps2
+    error = (wrong - bare_vertical) - (truth.clean_accel_mps2 - bare)
+    assert np.abs(error).max() > 1e-3
+
+
+def _gyro_angle_from_truth(truth, centre_s: float) -> tuple[GyroAngle, np.ndarray]:
+    """A gyro angle from the truth's body rate as an ideal gyro (k = 1) reads it."""
+    m = truth.motion
+    gamma = _camber(truth) if truth.camber_rad is not None else 0.0
+    t = truth.time_s - centre_s
+    axle = m.omega_radps - m.yaw_rate_radps * np.sin(gamma)  # −Ω_z
+    axle_dot = m.omega_dot_radps2 - m.yaw_accel_radps2 * np.sin(gamma)
+    across = m.yaw_rate_radps * np.cos(gamma)
+    across_dot = m.yaw_accel_radps2 * np.cos(gamma)
+    return GyroAngle(t, axle, axle_dot, across, across_dot), t
+
+
+@pytest.mark.parametrize("kind, seed", [("wheelchair", 3), ("car", 5), ("robot", 7)])
+def test_the_gyro_angle_is_the_wheel_angle(kind, seed):
+    truth = _truth(kind, seed, **({"camber_deg": 8.0} if kind == "car" else {}))
+    centre = 0.5 * (truth.time_s[0] + truth.time_s[-1])
+    angle, t = _gyro_angle_from_truth(truth, centre)
+    theta0 = float(np.interp(centre, truth.time_s, truth.motion.theta_rad))
+    params = truth.params().with_changes(
+        spin=SpinParams(theta0, [0.0]), effects={angle.name: np.array([1.0])}
+    )
+    layout = ParameterLayout(spin_degree=0, fit_tilt=True, effects=(angle,))
+    kin = evaluate(params, t, layout).kinematics
+    # the trapezoid rule on the sampled rate: a few µrad over a drive
+    assert np.abs(kin.theta_rad - truth.motion.theta_rad).max() < 1e-4
+    assert np.abs(kin.omega_radps - truth.motion.omega_radps).max() < 1e-9
+    # with the rolling effect, the whole specific force
+    effect, values = _rolling(truth, across=True)
+    effect = Rolling(
+        t, effect.yaw_rate_radps, effect.yaw_accel_radps2, yaw_scale_free=False, yaw_across_axle=True
+    )
+    full = params.with_changes(effects={**params.effects, **values})
+    layout = ParameterLayout(spin_degree=0, fit_tilt=True, effects=(angle, effect))
+    predicted = predict(full, t, layout)
+    assert np.abs(predicted - truth.clean_accel_mps2).max() < 2e-3
+
+
+def _fd_check(params, t, layout):
+    analytic = evaluate(params, t, layout, jacobian=True).jacobian
+    x = layout.pack(params)
+    for k, name in enumerate(layout.names):
+        h = 1e-6
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        fd = (
+            predict(layout.unpack(xp, params), t, layout)
+            - predict(layout.unpack(xm, params), t, layout)
+        ).T / (2 * h)
+        scale = np.abs(fd).max()
+        assert np.abs(analytic[k] - fd).max() < 2e-5 * scale + 1e-9, name
+
+
+def _series(t):
+    rate = 9.0 + 3.0 * np.sin(0.3 * t) + 0.5 * np.cos(1.1 * t)
+    rate_dot = 0.9 * np.cos(0.3 * t) - 0.55 * np.sin(1.1 * t)
+    yaw = 0.25 * np.sin(0.4 * t) + 0.05
+    yaw_dot = 0.1 * np.cos(0.4 * t)
+    return rate, rate_dot, yaw, yaw_dot
+
+
+def _field_params(tilt_deg: float, effects: dict) -> CalibrationParams:
+    return CalibrationParams(
+        spin=SpinParams(0.3, [0.02]),
+        bench=BenchParams(np.deg2rad(tilt_deg), 0.05, Rotation.from_euler_deg(30.0, 20.0, 25.0)),
+        sensor=SensorParams([0.2, -0.1, 0.3], [0.98, 1.01, 1.03]),
+        effects=effects,
+    )
+
+
+@pytest.mark.parametrize("yaw_free", [False, True])
+@pytest.mark.parametrize("tilt_deg", [72.0, 90.0])
+def test_the_field_models_jacobian_is_exact(tilt_deg, yaw_free):
+    t = np.linspace(-15.0, 15.0, 1201)
+    rate, rate_dot, yaw, yaw_dot = _series(t)
+    angle = GyroAngle(t, rate, rate_dot, yaw, yaw_dot)
+    rolling = Rolling(t, yaw, yaw_dot, yaw_scale_free=yaw_free, yaw_across_axle=True)
+    values = {angle.name: [1.013], rolling.name: [0.3, 0.97, 0.01] if yaw_free else [0.3]}
+    params = _field_params(tilt_deg, values)
+    # tilt and radius both free: the gyro angle's turns measure α
+    layout = ParameterLayout(
+        spin_degree=0, fit_tilt=True, fit_radius=True, effects=(angle, rolling)
+    )
+    _fd_check(params, t, layout)
+
+
+def test_tilt_and_radius_are_free_together_only_with_an_effect_that_measures_the_tilt():
+    with pytest.raises(ValueError, match="null space"):
+        ParameterLayout(fit_tilt=True, fit_radius=True)
+    t = np.linspace(-1.0, 1.0, 11)
+    vertical = Rolling(t, np.zeros_like(t))
+    with pytest.raises(ValueError, match="null space"):
+        ParameterLayout(fit_tilt=True, fit_radius=True, effects=(vertical,))
