@@ -122,9 +122,8 @@ def test_the_gyro_angle_is_the_wheel_angle(kind, seed):
     assert np.abs(kin.omega_radps - truth.motion.omega_radps).max() < 1e-9
     # with the rolling effect, the whole specific force
     effect, values = _rolling(truth, across=True)
-    effect = Rolling(
-        t, effect.yaw_rate_radps, effect.yaw_accel_radps2, yaw_scale_free=False, yaw_across_axle=True
-    )
+    yaw, yaw_dot = effect.yaw_rate_radps, effect.yaw_accel_radps2
+    effect = Rolling(t, yaw, yaw_dot, yaw_scale_free=False, yaw_across_axle=True)
     full = params.with_changes(effects={**params.effects, **values})
     layout = ParameterLayout(spin_degree=0, fit_tilt=True, effects=(angle, effect))
     predicted = predict(full, t, layout)

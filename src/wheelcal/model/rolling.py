@@ -53,7 +53,8 @@ rest, Δa, is this effect (s = sin ϑ, c = cos ϑ):
 
 (the γ = 0 case of the formulas above).  The cross term 2 r ω ψ̇ cos ϑ turns
 once per turn along the axle, at the frequency of gravity: a car wheel at
-10 m/s (ρ = 0.3 m, ω ≈ 33 rad/s) in a 0.3 rad/s turn with the sensor at r = 0.2 m feels ±4 m/s² of it.
+10 m/s (ρ = 0.3 m, ω ≈ 33 rad/s) in a 0.3 rad/s turn with the sensor at
+r = 0.2 m feels ±4 m/s² of it.
 
 **The yaw rate comes from the gyro**: ψ̇(t) is the gyro's reading along the
 upward direction, demodulated with the wheel angle
