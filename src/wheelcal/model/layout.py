@@ -53,8 +53,10 @@ class ParameterLayout:
     effects: tuple = field(default=())
 
     def __post_init__(self) -> None:
-        if self.fit_tilt and self.fit_radius and not any(
-            getattr(e, "ties_tilt", False) for e in self.effects
+        if (
+            self.fit_tilt
+            and self.fit_radius
+            and not any(getattr(e, "ties_tilt", False) for e in self.effects)
         ):
             raise ValueError(
                 "tilt and radius cannot both be free: eq. (9)-(13) null space (unless an "
