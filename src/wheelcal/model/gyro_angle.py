@@ -26,6 +26,14 @@ The gyro's noise, integrated, walks the angle by σ_ω √(T/f_s) (≈ 2 mrad ov
 two minutes of a consumer gyro), far below what the accelerometer can resolve
 against road vibration: the angle is taken as measured, and its three
 parameters (ϑ₀, ω₀, s) are fitted.
+
+**The gyro's response across its axle.**  A gyro's axes differ in scale by
+1–2 %, so its reading along the axle also sees a rate across it: the yaw, as
+k ψ̇ cos γ (m_x cos ϑ + m_y sin ϑ) with m of order 10⁻².  Where the wheel turns
+many times per heading change (a car) it averages out; a robot turning on the
+spot (ψ̇ large, ω small) would read it as a camber of ≈ m.  With ``cross``
+series (y cos ϑ, y sin ϑ at a previous fit's ϑ) the effect adds
+s (m_x C_x + m_y C_y), C = ∫ y (cos ϑ, sin ϑ) dt, and fits m (``cross_x``, ``cross_y``).
 """
 
 from __future__ import annotations
@@ -56,6 +64,9 @@ class GyroAngle(_SpinEffect):
         ω̇_g (smoothed: the motion's, not the noise's).
     yaw_across_radps, yaw_across_dot_radps2:
         y and ẏ, the yaw's share across the axle (zeros: not known yet, or a fixed axle).
+    cross_radps:
+        (2, N): y cos ϑ and y sin ϑ at a previous fit's ϑ — the axle reading's response
+        to the yaw across it is then fitted (``cross_x``, ``cross_y``; module docstring).
     """
 
     name = "gyro_angle"
@@ -72,6 +83,7 @@ class GyroAngle(_SpinEffect):
         axle_rate_dot_radps2: np.ndarray,
         yaw_across_radps: np.ndarray | None = None,
         yaw_across_dot_radps2: np.ndarray | None = None,
+        cross_radps: np.ndarray | None = None,
     ) -> None:
         t = np.asarray(time_s, dtype=float)
         if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
@@ -84,6 +96,16 @@ class GyroAngle(_SpinEffect):
         self.rate, self.rate_dot, self.yaw, self.yaw_dot = series
         self.angle = _integral(t, self.rate)
         self.yaw_angle = _integral(t, self.yaw)
+        self.cross = None
+        if cross_radps is not None:
+            cross = np.asarray(cross_radps, dtype=float)
+            if cross.shape != (2, t.size) or not np.all(np.isfinite(cross)):
+                raise ValueError("cross_radps must be finite, (2, N)")
+            dots = np.gradient(cross, t, axis=1)
+            self.cross = [
+                (_integral(t, row), row, dot) for row, dot in zip(cross, dots, strict=True)
+            ]
+            self.param_names = ("scale", "cross_x", "cross_y")
 
     def settings(self) -> dict:
         """The gyro's rate over the window (reports only)."""
@@ -108,13 +130,21 @@ class GyroAngle(_SpinEffect):
         base = [self._at(t, x) for x in (self.angle, self.rate, self.rate_dot)]
         yaw = [self._at(t, x) for x in (self.yaw_angle, self.yaw, self.yaw_dot)]
         total = [b + cot * y for b, y in zip(base, yaw, strict=True)]
+        cross = []
+        if self.cross is not None:  # (C, dC/dt, d²C/dt²) of each of m_x, m_y
+            cross = [[self._at(t, x) for x in series] for series in self.cross]
+            for m, series in zip(values[1:3], cross, strict=True):
+                total = [x + float(m) * c for x, c in zip(total, series, strict=True)]
         if not jacobian:
             return SpinDelta(*(scale * x for x in total))
         d_cot = -1.0 / np.sin(tilt_rad) ** 2  # ∂ cot α / ∂α
+        own = [
+            np.vstack([x[None]] + [scale * c[k][None] for c in cross]) for k, x in enumerate(total)
+        ]
         return SpinDelta(
             *(scale * x for x in total),
-            d_own_theta=total[0][None],
-            d_own_omega=total[1][None],
-            d_own_omega_dot=total[2][None],
+            d_own_theta=own[0],
+            d_own_omega=own[1],
+            d_own_omega_dot=own[2],
             by_tilt=tuple(scale * d_cot * y for y in yaw),
         )

@@ -73,7 +73,7 @@ from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, S
 from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
 from wheelcal.recording import Recording, RecordingError
 
-GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling")
+GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling", "free")
 #: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
 _STAGE1_SAMPLES = 3000
 #: Stage 2's last Gauss–Newton step is taken without a Jacobian when below √this σ.
@@ -97,8 +97,10 @@ class JointFit:
     spin_degree:
         Degree of the ω(t) polynomial (3 = the paper's cubic).
     geometry:
-        ``"radius"`` (default), ``"tilt"``, ``"vertical"`` or ``"rolling"`` (needs
-        ``use_gyro``); see the module doc.
+        ``"radius"`` (default), ``"tilt"``, ``"vertical"``, ``"rolling"`` (needs
+        ``use_gyro``) or ``"free"`` (α and r both fitted: only with an effect that
+        measures the tilt otherwise, :mod:`wheelcal.estimate.field`; the start at α = 90°);
+        see the module doc.
     known_tilt_deg:
         The measured tilt in ``"tilt"`` mode.
     tilt_std_deg:
@@ -156,8 +158,8 @@ class JointFit:
         """Free parameters for this configuration (without the window's motion effects)."""
         return ParameterLayout(
             spin_degree=self.spin_degree,
-            fit_tilt=self.geometry == "radius",
-            fit_radius=self.geometry in ("tilt", "vertical"),
+            fit_tilt=self.geometry in ("radius", "free"),
+            fit_radius=self.geometry in ("tilt", "vertical", "free"),
             effects=tuple(self.effects),
         )
 
@@ -189,7 +191,7 @@ class JointFit:
         return GyroReading(g_sensitivity=True, g_prior_dps_per_g=self.gyro_g_prior_dps_per_g)
 
     def _fixed_tilt_rad(self) -> float | None:
-        if self.geometry in ("vertical", "rolling"):
+        if self.geometry in ("vertical", "rolling", "free"):
             return np.pi / 2
         if self.geometry == "tilt":
             return float(np.deg2rad(self.known_tilt_deg))

@@ -345,3 +345,7 @@ def _scaled_gains(gw_x: np.ndarray, gw_y: np.ndarray) -> np.ndarray | None:
     if np.any(q <= 0):
         return None
     return 1.0 / np.sqrt(q)
+
+
+#: G·γᵢ from R's first two columns (shared with the field fit's start).
+scaled_gains = _scaled_gains

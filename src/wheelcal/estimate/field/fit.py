@@ -1,0 +1,207 @@
+"""A wheel in the field, calibrated: the wheel angle from its gyro, the geometry from the data.
+
+A car's, a robot's or a wheelchair's wheel is driven, braked, steered and
+stopped; its hub travels and turns, it may lean (camber), and nobody measured
+where the sensor sits.  The gyroscope measures the motion, so (module
+:mod:`wheelcal.model.gyro_angle`) the wheel angle is the integrated gyro rate,
+and the accelerometer's model is eq. (1) plus the rolling wheel's forces
+(:mod:`wheelcal.model.rolling`).  The fit runs in passes, each a joint ML fit
+(:class:`~wheelcal.estimate.joint.fit.JointFit`) of a few parameters:
+
+1. **a fixed axle** — the gains, offsets, R, the sensor's radius r (gravity
+   fixes the gains' scale), the phase ϑ₀, the gyro's bias along the axle (ω₀)
+   and its scale s;
+2. **the hub's travel** ρ ω̇ added (ρ the rolling radius): a hub that travels
+   shows ρ many σ from zero;
+3. **the turns**: the yaw rate demodulated from the gyro across the axle with
+   the wheel angle of pass 2 (:func:`~wheelcal.estimate.field.gyro_axle.yaw_across`),
+   taken as measured (the gyro's own scale, no free yaw scale); the tilt α is
+   fitted too: on a cambered wheel the turns turn gravity's phase by ψ̇ sin γ,
+   which measures γ = 90° − α, and with it r (both are free only then).
+
+The answer's geometry (:class:`FieldGeometry`) says which it was — a rolling
+wheel (vertical or cambered, with γ) or a fixed axle — and why.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from wheelcal.estimate.field.gyro_axle import GyroAxle, gyro_axle, yaw_across
+from wheelcal.estimate.field.start import field_start
+from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.model import CalibrationParams, Rotation, SpinParams
+from wheelcal.model.forward import wheel_kinematics
+from wheelcal.model.gyro_angle import GyroAngle
+from wheelcal.model.rolling import Rolling
+from wheelcal.recording import Recording, RecordingError
+
+#: ρ / σ_ρ above which the hub travels (pass 2): a rolling wheel.
+TRAVEL_Z = 5.0
+#: The yaw (rms, rad/s) above which the carrier turns: a rolling wheel's turns.
+YAW_RMS_RADPS = 0.01
+#: Knot spacing of the start's phase spline (s).
+START_KNOTS_S = 2.0
+
+
+@dataclass(frozen=True)
+class FieldGeometry:
+    """What the data say the wheel is, and why."""
+
+    kind: str  # "rolling" or "fixed"
+    camber_deg: float | None  # a rolling wheel's γ = 90° − α (None: fixed axle)
+    reason: str
+    travel_z: float  # ρ / σ_ρ of pass 2
+    yaw_rms_radps: float
+
+
+@dataclass(frozen=True, eq=False)
+class FieldResult:
+    """The final fit, the geometry found, and the passes' notes."""
+
+    result: CalibrationResult
+    geometry: FieldGeometry
+    axle: GyroAxle
+
+
+@dataclass(frozen=True)
+class FieldFit:
+    """The field fit's settings (module docstring); :meth:`fit` returns a :class:`FieldResult`.
+
+    Parameters
+    ----------
+    coloured_noise, max_ar_order:
+        The noise model of each pass (:class:`~wheelcal.estimate.joint.fit.JointFit`).
+    travel_z, yaw_rms_radps:
+        What makes a rolling wheel: the hub's travel at ρ / σ_ρ above ``travel_z``,
+        or a yaw above ``yaw_rms_radps``.
+    """
+
+    coloured_noise: bool = True
+    max_ar_order: int = 10
+    travel_z: float = TRAVEL_Z
+    yaw_rms_radps: float = YAW_RMS_RADPS
+
+    def fit(self, window: Recording) -> FieldResult:
+        """Calibrate ``window`` (a drive, stops included; its gyro on the same rows)."""
+        if window.gyro_radps is None:
+            raise RecordingError(f"{window.source}: a field fit needs the gyroscope")
+        t = window.time_s
+        tc = t - 0.5 * (t[0] + t[-1])
+        axle = gyro_axle(tc, window.gyro_radps)
+        if axle is None:
+            raise RecordingError(f"{window.source}: the gyroscope shows no wheel turning")
+        radius = window.info.radius_m
+        start, axle = self._start(window, tc, axle)
+        first = self._joint(radius, False, (start.angle,)).fit(window, initial=start.params)
+        travel = Rolling(tc, np.zeros_like(tc), yaw_scale_free=False)
+        moved = first.params.with_changes(effects={**first.params.effects, travel.name: [0.0]})
+        second = self._joint(radius, False, (start.angle, travel)).fit(window, initial=moved)
+        z = abs(second.value_of("rolling.radius_m")) / second.std_of("rolling.radius_m")
+        rolling = z > self.travel_z or axle.yaw_rms_radps > self.yaw_rms_radps
+        if not rolling:
+            geometry = FieldGeometry(
+                "fixed",
+                None,
+                f"a fixed axle: the hub does not travel (ρ at {z:.1f} σ) and the carrier does "
+                f"not turn (yaw {axle.yaw_rms_radps:.3g} rad/s rms)",
+                float(z),
+                axle.yaw_rms_radps,
+            )
+            return FieldResult(first, geometry, axle)
+        final = self._turns(window, tc, axle, second, radius)
+        tilt = final.params.bench.tilt_rad
+        camber = 90.0 - float(np.rad2deg(tilt))
+        why = []
+        if z > self.travel_z:
+            why.append(
+                f"the hub travels (ρ = {second.value_of('rolling.radius_m'):.3f} m, {z:.0f} σ)"
+            )
+        if axle.yaw_rms_radps > self.yaw_rms_radps:
+            why.append(f"the carrier turns (yaw {axle.yaw_rms_radps:.3g} rad/s rms)")
+        geometry = FieldGeometry(
+            "rolling",
+            camber,
+            "a rolling wheel: " + " and ".join(why) + f"; camber {camber:.2f}° from the data",
+            float(z),
+            axle.yaw_rms_radps,
+        )
+        return FieldResult(final, geometry, axle)
+
+    # -- the passes -----------------------------------------------------------------------------
+    def _joint(self, radius_m, tilt_free: bool, effects: tuple) -> JointFit:
+        """A pass's joint fit.
+
+        r given: α free (the paper's geometry); else r free, and α too once the turns
+        measure it (``tilt_free``).
+        """
+        if radius_m is not None:
+            geometry = "radius"
+        else:
+            geometry = "free" if tilt_free else "vertical"
+        return JointFit(
+            spin_degree=0,
+            geometry=geometry,
+            coloured_noise=self.coloured_noise,
+            max_ar_order=self.max_ar_order,
+            effects=effects,
+        )
+
+    def _start(self, window: Recording, tc: np.ndarray, axle: GyroAxle) -> tuple:
+        """The start (:mod:`wheelcal.estimate.field.start`) and the oriented axle."""
+        start = field_start(
+            tc,
+            window.accel_mps2,
+            window.info.gravity_or_standard_mps2,
+            axle,
+            radius_m=window.info.radius_m,
+        )
+        return start, start.axle
+
+    def _turns(self, window, tc, axle, travelled: CalibrationResult, radius_m) -> CalibrationResult:
+        """Pass 3: the yaw across the axle, the tilt free (module docstring)."""
+        params = travelled.params
+        layout = travelled.layout
+        theta = wheel_kinematics(params, tc, layout.effects).theta_rad
+        y, y_dot = yaw_across(tc, window.gyro_radps, axle, theta, params.bench.misalignment.matrix)
+        scale = float(params.effect("gyro_angle", 1)[0])
+        cross = np.vstack([y * np.cos(theta), y * np.sin(theta)])
+        angle = GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross)
+        rolling = Rolling(tc, scale * y, scale * y_dot, yaw_scale_free=True, yaw_across_axle=True)
+        rho = float(params.effect(rolling.name, 1)[0])
+        scale = float(params.effect(angle.name, 1)[0])
+        effects = {angle.name: [scale, 0.0, 0.0], rolling.name: [rho, 1.0, 0.0]}
+        params = params.with_changes(effects=effects)
+        joint = self._joint(radius_m, True, (angle, rolling))
+        result = joint.fit(window, initial=params)
+        if result.params.bench.tilt_rad <= np.pi / 2:
+            return result
+        # Z came out pointing down (the start cannot tell up from down on a nearly vertical
+        # wheel): the same physics seen with the frame turned 180° about X — α → 180° − α,
+        # R → R·diag(1, −1, −1), ϑ → −ϑ (the gyro's axle from its other end).
+        flipped = axle.flipped()
+        angle = GyroAngle(tc, flipped.rate_radps, flipped.rate_dot_radps2, y, y_dot, cross)
+        twin = _turned(result.params, angle.name)
+        joint = self._joint(radius_m, True, (angle, rolling))
+        return joint.fit(window, initial=twin)
+
+
+def _turned(params: CalibrationParams, angle_name: str) -> CalibrationParams:
+    """The frame turned 180° about X: α → π − α, R → R·D, ϑ₀, ω₀ → −ϑ₀, −ω₀ (s kept, m → −m)."""
+    bench = params.bench
+    flip = np.diag([1.0, -1.0, -1.0])
+    bench = dataclasses.replace(
+        bench,
+        tilt_rad=np.pi - bench.tilt_rad,
+        misalignment=Rotation.composed(bench.misalignment.matrix @ flip),
+    )
+    spin = SpinParams(-params.spin.theta0_rad, -params.spin.omega_radps)
+    effects = dict(params.effects)
+    angle = np.array(effects[angle_name], dtype=float)
+    angle[1:] = -angle[1:]  # the axle's response across it, seen from its other end
+    effects[angle_name] = angle
+    return params.with_changes(bench=bench, spin=spin, effects=effects)

@@ -1,0 +1,88 @@
+"""The gyroscope about the wheel's axle: its direction, rate and the yaw across it.
+
+A wheel's gyroscope reads mostly its spin: the principal direction of the rates
+of a moving wheel is the axle in the gyro's frame, ŵ (to ≈ 0.01° on a drive).
+About it the gyro reads ω_g = k (ω − ψ̇ sin γ); across it the carrier's yaw,
+k ψ̇ cos γ, turning with the wheel (:mod:`wheelcal.model.gyro_angle`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+#: Rates above this (rad/s) count as a moving wheel when finding the axle.
+MOVING_RADPS = 0.5
+#: Corner of the low-pass before the axle rate is differentiated (Hz).
+RATE_BAND_HZ = 10.0
+#: Corner of the yaw's low-pass (Hz): a vehicle turns within seconds, the wheel many
+#: times a second.
+YAW_BAND_HZ = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class GyroAxle:
+    """The gyro about the axle: direction ŵ (gyro frame), rate ω_g and ω̇_g per sample."""
+
+    axis: np.ndarray
+    rate_radps: np.ndarray
+    rate_dot_radps2: np.ndarray
+    #: |the gyro across the axle| low-passed, rms over the moving samples, less its
+    #: noise: the carrier's yaw (× cos γ), whatever the wheel's angle (rad/s).
+    yaw_rms_radps: float
+
+    def flipped(self) -> GyroAxle:
+        """The same axle seen from its other end."""
+        return GyroAxle(-self.axis, -self.rate_radps, -self.rate_dot_radps2, self.yaw_rms_radps)
+
+
+def _lowpass(x: np.ndarray, rate_hz: float, band_hz: float) -> np.ndarray:
+    sos = signal.butter(4, min(band_hz, 0.4 * rate_hz), fs=rate_hz, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=0)
+
+
+def gyro_axle(time_s: np.ndarray, gyro_radps: np.ndarray) -> GyroAxle | None:
+    """The axle from the gyro's samples (one row per time), or None if the wheel never turns."""
+    t = np.asarray(time_s, dtype=float)
+    gyro = np.asarray(gyro_radps, dtype=float)
+    moving = np.linalg.norm(gyro, axis=1) > MOVING_RADPS
+    if np.count_nonzero(moving) < 10:
+        return None
+    _, vectors = np.linalg.eigh(gyro[moving].T @ gyro[moving])
+    axis = vectors[:, -1]
+    rate = gyro @ axis
+    rate_hz = 1.0 / float(np.median(np.diff(t)))
+    rate_dot = np.gradient(_lowpass(rate, rate_hz, RATE_BAND_HZ), t)
+    across = gyro - np.outer(rate, axis)
+    smooth = _lowpass(across, rate_hz, YAW_BAND_HZ)  # the yaw turns with ϑ: its size only
+    power = np.sum(across[moving] ** 2, axis=1)
+    high = across - smooth
+    noise = np.mean(np.sum(high[moving] ** 2, axis=1))  # above the band: noise (and ripple)
+    yaw = float(np.sqrt(max(float(np.mean(power)) - noise, 0.0)))
+    return GyroAxle(axis, rate, rate_dot, yaw)
+
+
+def yaw_across(
+    time_s: np.ndarray,
+    gyro_radps: np.ndarray,
+    axle: GyroAxle,
+    theta_rad: np.ndarray,
+    rotation: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The gyro across the axle, demodulated with the wheel angle: y = k ψ̇ cos γ and ẏ.
+
+    The yaw's share of the gyro turns with the wheel as R u(ϑ), u = (cos ϑ, sin ϑ, 0)
+    (R bench → sensor, the accelerometer's: the gyro's axes lie within a degree or
+    two of it on one chip), so its projection on R u(ϑ), low-passed, is the yaw.
+    """
+    t = np.asarray(time_s, dtype=float)
+    gyro = np.asarray(gyro_radps, dtype=float)
+    across = gyro - np.outer(gyro @ axle.axis, axle.axis)
+    c, s = np.cos(theta_rad), np.sin(theta_rad)
+    up = np.column_stack([c, s, np.zeros_like(c)]) @ rotation.T
+    raw = np.sum(across * up, axis=1)
+    rate_hz = 1.0 / float(np.median(np.diff(t)))
+    y = _lowpass(raw, rate_hz, YAW_BAND_HZ)
+    return y, np.gradient(y, t)
