@@ -117,6 +117,8 @@ class Rolling(Effect):
     yaw_scale_free:
         Fit κ and ε (default).  ``False`` holds κ = 1, ε = 0 and fits ρ alone (parameters:
         ``radius_m``): the yaw rate taken as given (from a calibrated gyro).
+    yaw_offset_free:
+        With ``yaw_scale_free``: fit ε too (default); ``False`` holds ε = 0.
     yaw_across_axle:
         The series is y = ψ̇ cos γ = ψ̇ sin α, the yaw rate's share across the axle (what
         a gyro's rotating components show), so ψ̇ = κ y / sin α + ε with the fitted
@@ -136,6 +138,7 @@ class Rolling(Effect):
         gyro_yaw_radps: np.ndarray | None = None,
         yaw_scale_free: bool = True,
         yaw_across_axle: bool = False,
+        yaw_offset_free: bool = True,
     ) -> None:
         t = np.asarray(time_s, dtype=float)
         rate = np.asarray(yaw_rate_radps, dtype=float)
@@ -155,8 +158,11 @@ class Rolling(Effect):
         self.gyro_yaw_radps = gyro_yaw_radps
         self.yaw_scale_free = bool(yaw_scale_free)
         self.yaw_across_axle = bool(yaw_across_axle)
+        self.yaw_offset_free = bool(yaw_offset_free) and self.yaw_scale_free
         if not self.yaw_scale_free:
             self.param_names = ("radius_m",)
+        elif not self.yaw_offset_free:
+            self.param_names = ("radius_m", "yaw_scale")
 
     @property
     def ties_tilt(self) -> bool:
@@ -211,7 +217,8 @@ class Rolling(Effect):
         """
         values = np.asarray(values, dtype=float)
         rho = float(values[0])
-        kappa, offset = (float(values[1]), float(values[2])) if self.yaw_scale_free else (1.0, 0.0)
+        kappa = float(values[1]) if self.yaw_scale_free else 1.0
+        offset = float(values[2]) if self.yaw_offset_free else 0.0
         rate_g, accel_g = self.yaw(t_s)
         sg, cg = float(np.cos(tilt_rad)), float(np.sin(tilt_rad))  # sin γ, cos γ
         m = 1.0 / cg if self.yaw_across_axle else 1.0
@@ -226,7 +233,8 @@ class Rolling(Effect):
         d_own[0] = terms.by_rho()
         if self.yaw_scale_free:
             d_own[1] = by_yaw * (m * rate_g)[:, None] + by_yaw_dot * (m * accel_g)[:, None]
-            d_own[2] = by_yaw  # ∂/∂ε
+            if self.yaw_offset_free:
+                d_own[2] = by_yaw  # ∂/∂ε
         by_tilt = terms.by_sin_camber() * (-cg) + terms.by_cos_camber() * sg
         if self.yaw_across_axle:  # ∂m/∂α = −sin γ / cos²γ
             dm = -sg / (cg * cg)

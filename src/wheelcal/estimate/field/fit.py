@@ -85,6 +85,9 @@ class FieldFit:
     max_ar_order: int = 10
     travel_z: float = TRAVEL_Z
     yaw_rms_radps: float = YAW_RMS_RADPS
+    fit_yaw_scale: bool = True
+    fit_yaw_offset: bool = False
+    fit_cross: bool = True
 
     def fit(self, window: Recording) -> FieldResult:
         """Calibrate ``window`` (a drive, stops included; its gyro on the same rows)."""
@@ -169,12 +172,22 @@ class FieldFit:
         theta = wheel_kinematics(params, tc, layout.effects).theta_rad
         y, y_dot = yaw_across(tc, window.gyro_radps, axle, theta, params.bench.misalignment.matrix)
         scale = float(params.effect("gyro_angle", 1)[0])
-        cross = np.vstack([y * np.cos(theta), y * np.sin(theta)])
+        cross = np.vstack([y * np.cos(theta), y * np.sin(theta)]) if self.fit_cross else None
         angle = GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross)
-        rolling = Rolling(tc, scale * y, scale * y_dot, yaw_scale_free=True, yaw_across_axle=True)
+        rolling = Rolling(
+            tc,
+            scale * y,
+            scale * y_dot,
+            yaw_scale_free=self.fit_yaw_scale,
+            yaw_across_axle=True,
+            yaw_offset_free=self.fit_yaw_offset,
+        )
         rho = float(params.effect(rolling.name, 1)[0])
         scale = float(params.effect(angle.name, 1)[0])
-        effects = {angle.name: [scale, 0.0, 0.0], rolling.name: [rho, 1.0, 0.0]}
+        effects = {
+            angle.name: [scale, 0.0, 0.0][: angle.size],
+            rolling.name: [rho, 1.0, 0.0][: rolling.size],
+        }
         params = params.with_changes(effects=effects)
         joint = self._joint(radius_m, True, (angle, rolling))
         result = joint.fit(window, initial=params)

@@ -6,10 +6,13 @@ bias.  Gravity, turning in the wheel's plane, gives the rest:
 
 1. the plane: the accelerometer's samples projected on two directions across
    the gyro's axle (the two sensors share a chip), as z(t) = x + i y;
-2. demodulated by the gyro's angle, z e^{∓iΘ} keeps only what Θ misses — a
-   slowly turning phase φ(t) — once low-passed (the wheel's own rotation is
-   gone, a push or a reversal too); the sign whose demodulation keeps more
-   power is the wheel's direction in this frame;
+2. its turning part (less what varies slower than ``PHASE_BAND_HZ``: a car
+   wheel's r ω², tens of g, stands still in the sensor's frame), demodulated by
+   the gyro's angle, z e^{∓iΘ}, keeps only what Θ misses — a slowly turning
+   phase φ(t) — once low-passed (the wheel's own rotation is gone, a push or a
+   reversal too); the sign whose demodulation keeps more power is the wheel's
+   direction in this frame; φ is summed from its increments where gravity is
+   seen turning, so a stop cannot slip it by a turn;
 3. ϑ(t) = ±Θ + φ(t) ≈ ϑ₀ + ω₀ t + s Θ by least squares (the gyro's bias and scale);
 4. with ϑ known, the accelerometer is linear in what is left (eq. 1 at α = 90°,
    plus the hub's travel ρ ω̇ (sin ϑ, −cos ϑ, 0) of a rolling wheel):
@@ -29,6 +32,7 @@ from wheelcal.estimate.field.gyro_axle import GyroAxle
 from wheelcal.estimate.joint.initial import scaled_gains
 from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
 from wheelcal.model.gyro_angle import GyroAngle
+from wheelcal.recording import RecordingError
 
 #: Low-pass of the demodulated gravity (Hz): the phase error the gyro leaves is slow.
 PHASE_BAND_HZ = 0.5
@@ -52,18 +56,28 @@ def _plane(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, np.cross(axis, e1)
 
 
-def _slow_phase(t, z, angle) -> tuple[int, np.ndarray, np.ndarray]:
-    """The wheel's sign in the plane, and φ(t) with its weight |d|² (step 2)."""
+def _slow_phase(t, z, angle, gravity_mps2) -> tuple[int, np.ndarray, np.ndarray]:
+    """The wheel's sign in the plane, φ(t) and where it was seen (step 2).
+
+    The slow part of z (a car wheel's r ω² reaches tens of g, and stands still in
+    the sensor's frame) is taken out first, so that only the turning gravity is
+    demodulated; φ is summed from its increments where gravity was seen turning
+    (|d| above a third of g), so that a stop cannot make it slip a turn.
+    """
     rate_hz = 1.0 / float(np.median(np.diff(t)))
-    sos = signal.butter(2, min(PHASE_BAND_HZ, 0.4 * rate_hz), fs=rate_hz, output="sos")
+    band = min(PHASE_BAND_HZ, 0.4 * rate_hz)
+    sos = signal.butter(2, band, fs=rate_hz, output="sos")
+    turning = z - signal.sosfiltfilt(sos, z)
     best = None
     for sign in (1, -1):
-        d = signal.sosfiltfilt(sos, z * np.exp(-1j * sign * angle))
+        d = signal.sosfiltfilt(sos, turning * np.exp(-1j * sign * angle))
         power = float(np.mean(np.abs(d) ** 2))
         if best is None or power > best[0]:
             best = (power, sign, d)
     _, sign, d = best
-    return sign, np.unwrap(np.angle(d)), np.abs(d) ** 2
+    seen = np.abs(d) > gravity_mps2 / 3
+    steps = np.angle(d[1:] * np.conj(d[:-1])) * (seen[1:] & seen[:-1])
+    return sign, np.concatenate([[0.0], np.cumsum(steps)]), seen.astype(float)
 
 
 def field_start(
@@ -81,7 +95,12 @@ def field_start(
     centred = v - v.mean(axis=0)
     z = centred @ e1 + 1j * (centred @ e2)
     angle = GyroAngle(t, axle.rate_radps, axle.rate_dot_radps2).angle
-    sign, phase, weight = _slow_phase(t, z, angle)
+    sign, phase, weight = _slow_phase(t, z, angle, gravity_mps2)
+    if np.count_nonzero(weight) < 10:
+        raise RecordingError(
+            "the accelerometer never shows gravity turning with the wheel (is the wheel's "
+            "axle vertical, or the sensor on another body?)"
+        )
     if sign < 0:  # ϑ runs against this end of the axle: see it from the other
         axle, angle = axle.flipped(), -angle
     theta_s = angle + phase
