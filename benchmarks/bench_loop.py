@@ -65,7 +65,7 @@ def screen_parts(recording, repeats: int) -> None:
             fit, window, candidates, stride, evaluated
         ),
         "rests' stream": lambda: usable and rest_normal(fit, usable, candidates, fit.layout),
-        "score tests (all streams, p-values)": lambda: score.score_tests(
+        "the screen (all streams, p-values)": lambda: score.screen(
             fit, window, default_candidates(), evaluated, None, rests
         ),
         "the closed loop (nothing to add)": lambda: ClosedLoop().run(window, fit, evaluated, rests),

@@ -258,9 +258,39 @@ def _check_keys(path: str, section: str, table: dict) -> None:
 def load_pipeline(path: str | os.PathLike) -> Pipeline:
     """Read and validate a pipeline TOML file."""
     path = str(path)
+    data = _read_toml(path)
+    _check_tables(path, data)
+    head = data.get("pipeline", {})
+    name = str(head.get("name", Path(path).stem))
+    output = Path(head.get("output", f"out/{name}"))
+    globs = data.get("inputs", {}).get("globs", [])
+    if isinstance(globs, str):
+        globs = [globs]
+    simulate = _simulate_inputs(path, data)
+    if not globs and simulate is None:
+        raise PipelineError(f"{path}: no inputs: give [inputs] globs or a [simulate] section")
+    run = data.get("run", {})
+    executor = _executor(path, data.get("executor", {}))
+    return Pipeline(
+        path=path,
+        name=name,
+        output=output,
+        globs=tuple(globs),
+        simulate=simulate,
+        options=_session_options(path, data),
+        calibrate=bool(run.get("calibrate", True)),
+        diagnose=bool(run.get("diagnose", False)),
+        closure=bool(run.get("closure", run.get("diagnose", False))),
+        rerun=bool(run.get("rerun", False)),
+        executor=executor,
+    )
+
+
+def _read_toml(path: str) -> dict:
+    """The parsed file; a PipelineError naming it when it cannot be read or parsed."""
     try:
         with open(path, "rb") as f:
-            data = tomllib.load(f)
+            return tomllib.load(f)
     except FileNotFoundError:
         raise PipelineError(f"{path}: no such pipeline file") from None
     except IsADirectoryError:
@@ -275,6 +305,10 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
         raise PipelineError(f"{path}: not valid TOML (nested too deeply)") from None
     except tomllib.TOMLDecodeError as exc:
         raise PipelineError(f"{path}: not valid TOML ({exc})") from None
+
+
+def _check_tables(path: str, data: dict) -> None:
+    """Refuse an unknown section, a section that is not a table, an unknown key or value."""
     unknown = set(data) - set(_SECTIONS)
     if unknown:
         raise PipelineError(
@@ -286,26 +320,24 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
         _check_keys(path, section, table)
         for key, value in table.items():
             _check_value(path, section, key, value)
-    head = data.get("pipeline", {})
-    name = str(head.get("name", Path(path).stem))
-    output = Path(head.get("output", f"out/{name}"))
-    inputs = data.get("inputs", {})
-    globs = inputs.get("globs", [])
-    if isinstance(globs, str):
-        globs = [globs]
-    simulate = None
-    if "simulate" in data:
-        try:
-            simulate = SimulateInputs(**data["simulate"])
-        except TypeError as exc:
-            raise PipelineError(f"{path}: [simulate]: {exc}") from None
-        if simulate.count < 1 or simulate.format not in ("ros2", "json"):
-            raise PipelineError(f"{path}: [simulate] needs count >= 1 and format 'ros2' or 'json'")
-    if not globs and simulate is None:
-        raise PipelineError(f"{path}: no inputs: give [inputs] globs or a [simulate] section")
-    run = data.get("run", {})
-    executor_table = data.get("executor", {})
-    executor = Executor(**executor_table)
+
+
+def _simulate_inputs(path: str, data: dict) -> SimulateInputs | None:
+    """The [simulate] section, if any."""
+    if "simulate" not in data:
+        return None
+    try:
+        simulate = SimulateInputs(**data["simulate"])
+    except TypeError as exc:
+        raise PipelineError(f"{path}: [simulate]: {exc}") from None
+    if simulate.count < 1 or simulate.format not in ("ros2", "json"):
+        raise PipelineError(f"{path}: [simulate] needs count >= 1 and format 'ros2' or 'json'")
+    return simulate
+
+
+def _executor(path: str, table: dict) -> Executor:
+    """The [executor] section (local processes by default)."""
+    executor = Executor(**table)
     if executor.kind not in ("processes", "dask"):
         raise PipelineError(
             f"{path}: [executor] kind must be 'processes' or 'dask', got {executor.kind!r}"
@@ -314,7 +346,12 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
         raise PipelineError(f"{path}: [executor] kind = 'dask' needs address = 'tcp://host:port'")
     if executor.workers is not None and executor.workers < 1:
         raise PipelineError(f"{path}: [executor] workers must be >= 1")
-    overrides = data.get("overrides", {})
+    return executor
+
+
+def _session_options(path: str, data: dict) -> SessionOptions:
+    """Every session's options: [inputs] topic, [run], [defaults], [overrides] and [gates]."""
+    run = data.get("run", {})
     gates_table = dict(data.get("gates", {}))
     if "gain_range" in gates_table:
         gates_table["gain_range"] = tuple(gates_table["gain_range"])
@@ -323,8 +360,8 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
     except (TypeError, ValueError) as exc:
         raise PipelineError(f"{path}: [gates]: {exc}") from None
     try:
-        options = SessionOptions(
-            topic=inputs.get("topic"),
+        return SessionOptions(
+            topic=data.get("inputs", {}).get("topic"),
             geometry=run.get("geometry", "radius"),
             known_tilt_deg=run.get("known_tilt_deg"),
             tilt_std_deg=run.get("tilt_std_deg", 0.5),
@@ -336,20 +373,7 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
             gyro_g_sensitivity_dps_per_g=float(run.get("gyro_g_sensitivity_dps_per_g", 0.1)),
             defaults=tuple(sorted(data.get("defaults", {}).items())),
             gates=gates,
-            **overrides,
+            **data.get("overrides", {}),
         )
     except (TypeError, ValueError) as exc:
         raise PipelineError(f"{path}: {exc}") from None
-    return Pipeline(
-        path=path,
-        name=name,
-        output=output,
-        globs=tuple(globs),
-        simulate=simulate,
-        options=options,
-        calibrate=bool(run.get("calibrate", True)),
-        diagnose=bool(run.get("diagnose", False)),
-        closure=bool(run.get("closure", run.get("diagnose", False))),
-        rerun=bool(run.get("rerun", False)),
-        executor=executor,
-    )

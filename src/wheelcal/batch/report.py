@@ -183,43 +183,9 @@ def build_report(
     out_groups = []
     outliers: list[dict] = []
     for (sensor_id, mounting_id), members in sorted(groups.items()):
-        files = [m.source_file for m in members]
-        tables = [m.parameters for m in members]
-        names = [p for p in REPORT_PARAMETERS if all(p in table for table in tables)]
-        params = {}
-        systematic = {}
-        for name in names:
-            values = np.array([table[name][0] for table in tables], dtype=float)
-            stds = np.array([table[name][1] for table in tables], dtype=float)
-            params[name] = group_statistics(values, stds)
-            outliers += _outliers(files, name, values, len(names) * len(members))
-        for member in members[:1]:
-            sys_block = member.get("systematic", {})
-            for key in ("gain_std", "offset_std_mps2"):
-                for axis, v in zip(AXES, sys_block.get(key, []), strict=False):
-                    prefix = "gain" if key == "gain_std" else "offset"
-                    suffix = "" if key == "gain_std" else "_mps2"
-                    systematic[f"{prefix}_{axis}{suffix}"] = _finite(v)
-            systematic["tilt_deg"] = _finite(sys_block.get("tilt_std_deg"))
-        group = {
-            "sensor_id": sensor_id,
-            "mounting_id": mounting_id,
-            "sessions": len(members),
-            "files": files,
-            "parameters": params,
-            "systematic_std": systematic,
-        }
-        diags = [by_file[f] for f in files if f in by_file]
-        if diags and len(diags) == len(files):
-            group["parameters_paper_model"] = _stats_of(
-                [d["base"]["parameters"] for d in diags], names
-            )
-            found: dict[str, int] = defaultdict(int)
-            for d in diags:
-                for step in d["steps"]:
-                    found[step["effect"]] += 1
-            group["effects_found"] = dict(sorted(found.items()))
+        group, flagged = _group_entry(sensor_id, mounting_id, members, by_file)
         out_groups.append(group)
+        outliers += flagged
     by_cal = {c.source_file: c for c in calibrations}
     if per_session is None:
         per_session = [
@@ -237,6 +203,52 @@ def build_report(
         "per_session": entries,
         "notes": list(_NOTES),
     }
+
+
+def _group_entry(
+    sensor_id: str, mounting_id: str, members: list[Calibration], by_file: Mapping[str, dict]
+) -> tuple[dict, list[dict]]:
+    """One ``groups`` entry (one sensor on one mounting) and the outliers among its sessions."""
+    files = [m.source_file for m in members]
+    tables = [m.parameters for m in members]
+    names = [p for p in REPORT_PARAMETERS if all(p in table for table in tables)]
+    params = {}
+    outliers: list[dict] = []
+    for name in names:
+        values = np.array([table[name][0] for table in tables], dtype=float)
+        stds = np.array([table[name][1] for table in tables], dtype=float)
+        params[name] = group_statistics(values, stds)
+        outliers += _outliers(files, name, values, len(names) * len(members))
+    group = {
+        "sensor_id": sensor_id,
+        "mounting_id": mounting_id,
+        "sessions": len(members),
+        "files": files,
+        "parameters": params,
+        "systematic_std": _systematic_std(members[0]),
+    }
+    diags = [by_file[f] for f in files if f in by_file]
+    if diags and len(diags) == len(files):
+        group["parameters_paper_model"] = _stats_of([d["base"]["parameters"] for d in diags], names)
+        found: dict[str, int] = defaultdict(int)
+        for d in diags:
+            for step in d["steps"]:
+                found[step["effect"]] += 1
+        group["effects_found"] = dict(sorted(found.items()))
+    return group, outliers
+
+
+def _systematic_std(calibration: Calibration) -> dict[str, float | None]:
+    """A session's systematic σ by parameter (shared by its bench: one session says it)."""
+    sys_block = calibration.get("systematic", {})
+    systematic = {}
+    for key in ("gain_std", "offset_std_mps2"):
+        for axis, v in zip(AXES, sys_block.get(key, []), strict=False):
+            prefix = "gain" if key == "gain_std" else "offset"
+            suffix = "" if key == "gain_std" else "_mps2"
+            systematic[f"{prefix}_{axis}{suffix}"] = _finite(v)
+    systematic["tilt_deg"] = _finite(sys_block.get("tilt_std_deg"))
+    return systematic
 
 
 #: What the reader writes into ``source.notes`` when it drops samples (wheelcal.recording.samples).

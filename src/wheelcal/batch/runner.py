@@ -467,11 +467,9 @@ def _require_dask(pipeline: Pipeline) -> None:
 
 
 def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tuple[str, ...], bool]:
-    from wheelcal.batch.report import build_report, report_markdown, sessions_csv
-    from wheelcal.batch.sensors import write_sensor_calibrations
-    from wheelcal.io.atomic import atomic_write_bytes, atomic_write_text
+    from wheelcal.batch.report import report_markdown, sessions_csv
+    from wheelcal.io.atomic import atomic_write_text
     from wheelcal.io.json_text import dumps_indented, json_safe
-    from wheelcal.viz.batch_png import OVERVIEW_FILE, overview_png
 
     out = pipeline.output
     json_path, md_path, csv_path = out / "report.json", out / "report.md", out / "sessions.csv"
@@ -479,11 +477,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     documents = {
         r.calibration_path: read_document(Path(r.calibration_path)) for r in records if r.ok
     }
-    keys = sorted(
-        (r.source, r.stem, run_key_of(documents[r.calibration_path]) if r.ok else r.error)
-        for r in records
-    )
-    report_key = hashlib.sha256(json.dumps(keys).encode()).hexdigest()
+    report_key = _report_key(records, documents)
     stored_key, stored_outputs = _stored_report(json_path)
     if (
         stored_key == report_key
@@ -494,6 +488,48 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     calibrations = [
         _calibration(r.calibration_path, documents.pop(r.calibration_path)) for r in records if r.ok
     ]
+    report = _report(pipeline, records, calibrations)
+    numbers = [i + 1 for i, r in enumerate(records) if r.ok]  # as report.md's session table
+    paths = [
+        json_path,
+        md_path,
+        csv_path,
+        *_sensor_and_overview_files(pipeline, records, calibrations, report, numbers),
+    ]
+    batch_rrd = pipeline.rerun and bool(calibrations)  # nothing to draw when every session failed
+    if batch_rrd:
+        paths.append(out / "batch.rrd")
+    elif pipeline.rerun and (out / "batch.rrd").exists():
+        os.replace(out / "batch.rrd", out / "batch.stale.rrd")  # not this run's
+    report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
+    report["provenance"] = {"report_key": report_key, "outputs": [str(p) for p in paths]}
+    atomic_write_text(md_path, report_markdown(report, f"Repeatability report — {pipeline.name}"))
+    atomic_write_text(csv_path, sessions_csv(calibrations, report["per_session"]))
+    if batch_rrd:
+        from wheelcal.viz.batch_rrd import write_batch_rrd
+
+        write_batch_rrd(out / "batch.rrd", calibrations, numbers)
+    _sync()  # the sensor files and the PNG (written without per-file fsync)
+    # report.json last: its key marks the whole report as complete.
+    atomic_write_text(json_path, dumps_indented(json_safe(report)) + "\n")
+    return tuple(map(str, paths)), True
+
+
+def _report_key(records: list[SessionRecord], documents: dict[str, dict | None]) -> str:
+    """What the report is made of: every session's run key (or its error), hashed."""
+    keys = sorted(
+        (r.source, r.stem, run_key_of(documents[r.calibration_path]) if r.ok else r.error)
+        for r in records
+    )
+    return hashlib.sha256(json.dumps(keys).encode()).hexdigest()
+
+
+def _report(
+    pipeline: Pipeline, records: list[SessionRecord], calibrations: list[Calibration]
+) -> dict:
+    """``report.json``'s statistics, sessions and (with the closed loop) its closure."""
+    from wheelcal.batch.report import build_report
+
     diagnoses = []
     if pipeline.diagnose:
         for r in records:
@@ -516,6 +552,22 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
         from wheelcal.batch.closure import run_closure
 
         report["closure"] = run_closure(pipeline, calibrations)
+    return report
+
+
+def _sensor_and_overview_files(
+    pipeline: Pipeline,
+    records: list[SessionRecord],
+    calibrations: list[Calibration],
+    report: dict,
+    numbers: list[int],
+) -> list[Path]:
+    """Write each sensor's pooled calibration and ``overview.png``; note them in ``report``."""
+    from wheelcal.batch.sensors import write_sensor_calibrations
+    from wheelcal.io.atomic import atomic_write_bytes
+    from wheelcal.viz.batch_png import OVERVIEW_FILE, overview_png
+
+    out = pipeline.output
     sensors = write_sensor_calibrations(
         out,
         calibrations,
@@ -523,8 +575,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
         report.get("closure"),
     )
     report["sensors"] = [s.summary() for s in sensors]
-    paths = [json_path, md_path, csv_path, *(s.path for s in sensors)]
-    numbers = [i + 1 for i, r in enumerate(records) if r.ok]  # as report.md's session table
+    paths = [s.path for s in sensors]
     png, note = overview_png(
         calibrations, [s.doc for s in sensors], title=pipeline.name, numbers=numbers
     )
@@ -534,23 +585,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
         report["overview"] = {"file": OVERVIEW_FILE}
     else:
         report["overview"] = {"file": None, "note": note}
-    batch_rrd = pipeline.rerun and bool(calibrations)  # nothing to draw when every session failed
-    if batch_rrd:
-        paths.append(out / "batch.rrd")
-    elif pipeline.rerun and (out / "batch.rrd").exists():
-        os.replace(out / "batch.rrd", out / "batch.stale.rrd")  # not this run's
-    report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
-    report["provenance"] = {"report_key": report_key, "outputs": [str(p) for p in paths]}
-    atomic_write_text(md_path, report_markdown(report, f"Repeatability report — {pipeline.name}"))
-    atomic_write_text(csv_path, sessions_csv(calibrations, report["per_session"]))
-    if batch_rrd:
-        from wheelcal.viz.batch_rrd import write_batch_rrd
-
-        write_batch_rrd(out / "batch.rrd", calibrations, numbers)
-    _sync()  # the sensor files and the PNG (written without per-file fsync)
-    # report.json last: its key marks the whole report as complete.
-    atomic_write_text(json_path, dumps_indented(json_safe(report)) + "\n")
-    return tuple(map(str, paths)), True
+    return paths
 
 
 def _calibration(path: str, document: dict | None) -> Calibration:

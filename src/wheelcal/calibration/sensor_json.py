@@ -66,6 +66,13 @@ _SYSTEMATIC_NOTE = (
     "shared by the sessions (radius, gravity, sample clock): the weighted mean of their "
     "systematic σ, not divided by √n — repeating does not average it away"
 )
+_GAINS, _OFFSETS = slice(0, 3), slice(3, 6)  # of POOLED_PARAMETERS: gains, then offsets
+#: JSON key → PooledSensor field, per parameter: ``pooling.spread`` and ``parameters``.
+_SPREAD_FIELDS = {
+    **{name: name for name in ("chi2_red", "dof", "between_session_std", "scale")},
+    "sessions_used": "used",
+}
+_PARAMETER_FIELDS = {name: name for name in ("value", "std", "systematic_std", "std_unscaled")}
 _STATISTICAL_NOTE = (
     "sensor.*_std are statistical one-sigma σ after the spread check; add the systematic σ "
     "in quadrature for the total"
@@ -167,33 +174,10 @@ def sensor_calibration_dict(
     ``pooled.sessions``; ``calibration_paths`` maps a session's file to its
     calibration JSON.
     """
-    paths = calibration_paths or {}
     calibrations = [read_only_document(c) for c in calibrations]  # read only: no copies
     correction = pooled.correction()
     sources = [c.get("source", {}) for c in calibrations]
     topics = {s.get("topic") for s in sources if s.get("topic")}
-    gains, offsets = slice(0, 3), slice(3, 6)
-    skipped: dict[str, list[dict]] = {}
-    for label, parameter, reason in pooled.skipped:
-        skipped.setdefault(label, []).append({"parameter": parameter, "reason": reason})
-    noise = np.array(
-        [
-            [_float(v) for v in c.get("fit", {}).get("noise_std_mps2", [None] * 3)]
-            for c in calibrations
-        ]
-    )
-    noise_rms = np.sqrt(np.nanmean(noise**2, axis=0)) if np.isfinite(noise).any() else [None] * 3
-    sensor = {
-        "offset_mps2": _list(pooled.value[offsets]),
-        "gain": _list(pooled.value[gains]),
-        "offset_std_mps2": _list(pooled.std[offsets]),
-        "gain_std": _list(pooled.std[gains]),
-        "undetermined": [{"parameter": p, "reason": r} for p, r in pooled.undetermined],
-    }
-    if pooled.cross_axis_rad is not None:
-        sensor["cross_axis_rad"] = dict(
-            zip(("yx_rad", "zx_rad", "zy_rad"), _list(pooled.cross_axis_rad), strict=True)
-        )
     return {
         "format": FORMAT,
         "wheelcal_version": __version__,
@@ -205,10 +189,10 @@ def sensor_calibration_dict(
             "rate_hz": _common_rate(sources),
             "files": [s.get("file") for s in sources],
         },
-        "sensor": sensor,
+        "sensor": _sensor_block(pooled),
         "systematic": {
-            "gain_std": _list(pooled.systematic_std[gains]),
-            "offset_std_mps2": _list(pooled.systematic_std[offsets]),
+            "gain_std": _list(pooled.systematic_std[_GAINS]),
+            "offset_std_mps2": _list(pooled.systematic_std[_OFFSETS]),
             "note": _SYSTEMATIC_NOTE,
         },
         "correction": {
@@ -222,43 +206,77 @@ def sensor_calibration_dict(
             "description": _DESCRIPTION[pooled.method],
             "sessions": len(pooled.sessions),
             "note": _STATISTICAL_NOTE,
-            "spread": {
-                name: {
-                    "chi2_red": _num(pooled.chi2_red[k]),
-                    "dof": int(pooled.dof[k]),
-                    "between_session_std": _num(pooled.between_session_std[k]),
-                    "scale": _num(pooled.scale[k]),
-                    "sessions_used": int(pooled.used[k]),
-                }
-                for k, name in enumerate(pooled.names)
-            },
+            "spread": _by_parameter(pooled, _SPREAD_FIELDS),
         },
-        "sessions": [
-            {
-                "file": s.get("file"),
-                "mounting_id": str(s.get("mounting_id") or ""),
-                "calibration": paths.get(s.get("file")),
-                "skipped": skipped.get(s.get("file"), []),
-            }
-            for s in sources
-        ],
-        "parameters": {
-            name: {
-                "value": _num(pooled.value[k]),
-                "std": _num(pooled.std[k]),
-                "systematic_std": _num(pooled.systematic_std[k]),
-                "std_unscaled": _num(pooled.std_unscaled[k]),
-            }
-            for k, name in enumerate(pooled.names)
-        },
+        "sessions": _sessions(pooled, sources, calibration_paths or {}),
+        "parameters": _by_parameter(pooled, _PARAMETER_FIELDS),
         "fit": {
-            "noise_std_mps2": _list(noise_rms),
+            "noise_std_mps2": _list(_noise_rms(calibrations)),
             "covariance": [_list(row) for row in pooled.covariance],
             "covariance_names": list(pooled.names),
             "warnings": list(pooled.warnings),
             **_pooled_allan(calibrations),
         },
     }
+
+
+def _sensor_block(pooled: PooledSensor) -> dict:
+    """``sensor``: the pooled offsets and gains with their statistical σ."""
+    sensor = {
+        "offset_mps2": _list(pooled.value[_OFFSETS]),
+        "gain": _list(pooled.value[_GAINS]),
+        "offset_std_mps2": _list(pooled.std[_OFFSETS]),
+        "gain_std": _list(pooled.std[_GAINS]),
+        "undetermined": [{"parameter": p, "reason": r} for p, r in pooled.undetermined],
+    }
+    if pooled.cross_axis_rad is not None:
+        sensor["cross_axis_rad"] = dict(
+            zip(("yx_rad", "zx_rad", "zy_rad"), _list(pooled.cross_axis_rad), strict=True)
+        )
+    return sensor
+
+
+def _by_parameter(pooled: PooledSensor, fields: Mapping[str, str]) -> dict:
+    """``{name: {key: value}}`` per pooled parameter, from ``fields``: key → PooledSensor field."""
+    columns = {key: getattr(pooled, name) for key, name in fields.items()}
+    return {
+        name: {key: _json_number(column[k]) for key, column in columns.items()}
+        for k, name in enumerate(pooled.names)
+    }
+
+
+def _json_number(x) -> int | float | None:
+    """An integer stays one; a float is a JSON number, or null for NaN/∞."""
+    return int(x) if isinstance(x, np.integer) else _num(x)
+
+
+def _sessions(
+    pooled: PooledSensor, sources: Sequence[Mapping], paths: Mapping[str, str]
+) -> list[dict]:
+    """``sessions``: each session's file, mounting, calibration JSON and skipped parameters."""
+    skipped: dict[str, list[dict]] = {}
+    for label, parameter, reason in pooled.skipped:
+        skipped.setdefault(label, []).append({"parameter": parameter, "reason": reason})
+    return [
+        {
+            "file": s.get("file"),
+            "mounting_id": str(s.get("mounting_id") or ""),
+            "calibration": paths.get(s.get("file")),
+            "skipped": skipped.get(s.get("file"), []),
+        }
+        for s in sources
+    ]
+
+
+def _noise_rms(calibrations: Sequence[Mapping]) -> np.ndarray | list[None]:
+    """The sessions' noise σ per axis, RMS over the sessions that state it."""
+    noise = np.array(
+        [
+            [_float(v) for v in c.get("fit", {}).get("noise_std_mps2", [None] * 3)]
+            for c in calibrations
+        ]
+    )
+    return np.sqrt(np.nanmean(noise**2, axis=0)) if np.isfinite(noise).any() else [None] * 3
 
 
 def _pooled_allan(calibrations: Sequence[Mapping]) -> dict:

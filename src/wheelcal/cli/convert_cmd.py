@@ -31,12 +31,7 @@ def register(sub) -> None:
         "--force", action="store_true", help="replace OUT.mcap if it exists (default: refuse)"
     )
     p.add_argument("--time-column", help="header name or 0-based index (default: recognised)")
-    p.add_argument(
-        "--accel-columns",
-        nargs=3,
-        metavar=("X", "Y", "Z"),
-        help="header names or indices (default: recognised)",
-    )
+    _xyz_columns(p, "--accel-columns", "header names or indices (default: recognised)")
     p.add_argument(
         "--time-unit",
         choices=("s", "ms", "us", "ns"),
@@ -56,11 +51,8 @@ def register(sub) -> None:
         help="raw counts per g with --accel-unit counts (e.g. 16384 for a 16-bit sensor at "
         "±2 g, 4096 at ±8 g)",
     )
-    p.add_argument(
-        "--gyro-columns",
-        nargs=3,
-        metavar=("X", "Y", "Z"),
-        help="header names or indices of the gyro (default: recognised if present)",
+    _xyz_columns(
+        p, "--gyro-columns", "header names or indices of the gyro (default: recognised if present)"
     )
     p.add_argument(
         "--gyro-unit",
@@ -84,6 +76,11 @@ def register(sub) -> None:
         "--gyro-full-scale-dps", type=float, help="store gyro_full_scale_dps (the gyro's range)"
     )
     p.set_defaults(handler=run)
+
+
+def _xyz_columns(p, flag: str, text: str) -> None:
+    """A sensor's three columns (x, y, z): header names or 0-based indices."""
+    p.add_argument(flag, nargs=3, metavar=("X", "Y", "Z"), help=text)
 
 
 #: No wheel puts its sensor farther from the axle than this (m): 280 is millimetres.

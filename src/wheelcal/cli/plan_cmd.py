@@ -23,7 +23,15 @@ def register(sub) -> None:
             "± 1 mm, tilt 45°, 90 s at 200 Hz, MPU-9250 noise 0.08 m/s²)."
         ),
     )
-    b = p.add_argument_group("bench")
+    _bench_arguments(p.add_argument_group("bench"))
+    _recording_arguments(p.add_argument_group("recording"))
+    _systematic_arguments(p.add_argument_group("systematic inputs"))
+    _search_arguments(p.add_argument_group("search and output"))
+    p.set_defaults(handler=run)
+
+
+def _bench_arguments(b) -> None:
+    """Geometry mode, radius, tilt and mounting of the planned bench."""
     b.add_argument(
         "--geometry",
         choices=("radius", "tilt", "vertical"),
@@ -59,7 +67,10 @@ def register(sub) -> None:
         help="sensor mounting: three Euler angles (ZYX, bench → sensor; default: the paper's "
         "30 20 25), or 'any' to search the best one",
     )
-    r = p.add_argument_group("recording")
+
+
+def _recording_arguments(r) -> None:
+    """Length, rate, noise and spin of the planned recording."""
     r.add_argument(
         "--duration", type=positive_float, default=90.0, metavar="S", help="free-spin window"
     )
@@ -81,7 +92,10 @@ def register(sub) -> None:
     r.add_argument(
         "--full-scale-g", type=positive_float, metavar="G", help="sensor range: warn if clipping"
     )
-    s = p.add_argument_group("systematic inputs")
+
+
+def _systematic_arguments(s) -> None:
+    """The uncertainties behind the systematic budget: gravity and the sample clock."""
     s.add_argument(
         "--gravity", type=positive_float, metavar="MPS2", help="local gravity you will give"
     )
@@ -92,7 +106,10 @@ def register(sub) -> None:
         help="its uncertainty (default 0.02 without --gravity, 1e-4 with it)",
     )
     s.add_argument("--clock-ppm", type=float, default=100.0, help="sample-clock uncertainty (ppm)")
-    o = p.add_argument_group("search and output")
+
+
+def _search_arguments(o) -> None:
+    """The mounting search (``--mounting any``) and what is printed."""
     o.add_argument(
         "--objective",
         choices=("statistical", "total"),
@@ -110,7 +127,6 @@ def register(sub) -> None:
     o.add_argument("--fixed-tilt", action="store_true", help="--mounting any keeps your tilt")
     o.add_argument("--no-tradeoffs", action="store_true", help="skip the geometry-mode table")
     o.add_argument("--json", action="store_true", help="print JSON instead of the table")
-    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -26,19 +26,12 @@ from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.rests import RestSegment
 from wheelcal.model.effects import Effect, default_candidates
 from wheelcal.model.forward import EvaluatedModel
+from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
 from wheelcal.model.temperature_offset import temperature_candidates
 from wheelcal.recording import Recording
 
 #: Parameters whose base-model bias is reported in σ units.
-BIAS_PARAMETERS = (
-    "tilt_deg",
-    "gain_x",
-    "gain_y",
-    "gain_z",
-    "offset_x_mps2",
-    "offset_y_mps2",
-    "offset_z_mps2",
-)
+BIAS_PARAMETERS = ("tilt_deg", *GAIN_NAMES, *OFFSET_NAMES)
 
 
 @dataclass(frozen=True)

@@ -157,38 +157,36 @@ def gyro_stream(
 
 
 def score_contributions(
-    fit: CalibrationResult,
-    recording: Recording,
-    candidates: tuple[Effect, ...],
-    evaluated: EvaluatedModel | None = None,
-    gyro: GyroStream | None = None,
-    rests: tuple[RestSegment, ...] = (),
+    fit: CalibrationResult, recording: Recording, candidates: tuple[Effect, ...]
 ) -> list[ScoreContribution]:
     """The score u and information C of every candidate not yet in the fit's model.
 
-    For the paper's model H comes by quadrature and g from every sample without a
-    Jacobian (:func:`_normal_by_quadrature`); otherwise both are summed over every
-    sample.  ``evaluated``: the model at the fit as its last pass left it.  With a
-    ``gyro`` stream its information and score are added (:func:`_add_gyro`): the
-    gyro's reading joins the fit's parameters, and a spin candidate (an imbalance's
-    once-per-turn rate ripple) is seen by the gyro directly.  With ``rests`` their
-    static readings join too (:mod:`~wheelcal.closedloop.rest_stream`; their wheel
-    angles are nuisance parameters): a spin effect does not act at rest, so what it
-    traded into the gains shows there.
+    From the accelerometer's stream alone (:func:`_streams`); :func:`screen`, the
+    closed loop's, adds the gyro's and the rests'.
     """
     candidates = _absent(fit, candidates)
     if not candidates:
         return []
-    h, g, nuisance = _streams(fit, recording, candidates, evaluated, gyro)
-    rests = usable_rests(fit, rests)
-    if rests:
-        h, g = _with_rests(fit, h, g, nuisance, rests, candidates)
-    return _schur(h, g, nuisance.size + len(rests), candidates)
+    h, g, nuisance = _streams(fit, recording, candidates, None, None)
+    return _schur(h, g, nuisance.size, candidates)
 
 
 def _absent(fit: CalibrationResult, candidates: tuple[Effect, ...]) -> tuple[Effect, ...]:
     present = {e.name for e in fit.layout.effects}
     return tuple(c for c in candidates if c.name not in present)
+
+
+def _unseen(fit: CalibrationResult, candidates: tuple[Effect, ...]) -> list[ScoreContribution]:
+    """Candidates one recording cannot identify by construction, absent from the fit's model.
+
+    Listed with no score and no information (a unit raw diagonal), never computed.
+    """
+    present = {e.name for e in fit.layout.effects}
+    return [
+        ScoreContribution(c, np.zeros(c.size), np.zeros((c.size, c.size)), np.ones(c.size))
+        for c in candidates
+        if not c.one_recording_identifies and c.name not in present
+    ]
 
 
 def _streams(
@@ -198,7 +196,15 @@ def _streams(
     evaluated: EvaluatedModel | None,
     gyro: GyroStream | None,
 ) -> tuple[np.ndarray, np.ndarray, ParameterLayout]:
-    """H and g of the accelerometer (and the gyro) over [nuisance | candidates], the nuisance."""
+    """H and g of the accelerometer (and the gyro) over [nuisance | candidates], the nuisance.
+
+    For the paper's model H comes by quadrature and g from every sample without a
+    Jacobian (:func:`_normal_by_quadrature`); otherwise both are summed over every
+    sample.  ``evaluated``: the model at the fit as its last pass left it.  With a
+    ``gyro`` stream its information and score are added (:func:`_add_gyro`): the
+    gyro's reading joins the fit's parameters, and a spin candidate (an imbalance's
+    once-per-turn rate ripple) is seen by the gyro directly.
+    """
     tc = recording.time_s - fit.centre_s
     stride = 1
     if not fit.layout.effects:
@@ -225,7 +231,11 @@ def _streams(
 
 
 def _with_rests(fit, h, g, nuisance: ParameterLayout, rests, candidates):
-    """H and g with the rests' stream: their angles join the nuisance parameters."""
+    """H and g with the rests' stream: their angles join the nuisance parameters.
+
+    The rests' static readings (:mod:`~wheelcal.closedloop.rest_stream`): a spin
+    effect does not act at rest, so what it traded into the gains shows there.
+    """
     size = nuisance.size
     h, g = _embedded(h, g, size, size + len(rests))
     h_rest, g_rest = rest_normal(fit, rests, candidates, nuisance)
@@ -272,12 +282,7 @@ def screen(
     a rest confirms what the spin cannot tell (an imbalance in the gains), it does not
     explain what the spin shows.
     """
-    present = {e.name for e in fit.layout.effects}
-    unseen = [
-        ScoreContribution(c, np.zeros(c.size), np.zeros((c.size, c.size)), np.ones(c.size))
-        for c in candidates
-        if not c.one_recording_identifies and c.name not in present
-    ]
+    unseen = _unseen(fit, candidates)
     tested = _absent(fit, tuple(c for c in candidates if c.one_recording_identifies))
     if not tested:
         return finish_tests(unseen), []
@@ -498,27 +503,16 @@ def finish_tests(contributions: list[ScoreContribution]) -> list[ScoreTest]:
 
 
 def score_tests(
-    fit: CalibrationResult,
-    recording: Recording,
-    candidates: tuple[Effect, ...],
-    evaluated: EvaluatedModel | None = None,
-    gyro: GyroStream | None = None,
-    rests: tuple[RestSegment, ...] = (),
+    fit: CalibrationResult, recording: Recording, candidates: tuple[Effect, ...]
 ) -> list[ScoreTest]:
     """Score-test every candidate (not already in the fit's model) at the fit.
 
-    What one recording cannot identify by construction (cross-axis coupling: the
-    rotation spans it on one mounting) is listed with no information, not computed.
+    On the accelerometer's stream (:func:`score_contributions`).  What one recording
+    cannot identify by construction (cross-axis coupling: the rotation spans it on one
+    mounting) is listed with no information, not computed.
     """
-    present = {e.name for e in fit.layout.effects}
-    unseen = [
-        ScoreContribution(c, np.zeros(c.size), np.zeros((c.size, c.size)), np.ones(c.size))
-        for c in candidates
-        if not c.one_recording_identifies and c.name not in present
-    ]
     tested = tuple(c for c in candidates if c.one_recording_identifies)
-    parts = score_contributions(fit, recording, tested, evaluated, gyro, rests)
-    return finish_tests(parts + unseen)
+    return finish_tests(score_contributions(fit, recording, tested) + _unseen(fit, candidates))
 
 
 def pooled_score_tests(

@@ -172,37 +172,8 @@ class SensorFit:
         return dataclasses.replace(result, information_fraction=fractions, warnings=tuple(warnings))
 
     def _fit(self, recordings, starts, probe_only: bool = False) -> SensorFitResult:
-        shared_names = [*GAIN_NAMES, *OFFSET_NAMES]
-        for effect in self.shared_effects:
-            shared_names += [f"{effect.name}.{p}" for p in effect.param_names]
-        shared_effect_names = {e.name for e in self.shared_effects}
-        layouts, state = [], []
-        offsets, gains, weights_o, weights_g = [], [], [], []
-        for start in starts:
-            local = tuple(e for e in start.layout.effects if e.name not in shared_effect_names)
-            layouts.append(
-                ParameterLayout(
-                    spin_degree=start.layout.spin_degree,
-                    fit_tilt=start.layout.fit_tilt,
-                    fit_radius=start.layout.fit_radius,
-                    effects=local + tuple(self.shared_effects),
-                )
-            )
-            offsets.append(start.params.sensor.offset_mps2)
-            gains.append(start.params.sensor.gain)
-            weights_o.append(1 / np.array([start.std_of(n) for n in OFFSET_NAMES]) ** 2)
-            weights_g.append(1 / np.array([start.std_of(n) for n in GAIN_NAMES]) ** 2)
-        # Start: inverse-variance mean of the single fits' offsets and gains, shared effects at 0.
-        offset0 = np.average(offsets, axis=0, weights=np.nan_to_num(weights_o))
-        gain0 = np.average(gains, axis=0, weights=np.nan_to_num(weights_g))
-        for start in starts:
-            effects = {
-                k: v for k, v in start.params.effects.items() if k not in shared_effect_names
-            }
-            state.append(
-                start.params.with_changes(sensor=SensorParams(offset0, gain0), effects=effects)
-            )
-        shared = _SharedLayout(layouts, shared_names)
+        shared_names = _shared_names(self.shared_effects)
+        state, shared = _start(starts, self.shared_effects, shared_names)
         data = [
             (rec.time_s - start.centre_s, rec.accel_mps2, start.noise)
             for rec, start in zip(recordings, starts, strict=True)
@@ -212,15 +183,9 @@ class SensorFit:
             return _joint_normal(st, data, shared, want_jacobian)
 
         if probe_only:  # the information at the start, for the identifiability check
-            fisher = normal(tuple(state), True).hessian
-            fractions = {
-                e.name: block_information_fraction(
-                    fisher, [shared_names.index(f"{e.name}.{p}") for p in e.param_names]
-                )
-                for e in self.shared_effects
-            }
-            return _probe_result(fractions)
-        out = levenberg_marquardt(normal, tuple(state), shared, self.max_iterations, tol=1e-4)
+            fisher = normal(state, True).hessian
+            return _probe_result(_fractions(fisher, shared_names, self.shared_effects))
+        out = levenberg_marquardt(normal, state, shared, self.max_iterations, tol=1e-4)
         final = out.params
         fisher = out.normal.hessian
         cov = covariance_from_fisher(fisher)
@@ -229,17 +194,14 @@ class SensorFit:
         std = np.sqrt(np.diag(cov_shared))
         values = shared.pack(final)[:n_shared]
         warnings = []
-        fractions = {}
+        fractions = _fractions(fisher, shared_names, self.shared_effects)
         for effect in self.shared_effects:
-            block = [shared_names.index(f"{effect.name}.{p}") for p in effect.param_names]
-            frac = block_information_fraction(fisher, block)
-            fractions[effect.name] = frac
-            if frac < IDENTIFIABLE_FRACTION:
-                std[block] = np.inf
+            if fractions[effect.name] < IDENTIFIABLE_FRACTION:
+                std[_block(shared_names, effect)] = np.inf
                 warnings.append(
                     f"{effect.name}: the recordings given cannot identify it (information "
-                    f"fraction {frac:.1e}): for cross-axis terms, mount the sensor so that "
-                    "different sensor axes lie along the wheel axis"
+                    f"fraction {fractions[effect.name]:.1e}): for cross-axis terms, mount the "
+                    "sensor so that different sensor axes lie along the wheel axis"
                 )
         best = {}
         for name in shared_names:
@@ -265,6 +227,65 @@ class SensorFit:
             iterations=out.iterations,
             converged=out.converged,
         )
+
+
+def _shared_names(shared_effects: Sequence[Effect]) -> list[str]:
+    """The shared parameters: gains, offsets, then each shared effect's."""
+    names = [*GAIN_NAMES, *OFFSET_NAMES]
+    for effect in shared_effects:
+        names += [f"{effect.name}.{p}" for p in effect.param_names]
+    return names
+
+
+def _block(shared_names: list[str], effect: Effect) -> list[int]:
+    """The indices of ``effect``'s parameters among the shared ones."""
+    return [shared_names.index(f"{effect.name}.{p}") for p in effect.param_names]
+
+
+def _fractions(
+    fisher: np.ndarray, shared_names: list[str], shared_effects: Sequence[Effect]
+) -> dict[str, float]:
+    """Each shared effect's information fraction (identifiable at ≥ IDENTIFIABLE_FRACTION)."""
+    return {
+        e.name: block_information_fraction(fisher, _block(shared_names, e)) for e in shared_effects
+    }
+
+
+def _start(
+    starts: Sequence[CalibrationResult],
+    shared_effects: Sequence[Effect],
+    shared_names: list[str],
+) -> tuple[tuple[CalibrationParams, ...], _SharedLayout]:
+    """The starting state and the global layout of the recordings' joint fit.
+
+    Each recording keeps its own bench, spin and local effects; the shared offsets and
+    gains start at the inverse-variance mean of the single fits', shared effects at 0.
+    """
+    shared_effect_names = {e.name for e in shared_effects}
+    layouts, state = [], []
+    offsets, gains, weights_o, weights_g = [], [], [], []
+    for start in starts:
+        local = tuple(e for e in start.layout.effects if e.name not in shared_effect_names)
+        layouts.append(
+            ParameterLayout(
+                spin_degree=start.layout.spin_degree,
+                fit_tilt=start.layout.fit_tilt,
+                fit_radius=start.layout.fit_radius,
+                effects=local + tuple(shared_effects),
+            )
+        )
+        offsets.append(start.params.sensor.offset_mps2)
+        gains.append(start.params.sensor.gain)
+        weights_o.append(1 / np.array([start.std_of(n) for n in OFFSET_NAMES]) ** 2)
+        weights_g.append(1 / np.array([start.std_of(n) for n in GAIN_NAMES]) ** 2)
+    offset0 = np.average(offsets, axis=0, weights=np.nan_to_num(weights_o))
+    gain0 = np.average(gains, axis=0, weights=np.nan_to_num(weights_g))
+    for start in starts:
+        effects = {k: v for k, v in start.params.effects.items() if k not in shared_effect_names}
+        state.append(
+            start.params.with_changes(sensor=SensorParams(offset0, gain0), effects=effects)
+        )
+    return tuple(state), _SharedLayout(layouts, shared_names)
 
 
 def _joint_normal(states, data, shared: _SharedLayout, want_jacobian: bool) -> NormalEquations:
@@ -295,9 +316,7 @@ def sensor_crlb(
     ``times_s`` are each recording's centred times; the states must share their
     sensor parameters (as a truth does).  Local effects in ``states`` are ignored.
     """
-    shared_names = [*GAIN_NAMES, *OFFSET_NAMES]
-    for effect in shared_effects:
-        shared_names += [f"{effect.name}.{p}" for p in effect.param_names]
+    shared_names = _shared_names(shared_effects)
     layouts = [
         ParameterLayout(spin_degree=s.spin.degree, effects=tuple(shared_effects)) for s in states
     ]

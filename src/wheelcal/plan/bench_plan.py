@@ -17,6 +17,7 @@ paper's model is exact for the planned truth.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -72,6 +73,14 @@ def drag_spin(
     omega = omega_start_radps / (1.0 + drag * omega_start_radps * t)
     coeffs = np.polynomial.polynomial.polyfit(t - duration_s / 2, omega, degree)
     return SpinParams(theta0_rad=theta0_rad, omega_radps=coeffs)
+
+
+def _require(setup, names: tuple[str, ...], ok: Callable[[float], bool], words: str) -> None:
+    """Refuse a field of ``setup`` that is not finite or not ``ok``, naming it (``words``)."""
+    for name in names:
+        value = getattr(setup, name)
+        if not (np.isfinite(value) and ok(value)):
+            raise ValueError(f"{name} {words}, got {value}")
 
 
 @dataclass(frozen=True)
@@ -134,24 +143,10 @@ class PlannedSetup:
     def __post_init__(self) -> None:
         if self.geometry not in GEOMETRY_MODES:
             raise ValueError(f"geometry must be one of {GEOMETRY_MODES}, got {self.geometry!r}")
-        positive = {
-            "radius_m": self.radius_m,
-            "duration_s": self.duration_s,
-            "rate_hz": self.rate_hz,
-            "noise_std_mps2": self.noise_std_mps2,
-        }
-        for name, value in positive.items():
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {value}")
-        non_negative = {
-            "radius_std_m": self.radius_std_m,
-            "tilt_std_deg": self.tilt_std_deg,
-            "gravity_std_mps2": self.gravity_std_mps2,
-            "clock_std_ppm": self.clock_std_ppm,
-        }
-        for name, value in non_negative.items():
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be >= 0, got {value}")
+        positive = ("radius_m", "duration_s", "rate_hz", "noise_std_mps2")
+        _require(self, positive, lambda v: v > 0, "must be a positive number")
+        non_negative = ("radius_std_m", "tilt_std_deg", "gravity_std_mps2", "clock_std_ppm")
+        _require(self, non_negative, lambda v: v >= 0, "must be >= 0")
         if not 0.0 < self.tilt_deg <= 90.0:
             raise ValueError(f"tilt_deg must lie in (0, 90], got {self.tilt_deg}")
         if self.geometry == "vertical" and self.tilt_deg != VERTICAL_TILT_DEG:

@@ -19,22 +19,20 @@ In the tilt and vertical modes the gains also scale with the assumed gravity
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from wheelcal.estimate.joint.decimation import decimation_stride
 from wheelcal.estimate.joint.systematic import nuisance_columns
-from wheelcal.model.parameters import AXES
+from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
 from wheelcal.plan.bench_plan import VERTICAL_TILT_DEG, PlannedSetup
 from wheelcal.plan.budget import plan_budget
 from wheelcal.plan.fisher import bound_from_fisher, fisher_information
 
 #: Tilts of the trade-off table (the vertical wheel is added as its own row).
 DEFAULT_TILTS_DEG = (15.0, 30.0, 45.0, 60.0, 75.0, 85.0)
-OFFSET_NAMES = tuple(f"offset_{a}_mps2" for a in AXES)
-GAIN_NAMES = tuple(f"gain_{a}" for a in AXES)
 
 
 @dataclass(frozen=True)
@@ -50,16 +48,8 @@ class TradeoffRow:
     gain_second_order: float  # largest |½f″σ²| over sources and axes
 
     def to_dict(self) -> dict:
-        """JSON-ready row."""
-        return {
-            "geometry": self.geometry,
-            "tilt_deg": self.tilt_deg,
-            "offset_std_mps2": self.offset_std_mps2,
-            "offset_systematic_mps2": self.offset_systematic_mps2,
-            "gain_std": self.gain_std,
-            "gain_systematic": self.gain_systematic,
-            "gain_second_order": self.gain_second_order,
-        }
+        """JSON-ready row: the fields, in order."""
+        return asdict(self)
 
 
 def tradeoff_row(setup: PlannedSetup, stride: int | None = None) -> TradeoffRow:

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from wheelcal.model import CalibrationParams, evaluate
+from wheelcal.model import CalibrationParams, ModelOutput, evaluate
 from wheelcal.model.kinematics import Kinematics, spin_kinematics
 from wheelcal.recording import Recording
 from wheelcal.simulate.simulator import Scenario
@@ -131,7 +131,6 @@ def simulate_session(
         free-spin window and the noise-free samples.
     """
     plan = plan or SessionPlan()
-    truth = scenario.truth
     rate = scenario.rate_hz
     duration = scenario.duration_s
     # Free-spin start on the sample grid, so its samples are the model's exactly.
@@ -141,18 +140,57 @@ def simulate_session(
     total = end + plan.stop_s + plan.rest_after_s
     t = np.arange(round(total * rate) + 1) / rate
 
-    # The free spin's motion: the truth's polynomial, or the scenario's physical motion.
+    edges = _free_spin_edges(scenario)
+    theta, omega, omega_dot, push, stop = _hand_phases(t, start, end, plan, edges)
+    free = (t >= start) & (t <= end)
+    # Phase 3 is exactly the model: its kinematics include the spin effects, if any.
+    inside_out = scenario.clean_output(t[free] - centre)
+    omega[free] = inside_out.kinematics.omega_radps
+    omega_dot[free] = inside_out.kinematics.omega_dot_radps2
+    shake = _hand_shakes(~free, (push, stop), rate, plan, rng)
+    outside_kinematics = Kinematics(theta[~free], omega[~free], omega_dot[~free])
+    clean, sensed = _session_output(
+        scenario, t - centre, free, inside_out, outside_kinematics, shake
+    )
+
+    # Bearings and road vibrate in proportion to the speed, fully above 2 rad/s.
+    envelope = np.minimum(1.0, np.abs(omega) / 2.0)
+    recording = scenario.record(
+        t, clean, rng, epoch_unix_ns, source, envelope, omega_radps=omega, sensed_mps2=sensed
+    )
+    return SimulatedFullSession(
+        recording=recording,
+        truth=scenario.truth,
+        window_s=(float(start), float(end)),
+        clean_mps2=clean,
+        omega_radps=omega,
+        omega_dot_radps2=omega_dot,
+        scenario=scenario,
+        plan=plan,
+    )
+
+
+def _free_spin_edges(scenario: Scenario) -> Kinematics:
+    """The free spin's motion at its two ends (centred times ∓D/2).
+
+    The motion is the truth's polynomial, or the scenario's physical motion.
+    """
+    ends = np.array([-scenario.duration_s / 2, scenario.duration_s / 2])
     if scenario.motion is not None:
-        motion = scenario.motion.kinematics
-    else:
+        return scenario.motion.kinematics(ends)
+    return spin_kinematics(scenario.truth.spin, ends)
 
-        def motion(tc: np.ndarray) -> Kinematics:
-            return spin_kinematics(truth.spin, tc)
 
-    edges = motion(np.array([-duration / 2, duration / 2]))
+def _hand_phases(
+    t: np.ndarray, start: float, end: float, plan: SessionPlan, edges: Kinematics
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """ϑ, ω, ω̇ of the rests, the push and the brake, and the push's and the brake's samples.
+
+    The free spin [start, end] is left at zero, for the model to fill; ``edges`` is
+    the free spin's motion at its two ends (centred times ∓D/2).
+    """
     omega_s, omega_e = (float(x) for x in edges.omega_radps)
     theta_s, theta_e = (float(x) for x in edges.theta_rad)
-
     theta = np.zeros_like(t)
     omega = np.zeros_like(t)
     omega_dot = np.zeros_like(t)
@@ -176,49 +214,49 @@ def simulate_session(
     theta[stop] = theta_e + omega_e * plan.stop_s * (x - integral)
     rest2 = t > end + plan.stop_s
     theta[rest2] = theta_e + omega_e * plan.stop_s / 2
+    return theta, omega, omega_dot, push, stop
 
-    free = (t >= start) & (t <= end)
-    outside = ~free
-    # Phase 3 is exactly the model: its kinematics include the spin effects, if any.
-    inside_out = scenario.clean_output(t[free] - centre)
-    inside = inside_out.kinematics
-    omega[free] = inside.omega_radps
-    omega_dot[free] = inside.omega_dot_radps2
-    bench = truth.bench
+
+def _hand_shakes(
+    outside: np.ndarray,
+    phases: tuple[np.ndarray, ...],
+    rate_hz: float,
+    plan: SessionPlan,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """The hand's shake at the samples ``outside`` the free spin: one burst per phase, in order."""
     shake = np.zeros((int(outside.sum()), 3))
-    for phase in (push, stop):
+    for phase in phases:
         rows = np.flatnonzero(phase[outside])
-        shake[rows] = _hand_shake(rows.size, rate, plan, rng)
-    clean = np.empty((t.size, 3))
-    sensed = np.empty((t.size, 3))
-    # Eq. (4)–(5) with the phase's own ϑ, ω, ω̇; the sensor's effects (a warm-up, a
-    # nonlinearity …) act in every phase, the spin's only in the free spin.  The
-    # hand's shake is a bench-frame force, sensed like any other.
+        shake[rows] = _hand_shake(rows.size, rate_hz, plan, rng)
+    return shake
+
+
+def _session_output(
+    scenario: Scenario,
+    t_centred_s: np.ndarray,
+    free: np.ndarray,
+    inside_out: ModelOutput,
+    outside_kinematics: Kinematics,
+    shake: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Noise-free v(t) and the true specific force R a at every sample.
+
+    Eq. (4)–(5) with the phase's own ϑ, ω, ω̇; the sensor's effects (a warm-up, a
+    nonlinearity …) act in every phase, the spin's only in the free spin.  The
+    hand's shake is a bench-frame force, sensed like any other.
+    """
+    truth = scenario.truth
+    outside = ~free
     sensor_effects = tuple(e for e in scenario.effects if e.stage == "sensor")
     outside_out = evaluate(
-        truth,
-        t[outside] - centre,
-        effects=sensor_effects,
-        kinematics=Kinematics(theta[outside], omega[outside], omega_dot[outside]),
+        truth, t_centred_s[outside], effects=sensor_effects, kinematics=outside_kinematics
     )
-    shake_sensed = shake @ bench.misalignment.matrix.T
+    shake_sensed = shake @ truth.bench.misalignment.matrix.T
+    clean = np.empty((free.size, 3))
+    sensed = np.empty((free.size, 3))
     sensed[outside] = outside_out.sensed_mps2 + shake_sensed
     clean[outside] = outside_out.predicted_mps2 + truth.sensor.gain * shake_sensed
     sensed[free] = inside_out.sensed_mps2
     clean[free] = inside_out.predicted_mps2  # Phase 3: exactly the model
-
-    # Bearings and road vibrate in proportion to the speed, fully above 2 rad/s.
-    envelope = np.minimum(1.0, np.abs(omega) / 2.0)
-    recording = scenario.record(
-        t, clean, rng, epoch_unix_ns, source, envelope, omega_radps=omega, sensed_mps2=sensed
-    )
-    return SimulatedFullSession(
-        recording=recording,
-        truth=truth,
-        window_s=(float(start), float(end)),
-        clean_mps2=clean,
-        omega_radps=omega,
-        omega_dot_radps2=omega_dot,
-        scenario=scenario,
-        plan=plan,
-    )
+    return clean, sensed

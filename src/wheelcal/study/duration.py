@@ -76,31 +76,24 @@ class PrecisionPoint:
     static_no_settle_std: np.ndarray
 
 
-def precision_point(
-    base: Scenario,
-    duration_s: float,
-    rate_hz: float,
-    sigma_mps2: float,
-    start_radps: float,
-    end_radps_at_90s: float,
-    poses: int,
-    settle_s: float,
-) -> PrecisionPoint:
-    """Wheel CRLB and static bound (with and without settle time) at one (T, rate)."""
-    scenario = drag_scenario(base, duration_s, rate_hz, sigma_mps2, start_radps, end_radps_at_90s)
+def precision_point(scenario: Scenario, poses: int, settle_s: float) -> PrecisionPoint:
+    """Wheel CRLB and static bound (with and without settle time) at one (T, rate).
+
+    ``scenario`` is a :func:`drag_scenario`: its duration, rate, white noise and
+    sensor are the static plan's too.
+    """
     bound = scenario_bound(scenario)
     wheel = np.array([bound.std_of(n) for n in SENSOR_NAMES])
-    noise = NoiseSpec(sigma_mps2)
 
     def static(settle: float) -> np.ndarray:
-        plan = StaticPlan(duration_s, rate_hz, poses=poses, settle_s=settle)
+        plan = StaticPlan(scenario.duration_s, scenario.rate_hz, poses=poses, settle_s=settle)
         if not plan.feasible:
             return np.full(len(SENSOR_NAMES), np.nan)
-        return np.sqrt(np.diag(static_bound(base.truth.sensor, plan, noise)))
+        return np.sqrt(np.diag(static_bound(scenario.truth.sensor, plan, scenario.noise)))
 
     return PrecisionPoint(
-        duration_s=float(duration_s),
-        rate_hz=float(rate_hz),
+        duration_s=scenario.duration_s,
+        rate_hz=scenario.rate_hz,
         wheel_std=wheel,
         static_std=static(settle_s),
         static_no_settle_std=static(0.0),

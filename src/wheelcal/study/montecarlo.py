@@ -59,6 +59,12 @@ def group_of(name: str) -> str:
     return "other"
 
 
+def group_means(names: Sequence[str], values: np.ndarray) -> dict[str, float]:
+    """Average of a per-parameter quantity (in ``names`` order) over each group present."""
+    groups = np.array([group_of(n) for n in names])
+    return {g: float(np.mean(values[groups == g])) for g in PARAMETER_GROUPS if np.any(groups == g)}
+
+
 @dataclass(frozen=True, eq=False)
 class MonteCarloSummary:
     """Per-parameter statistics of an estimator over noise realisations."""
@@ -102,10 +108,7 @@ class MonteCarloSummary:
 
     def group_mean(self, values: np.ndarray) -> dict[str, float]:
         """Average of a per-parameter quantity over each parameter group."""
-        groups = np.array([group_of(n) for n in self.names])
-        return {
-            g: float(np.mean(values[groups == g])) for g in PARAMETER_GROUPS if np.any(groups == g)
-        }
+        return group_means(self.names, values)
 
     def table(self) -> list[dict]:
         """One row per parameter, for JSON/CSV."""

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.study.montecarlo import PARAMETER_GROUPS, MonteCarloSummary, group_of
+from wheelcal.study.montecarlo import MonteCarloSummary, group_means, group_of
 from wheelcal.study.origin import shift_summary
 
 #: Groups normalised by 1 instead of |v_true| (paper, footnote 1 of Fig. 8).
@@ -112,10 +112,7 @@ class LevelStats:
 
     def group_mean(self, values: np.ndarray) -> dict[str, float]:
         """Average over each of the paper's groups (as in Fig. 7–8)."""
-        groups = np.array(self.groups)
-        return {
-            g: float(np.mean(values[groups == g])) for g in PARAMETER_GROUPS if np.any(groups == g)
-        }
+        return group_means(self.names, values)
 
     def value(self, quantity: str, name: str) -> float:
         """One entry of a per-parameter property, e.g. ``value("std", "gain_x")``."""

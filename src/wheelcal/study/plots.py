@@ -46,6 +46,23 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
+def _group_panels():
+    """Figure and axes of Fig. 7 and 8: one panel per parameter group, σ_n along x."""
+    return _pyplot().subplots(1, len(PARAMETER_GROUPS), figsize=(18, 3.8), sharex=True)
+
+
+def _finished_group_panels(fig, axes, ylabel: str, legend_loc: str, title: str) -> bytes:
+    """The PNG of :func:`_group_panels` once drawn: group titles, σ_n label, grids, legend."""
+    for ax, group in zip(axes, PARAMETER_GROUPS, strict=True):
+        ax.set_title(_GROUP_TITLES[group], fontsize=9)
+        ax.set_xlabel("σ_n (m/s²)")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel(ylabel)
+    axes[0].legend(fontsize=7, loc=legend_loc)
+    fig.suptitle(title, fontsize=11)
+    return _png(fig)
+
+
 def _series(result: StudyResult, estimator: str, quantity: str, group: str):
     levels = result.sweep.get(estimator, ())
     x = np.array([s.sigma_mps2 for s in levels])
@@ -59,8 +76,7 @@ def figure_mean_deviation(result: StudyResult, limit_pct: float = 1.0) -> bytes:
     Linear axes to ±``limit_pct`` (4× the paper's ±0.25 % criterion); points
     beyond are drawn at the edge as triangles pointing off-scale.
     """
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, len(PARAMETER_GROUPS), figsize=(18, 3.8), sharex=True)
+    fig, axes = _group_panels()
     joint = result.sweep["joint"]
     for ax, group in zip(axes, PARAMETER_GROUPS, strict=True):
         sig = np.array([s.sigma_mps2 for s in joint])
@@ -86,19 +102,18 @@ def figure_mean_deviation(result: StudyResult, limit_pct: float = 1.0) -> bytes:
         ax.axhline(-0.25, color="k", lw=0.6, ls=":", label="±0.25 % (paper)")
         ax.set_xscale("log")
         ax.set_ylim(-1.08 * limit_pct, 1.08 * limit_pct)
-        ax.set_title(_GROUP_TITLES[group], fontsize=9)
-        ax.set_xlabel("σ_n (m/s²)")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("normalised deviation (%)")
-    axes[0].legend(fontsize=7, loc="lower left")
-    fig.suptitle("Mean of the estimates (paper Fig. 7), Table I truth; ▲▼ = off scale", fontsize=11)
-    return _png(fig)
+    return _finished_group_panels(
+        fig,
+        axes,
+        "normalised deviation (%)",
+        "lower left",
+        "Mean of the estimates (paper Fig. 7), Table I truth; ▲▼ = off scale",
+    )
 
 
 def figure_normalised_std(result: StudyResult) -> bytes:
     """Fig. 8: normalised σ against σ_n per group, CRLB on the same axes."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, len(PARAMETER_GROUPS), figsize=(18, 3.8), sharex=True)
+    fig, axes = _group_panels()
     for ax, group in zip(axes, PARAMETER_GROUPS, strict=True):
         for estimator in result.sweep:
             x, y = _series(result, estimator, "normalised_std", group)
@@ -106,13 +121,13 @@ def figure_normalised_std(result: StudyResult) -> bytes:
             ax.loglog(x, y, marker=st["marker"], color=st["color"], label=st["label"], ms=4)
         x, y = _series(result, "joint", "crlb_normalised_std", group)
         ax.loglog(x, y, color="k", ls="--", lw=1, label="CRLB")
-        ax.set_title(_GROUP_TITLES[group], fontsize=9)
-        ax.set_xlabel("σ_n (m/s²)")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("σ / μ  (gain, offset: σ)")
-    axes[0].legend(fontsize=7, loc="upper left")
-    fig.suptitle("Spread of the estimates (paper Fig. 8), Table I truth", fontsize=11)
-    return _png(fig)
+    return _finished_group_panels(
+        fig,
+        axes,
+        "σ / μ  (gain, offset: σ)",
+        "upper left",
+        "Spread of the estimates (paper Fig. 8), Table I truth",
+    )
 
 
 def figure_static(result: StudyResult) -> bytes:

@@ -443,6 +443,44 @@ def summary_markdown(result: StudyResult, command: str | None = None) -> str:
         "joint = wheelcal's joint ML fit; CRLB = Cramér–Rao bound at the truth.",
         "",
     ]
+    lines += _table1_markdown(result, doc)
+    lines += _ratios_markdown(doc)
+    lines += _static_markdown(doc)
+    d = result.config.duration
+    lines += _precision_markdown(
+        f"Recording length (σ_n = {d.sigma_mps2:g} m/s², {d.base_rate_hz:g} Hz; mean over axes)",
+        "T (s)",
+        "duration_s",
+        doc["duration"]["points"],
+    )
+    lines += [""]
+    lines += _precision_markdown(
+        f"Sampling rate ({d.base_duration_s:g} s)", "rate (Hz)", "rate_hz", doc["rate"]["points"]
+    )
+    if doc["checks"]:
+        lines += [
+            "",
+            "## Monte Carlo checks of the CRLB prediction (joint σ / CRLB, mean over axes)",
+            "",
+            "| T (s) | rate (Hz) | runs | offsets | gains |",
+            "|---|---|---|---|---|",
+        ]
+        for c in doc["checks"]:
+            r = {
+                g: np.mean(_group_values(c["parameters"], g, "joint_over_crlb"))
+                for g in _SENSOR_GROUPS
+            }
+            lines.append(
+                f"| {c['duration_s']:g} | {c['rate_hz']:g} | {c['runs']} "
+                f"| {r['offset']:.2f} | {r['gain']:.2f} |"
+            )
+    lines += _findings_markdown(doc)
+    return "\n".join(lines)
+
+
+def _table1_markdown(result: StudyResult, doc: dict) -> list[str]:
+    """One Table I per noise level: truth, paper, paper method, joint fit, CRLB."""
+    lines = []
     for sigma, rows in doc["table1"].items():
         runs = {e: result.level(e, float(sigma)).runs for e in result.sweep}
         lines += [
@@ -461,7 +499,12 @@ def summary_markdown(result: StudyResult, command: str | None = None) -> str:
                 f"| {_pm(d['joint_mean'], d['joint_std'])} | {d['crlb_std']:.2g} |"
             )
         lines.append("")
-    lines += [
+    return lines
+
+
+def _ratios_markdown(doc: dict) -> list[str]:
+    """The spread ratios per parameter group, averaged over the noise levels."""
+    lines = [
         "## Spread ratios per group (mean over σ_n levels)",
         "",
         "| group | paper method σ / joint σ | joint σ / CRLB | paper method σ / CRLB |",
@@ -478,7 +521,12 @@ def summary_markdown(result: StudyResult, command: str | None = None) -> str:
             f"| {g} | {_g(vals['paper_over_joint'])} | {_g(vals['joint_over_crlb'])} "
             f"| {_g(vals['paper_over_crlb'])} |"
         )
-    lines += ["", "## Six still poses against the wheel (same sensor, noise, total time)", ""]
+    return lines
+
+
+def _static_markdown(doc: dict) -> list[str]:
+    """Six still poses against the wheel, one table per Table I noise level."""
+    lines = ["", "## Six still poses against the wheel (same sensor, noise, total time)", ""]
     for c in doc["static"]:
         plan = c["plan"]
         lines += [
@@ -496,44 +544,25 @@ def summary_markdown(result: StudyResult, command: str | None = None) -> str:
                 f"| {_g(v['wheel_over_static'])} |"
             )
         lines.append("")
-    lines += [
-        f"## Recording length (σ_n = {result.config.duration.sigma_mps2:g} m/s², "
-        f"{result.config.duration.base_rate_hz:g} Hz; mean over axes)",
+    return lines
+
+
+def _precision_markdown(title: str, column: str, key: str, points: list[dict]) -> list[str]:
+    """Wheel and static σ of offsets and gains against one plan quantity (``key``)."""
+    lines = [
+        f"## {title}",
         "",
-        "| T (s) | wheel offset σ (m/s²) | static offset σ | wheel gain σ | static gain σ |",
+        f"| {column} | wheel offset σ (m/s²) | static offset σ | wheel gain σ | static gain σ |",
         "|---|---|---|---|---|",
     ]
-    for p in doc["duration"]["points"]:
-        lines.append(f"| {p['duration_s']:g} | " + " | ".join(_group_means(p)) + " |")
-    lines += [
-        "",
-        f"## Sampling rate ({result.config.duration.base_duration_s:g} s)",
-        "",
-        "| rate (Hz) | wheel offset σ (m/s²) | static offset σ | wheel gain σ | static gain σ |",
-        "|---|---|---|---|---|",
-    ]
-    for p in doc["rate"]["points"]:
-        lines.append(f"| {p['rate_hz']:g} | " + " | ".join(_group_means(p)) + " |")
-    if doc["checks"]:
-        lines += [
-            "",
-            "## Monte Carlo checks of the CRLB prediction (joint σ / CRLB, mean over axes)",
-            "",
-            "| T (s) | rate (Hz) | runs | offsets | gains |",
-            "|---|---|---|---|---|",
-        ]
-        for c in doc["checks"]:
-            r = {
-                g: np.mean(
-                    [v["joint_over_crlb"] for n, v in c["parameters"].items() if group_of(n) == g]
-                )
-                for g in _SENSOR_GROUPS
-            }
-            lines.append(
-                f"| {c['duration_s']:g} | {c['rate_hz']:g} | {c['runs']} "
-                f"| {r['offset']:.2f} | {r['gain']:.2f} |"
-            )
-    lines += ["", "## Findings (paper's claims, measured)", ""]
+    for p in points:
+        lines.append(f"| {p[key]:g} | " + " | ".join(_group_means(p)) + " |")
+    return lines
+
+
+def _findings_markdown(doc: dict) -> list[str]:
+    """The paper's claims, measured, per estimator; ends the summary."""
+    lines = ["", "## Findings (paper's claims, measured)", ""]
     for e, f in doc["findings"].items():
         if f["max_abs_group_deviation_pct"]:
             dev = ", ".join(f"{g} {v:.3g} %" for g, v in f["max_abs_group_deviation_pct"].items())
@@ -548,13 +577,18 @@ def summary_markdown(result: StudyResult, command: str | None = None) -> str:
         weakest = sorted(set(f["weakest_group"].values()))
         lines.append(f"  Largest normalised σ (weakest group): {', '.join(weakest)}.")
     lines.append("")
-    return "\n".join(lines)
+    return lines
 
 
 def _group_means(point: dict) -> list[str]:
     out = []
     for g in _SENSOR_GROUPS:
         for q in ("wheel_crlb_std", "static_std"):
-            vals = [v[q] for n, v in point["parameters"].items() if group_of(n) == g]
+            vals = _group_values(point["parameters"], g, q)
             out.append(_g(None if any(v is None for v in vals) else float(np.mean(vals))))
     return out
+
+
+def _group_values(parameters: dict, group: str, key: str) -> list:
+    """``key`` of every parameter of ``group`` in a ``{name: {key: value}}`` table."""
+    return [v[key] for n, v in parameters.items() if group_of(n) == group]

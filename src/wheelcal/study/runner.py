@@ -143,7 +143,7 @@ def _check_points(config: StudyConfig) -> list[tuple[float, float]]:
     return list(dict.fromkeys(points))  # no duplicates, order kept
 
 
-def _check_scenario(config: StudyConfig, base: Scenario, duration_s: float, rate_hz: float):
+def _drag_scenario(config: StudyConfig, base: Scenario, duration_s: float, rate_hz: float):
     d = config.duration
     return drag_scenario(base, duration_s, rate_hz, d.sigma_mps2, d.start_radps, d.end_radps_at_90s)
 
@@ -157,7 +157,7 @@ def _check_tasks(config: StudyConfig, base: Scenario) -> list[tuple[tuple, FitTa
     # Longest recordings first.
     points = sorted(_check_points(config), key=lambda p: -p[0] * p[1])
     for j, (duration, rate) in enumerate(points):
-        scenario = _check_scenario(config, base, duration, rate)
+        scenario = _drag_scenario(config, base, duration, rate)
         for k in range(d.check_realisations):
             seed = seed_for(config.seed, _CHECK_STREAM, j, k)
             out.append((("check", duration, rate), (scenario, joint, seed)))
@@ -194,104 +194,25 @@ def run_study(config: StudyConfig, progress: StudyProgress | None = None) -> Stu
     for (key, _), outcome in zip(keyed, outcomes, strict=True):
         grouped.setdefault(key, []).append(outcome)
 
-    levels = config.noise_sweep.sigma_levels_mps2()
-    check_points = _check_points(config) if config.duration.check_realisations else []
-    durations = config.duration.durations_s
-    rates = config.duration.rates_hz
-    total = len(levels) + len(check_points) + len(durations) + len(rates)
-    done = 0
-    sweep: dict[str, list[LevelStats]] = {e: [] for e in ESTIMATORS}
-    for sigma in levels:
-        bound = scenario_bound(scenarios[sigma])
-        for estimator in ESTIMATORS:
-            runs = grouped.get(("sweep", estimator, sigma))
-            if runs:
-                summary = summarise(bound, runs)
-                sweep[estimator].append(
-                    level_stats(estimator, sigma, summary, bound.covariance, base.duration_s)
-                )
-        done += 1
-        report("bounds", done, total)
-
-    static_cfg = config.static
-    rng = np.random.default_rng(seed_for(config.seed, _STATIC_STREAM))
-    checks = []
-    for duration, rate in check_points:
-        scenario = _check_scenario(config, base, duration, rate)
-        summary = summarise(scenario_bound(scenario), grouped[("check", duration, rate)])
-        idx = [summary.names.index(n) for n in SENSOR_NAMES]
-        plan = StaticPlan(
-            duration, rate, static_cfg.poses, static_cfg.settle_s, static_cfg.pose_error_deg
-        )
-        static_mc = (
-            static_monte_carlo(
-                base.truth.sensor,
-                plan,
-                NoiseSpec(config.duration.sigma_mps2),
-                static_cfg.realisations,
-                rng,
-            )
-            if plan.feasible
-            else None
-        )
-        checks.append(
-            CheckPoint(
-                duration_s=duration,
-                rate_hz=rate,
-                runs=summary.runs,
-                failures=summary.failures,
-                joint_std=summary.observed_std[idx],
-                crlb_std=summary.crlb_std[idx],
-                static=static_mc,
-            )
-        )
-        done += 1
-        report("bounds", done, total)
-
     d = config.duration
-
-    def point(duration: float, rate: float) -> PrecisionPoint:
-        nonlocal done
-        out = precision_point(
-            base,
-            duration,
-            rate,
-            d.sigma_mps2,
-            d.start_radps,
-            d.end_radps_at_90s,
-            static_cfg.poses,
-            static_cfg.settle_s,
-        )
-        done += 1
-        report("bounds", done, total)
-        return out
-
-    duration_points = tuple(point(t, d.base_rate_hz) for t in durations)
-    rate_points = tuple(point(d.base_duration_s, r) for r in rates)
-
-    comparisons = []
+    levels = config.noise_sweep.sigma_levels_mps2()
+    check_points = _check_points(config) if d.check_realisations else []
+    total = len(levels) + len(check_points) + len(d.durations_s) + len(d.rates_hz)
+    tick = _ticker(report, "bounds", total)
+    sweep = _sweep(levels, scenarios, grouped, base.duration_s, tick)
+    rng = np.random.default_rng(seed_for(config.seed, _STATIC_STREAM))
+    checks = tuple(
+        _check(config, base, duration, rate, grouped[("check", duration, rate)], rng, tick)
+        for duration, rate in check_points
+    )
+    duration_points = tuple(
+        _precision(config, base, t, d.base_rate_hz, tick) for t in d.durations_s
+    )
+    rate_points = tuple(_precision(config, base, d.base_duration_s, r, tick) for r in d.rates_hz)
     table_levels = config.noise_sweep.table_levels_mps2
+    comparisons = []
     for i, sigma in enumerate(table_levels):
-        joint = next(s for s in sweep["joint"] if abs(s.sigma_mps2 - sigma) < 1e-9)
-        idx = [joint.names.index(n) for n in SENSOR_NAMES]
-        plan = StaticPlan(
-            base.duration_s,
-            base.rate_hz,
-            static_cfg.poses,
-            static_cfg.settle_s,
-            static_cfg.pose_error_deg,
-        )
-        mc = static_monte_carlo(
-            base.truth.sensor, plan, NoiseSpec(sigma), static_cfg.realisations, rng
-        )
-        comparisons.append(
-            StaticComparison(
-                sigma_mps2=sigma,
-                static=mc,
-                wheel_joint_std=joint.std[idx],
-                wheel_crlb_std=joint.crlb_std[idx],
-            )
-        )
+        comparisons.append(_static_comparison(config, base, sweep["joint"], sigma, rng))
         report("static", i + 1, len(table_levels))
 
     return StudyResult(
@@ -301,9 +222,121 @@ def run_study(config: StudyConfig, progress: StudyProgress | None = None) -> Stu
         static=tuple(comparisons),
         durations=duration_points,
         rates=rate_points,
-        checks=tuple(checks),
+        checks=checks,
         systematic=_systematic(base, seed_for(config.seed, _STATIC_STREAM, 1)),
         wall_s=time.perf_counter() - clock,
         fits=len(keyed),
         workers=workers,
+    )
+
+
+def _ticker(report: StudyProgress, stage: str, total: int) -> Callable[[], None]:
+    """A function that reports one more step of ``stage`` (of ``total``) each call."""
+    done = 0
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        report(stage, done, total)
+
+    return tick
+
+
+def _sweep(
+    levels: tuple[float, ...],
+    scenarios: dict[float, Scenario],
+    grouped: dict[tuple, list],
+    duration_s: float,
+    tick: Callable[[], None],
+) -> dict[str, list[LevelStats]]:
+    """Each estimator's statistics at every noise level it ran at (ascending σ_n)."""
+    sweep: dict[str, list[LevelStats]] = {e: [] for e in ESTIMATORS}
+    for sigma in levels:
+        bound = scenario_bound(scenarios[sigma])
+        for estimator in ESTIMATORS:
+            runs = grouped.get(("sweep", estimator, sigma))
+            if runs:
+                summary = summarise(bound, runs)
+                sweep[estimator].append(
+                    level_stats(estimator, sigma, summary, bound.covariance, duration_s)
+                )
+        tick()
+    return sweep
+
+
+def _static_plan(config: StudyConfig, duration_s: float, rate_hz: float) -> StaticPlan:
+    """The six still poses of ``config.static`` sharing ``duration_s`` at ``rate_hz``."""
+    s = config.static
+    return StaticPlan(duration_s, rate_hz, s.poses, s.settle_s, s.pose_error_deg)
+
+
+def _check(
+    config: StudyConfig,
+    base: Scenario,
+    duration_s: float,
+    rate_hz: float,
+    runs: list,
+    rng: np.random.Generator,
+    tick: Callable[[], None],
+) -> CheckPoint:
+    """The joint fit's Monte Carlo ``runs`` at one (T, rate) against the CRLB and the poses."""
+    summary = summarise(scenario_bound(_drag_scenario(config, base, duration_s, rate_hz)), runs)
+    idx = [summary.names.index(n) for n in SENSOR_NAMES]
+    plan = _static_plan(config, duration_s, rate_hz)
+    static_mc = (
+        static_monte_carlo(
+            base.truth.sensor,
+            plan,
+            NoiseSpec(config.duration.sigma_mps2),
+            config.static.realisations,
+            rng,
+        )
+        if plan.feasible
+        else None
+    )
+    tick()
+    return CheckPoint(
+        duration_s=duration_s,
+        rate_hz=rate_hz,
+        runs=summary.runs,
+        failures=summary.failures,
+        joint_std=summary.observed_std[idx],
+        crlb_std=summary.crlb_std[idx],
+        static=static_mc,
+    )
+
+
+def _precision(
+    config: StudyConfig,
+    base: Scenario,
+    duration_s: float,
+    rate_hz: float,
+    tick: Callable[[], None],
+) -> PrecisionPoint:
+    """Wheel CRLB and static bound at one (T, rate) of the duration sweep."""
+    scenario = _drag_scenario(config, base, duration_s, rate_hz)
+    point = precision_point(scenario, config.static.poses, config.static.settle_s)
+    tick()
+    return point
+
+
+def _static_comparison(
+    config: StudyConfig,
+    base: Scenario,
+    joint_levels: list[LevelStats],
+    sigma_mps2: float,
+    rng: np.random.Generator,
+) -> StaticComparison:
+    """Six still poses in Table I's time at one σ_n against the joint fit's sweep there."""
+    joint = next(s for s in joint_levels if abs(s.sigma_mps2 - sigma_mps2) < 1e-9)
+    idx = [joint.names.index(n) for n in SENSOR_NAMES]
+    plan = _static_plan(config, base.duration_s, base.rate_hz)
+    mc = static_monte_carlo(
+        base.truth.sensor, plan, NoiseSpec(sigma_mps2), config.static.realisations, rng
+    )
+    return StaticComparison(
+        sigma_mps2=sigma_mps2,
+        static=mc,
+        wheel_joint_std=joint.std[idx],
+        wheel_crlb_std=joint.crlb_std[idx],
     )

@@ -35,18 +35,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.model import STANDARD_GRAVITY_MPS2, SensorParams
+from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
 from wheelcal.model.rotation import exp_so3
 from wheelcal.simulate import NoiseSpec
 
 #: Names of the static method's parameters (a subset of the wheel's).
-STATIC_NAMES = (
-    "offset_x_mps2",
-    "offset_y_mps2",
-    "offset_z_mps2",
-    "gain_x",
-    "gain_y",
-    "gain_z",
-)
+STATIC_NAMES = (*OFFSET_NAMES, *GAIN_NAMES)
 
 
 @dataclass(frozen=True)

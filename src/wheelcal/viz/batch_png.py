@@ -26,16 +26,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from wheelcal.calibration.document import read_only_document
+from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
 
 OVERVIEW_FILE = "overview.png"
 MISSING_MATPLOTLIB = "matplotlib is not installed (pip install 'wheelcal[plots]')"
 PANEL_PARAMETERS = (
-    "gain_x",
-    "gain_y",
-    "gain_z",
-    "offset_x_mps2",
-    "offset_y_mps2",
-    "offset_z_mps2",
+    *GAIN_NAMES,
+    *OFFSET_NAMES,
     "tilt_deg",
     "euler_1_deg",
     "euler_2_deg",
