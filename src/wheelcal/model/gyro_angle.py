@@ -34,13 +34,24 @@ many times per heading change (a car) it averages out; a robot turning on the
 spot (ψ̇ large, ω small) would read it as a camber of ≈ m.  With ``cross``
 series (y cos ϑ, y sin ϑ at a previous fit's ϑ) the effect adds
 s (m_x C_x + m_y C_y), C = ∫ y (cos ϑ, sin ϑ) dt, and fits m (``cross_x``, ``cross_y``).
+
+**Its sensitivity to acceleration.**  A MEMS gyro reads ~0.1 °/s per g of
+specific force.  A robot's hub sensor at 2 g of centripetal force, or the
+lateral force of a turn, would turn that into an angle drift of the turn's
+shape — again read as a camber.  With the accelerometer's samples a(t) the
+effect adds s g·∫a dt with g fitted under a prior of that size (the effect's
+``prior_std_values``, which the fit adds as pseudo-observations).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.model.effects import SpinDelta, _SpinEffect
+from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, SpinDelta, _SpinEffect
+from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+
+#: The prior on the axle reading's sensitivity to acceleration, rad/s per m/s².
+G_PRIOR_RADPS_PER_MPS2 = np.deg2rad(G_SENSITIVITY_PRIOR_DPS_PER_G) / STANDARD_GRAVITY_MPS2
 
 
 def _integral(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
@@ -67,6 +78,10 @@ class GyroAngle(_SpinEffect):
     cross_radps:
         (2, N): y cos ϑ and y sin ϑ at a previous fit's ϑ — the axle reading's response
         to the yaw across it is then fitted (``cross_x``, ``cross_y``; module docstring).
+    accel_mps2:
+        (N, 3): the specific force in the sensor's frame (the accelerometer, smoothed) —
+        the axle reading's sensitivity to it, g = (``g_x``, ``g_y``, ``g_z``), is fitted
+        under the prior ``g_prior_std`` (rad/s per m/s²; a MEMS gyro's ~0.1 °/s/g).
     """
 
     name = "gyro_angle"
@@ -84,6 +99,8 @@ class GyroAngle(_SpinEffect):
         yaw_across_radps: np.ndarray | None = None,
         yaw_across_dot_radps2: np.ndarray | None = None,
         cross_radps: np.ndarray | None = None,
+        accel_mps2: np.ndarray | None = None,
+        g_prior_std: float = G_PRIOR_RADPS_PER_MPS2,
     ) -> None:
         t = np.asarray(time_s, dtype=float)
         if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
@@ -96,16 +113,30 @@ class GyroAngle(_SpinEffect):
         self.rate, self.rate_dot, self.yaw, self.yaw_dot = series
         self.angle = _integral(t, self.rate)
         self.yaw_angle = _integral(t, self.yaw)
-        self.cross = None
+        # Further rates the axle reading sees, each with a fitted coefficient:
+        # (name, (∫x dt, x, ẋ), prior σ).
+        self.terms: list[tuple[str, tuple, float]] = []
         if cross_radps is not None:
             cross = np.asarray(cross_radps, dtype=float)
             if cross.shape != (2, t.size) or not np.all(np.isfinite(cross)):
                 raise ValueError("cross_radps must be finite, (2, N)")
-            dots = np.gradient(cross, t, axis=1)
-            self.cross = [
-                (_integral(t, row), row, dot) for row, dot in zip(cross, dots, strict=True)
-            ]
-            self.param_names = ("scale", "cross_x", "cross_y")
+            for name, row in zip(("cross_x", "cross_y"), cross, strict=True):
+                self.terms.append((name, self._series(row), np.inf))
+        if accel_mps2 is not None:
+            accel = np.asarray(accel_mps2, dtype=float)
+            if accel.shape != (t.size, 3) or not np.all(np.isfinite(accel)):
+                raise ValueError("accel_mps2 must be finite, (N, 3)")
+            for name, row in zip(("g_x", "g_y", "g_z"), accel.T, strict=True):
+                self.terms.append((name, self._series(row), float(g_prior_std)))
+        self.param_names = ("scale", *(name for name, _, _ in self.terms))
+
+    def _series(self, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return _integral(self.time_s, rate), rate, np.gradient(rate, self.time_s)
+
+    def prior_std_values(self) -> np.ndarray | None:
+        """σ of the priors on the parameters (∞: none), or None without any."""
+        std = np.array([np.inf] + [prior for _, _, prior in self.terms])
+        return std if np.any(np.isfinite(std)) else None
 
     def settings(self) -> dict:
         """The gyro's rate over the window (reports only)."""
@@ -130,11 +161,9 @@ class GyroAngle(_SpinEffect):
         base = [self._at(t, x) for x in (self.angle, self.rate, self.rate_dot)]
         yaw = [self._at(t, x) for x in (self.yaw_angle, self.yaw, self.yaw_dot)]
         total = [b + cot * y for b, y in zip(base, yaw, strict=True)]
-        cross = []
-        if self.cross is not None:  # (C, dC/dt, d²C/dt²) of each of m_x, m_y
-            cross = [[self._at(t, x) for x in series] for series in self.cross]
-            for m, series in zip(values[1:3], cross, strict=True):
-                total = [x + float(m) * c for x, c in zip(total, series, strict=True)]
+        cross = [[self._at(t, x) for x in series] for _, series, _ in self.terms]
+        for m, series in zip(values[1:], cross, strict=True):
+            total = [x + float(m) * c for x, c in zip(total, series, strict=True)]
         if not jacobian:
             return SpinDelta(*(scale * x for x in total))
         d_cot = -1.0 / np.sin(tilt_rad) ** 2  # ∂ cot α / ∂α

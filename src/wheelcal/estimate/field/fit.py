@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.field.gyro_axle import GyroAxle, gyro_axle, yaw_across
+from wheelcal.estimate.field.gyro_axle import GyroAxle, gyro_axle, smoothed_accel, yaw_across
 from wheelcal.estimate.field.start import field_start
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
@@ -44,8 +44,8 @@ from wheelcal.recording import Recording, RecordingError
 TRAVEL_Z = 5.0
 #: The yaw (rms, rad/s) above which the carrier turns: a rolling wheel's turns.
 YAW_RMS_RADPS = 0.01
-#: Knot spacing of the start's phase spline (s).
-START_KNOTS_S = 2.0
+#: The yaw's scale across the axle is fitted where the data give it to this σ.
+YAW_SCALE_PINNED = 0.01
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,7 @@ class FieldFit:
     fit_yaw_scale: bool = True
     fit_yaw_offset: bool = False
     fit_cross: bool = True
+    fit_g_sensitivity: bool = True
 
     def fit(self, window: Recording) -> FieldResult:
         """Calibrate ``window`` (a drive, stops included; its gyro on the same rows)."""
@@ -166,41 +167,54 @@ class FieldFit:
         return start, start.axle
 
     def _turns(self, window, tc, axle, travelled: CalibrationResult, radius_m) -> CalibrationResult:
-        """Pass 3: the yaw across the axle, the tilt free (module docstring)."""
+        """Pass 3: the yaw across the axle, the tilt free (module docstring).
+
+        The yaw is first taken as the gyro measures it (its scale across the axle as
+        along it); then its scale κ is fitted too, and kept only where the data pin it
+        (σ_κ below ``YAW_SCALE_PINNED``: a robot turning hard) — elsewhere κ trades
+        with the camber and the gains.
+        """
         params = travelled.params
-        layout = travelled.layout
-        theta = wheel_kinematics(params, tc, layout.effects).theta_rad
+        theta = wheel_kinematics(params, tc, travelled.layout.effects).theta_rad
         y, y_dot = yaw_across(tc, window.gyro_radps, axle, theta, params.bench.misalignment.matrix)
         scale = float(params.effect("gyro_angle", 1)[0])
         cross = np.vstack([y * np.cos(theta), y * np.sin(theta)]) if self.fit_cross else None
-        angle = GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross)
-        rolling = Rolling(
+        accel = smoothed_accel(tc, window.accel_mps2) if self.fit_g_sensitivity else None
+        angle = GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel)
+        held = Rolling(tc, scale * y, scale * y_dot, yaw_scale_free=False, yaw_across_axle=True)
+        effects = {
+            angle.name: [scale] + [0.0] * (angle.size - 1),
+            held.name: [float(params.effect(held.name, 1)[0])],
+        }
+        result = self._joint(radius_m, True, (angle, held)).fit(
+            window, initial=params.with_changes(effects=effects)
+        )
+        if result.params.bench.tilt_rad > np.pi / 2:
+            # Z came out pointing down (the start cannot tell up from down on a nearly
+            # vertical wheel): the same physics with the frame turned 180° about X —
+            # α → 180° − α, R → R·diag(1, −1, −1), ϑ → −ϑ (the gyro's axle from its other end).
+            axle = axle.flipped()
+            angle = GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel)
+            twin = _turned(result.params, angle.name)
+            result = self._joint(radius_m, True, (angle, held)).fit(window, initial=twin)
+        if not self.fit_yaw_scale:
+            return result
+        free = Rolling(
             tc,
             scale * y,
             scale * y_dot,
-            yaw_scale_free=self.fit_yaw_scale,
             yaw_across_axle=True,
             yaw_offset_free=self.fit_yaw_offset,
         )
-        rho = float(params.effect(rolling.name, 1)[0])
-        scale = float(params.effect(angle.name, 1)[0])
-        effects = {
-            angle.name: [scale, 0.0, 0.0][: angle.size],
-            rolling.name: [rho, 1.0, 0.0][: rolling.size],
-        }
-        params = params.with_changes(effects=effects)
-        joint = self._joint(radius_m, True, (angle, rolling))
-        result = joint.fit(window, initial=params)
-        if result.params.bench.tilt_rad <= np.pi / 2:
-            return result
-        # Z came out pointing down (the start cannot tell up from down on a nearly vertical
-        # wheel): the same physics seen with the frame turned 180° about X — α → 180° − α,
-        # R → R·diag(1, −1, −1), ϑ → −ϑ (the gyro's axle from its other end).
-        flipped = axle.flipped()
-        angle = GyroAngle(tc, flipped.rate_radps, flipped.rate_dot_radps2, y, y_dot, cross)
-        twin = _turned(result.params, angle.name)
-        joint = self._joint(radius_m, True, (angle, rolling))
-        return joint.fit(window, initial=twin)
+        rho = float(result.params.effect(held.name, 1)[0])
+        effects = {**result.params.effects, free.name: [rho, 1.0, 0.0][: free.size]}
+        refined = self._joint(radius_m, True, (angle, free)).fit(
+            window, initial=result.params.with_changes(effects=effects)
+        )
+        pinned = refined.std_of("rolling.yaw_scale") < YAW_SCALE_PINNED
+        if pinned and refined.params.bench.tilt_rad <= np.pi / 2:
+            return refined
+        return result
 
 
 def _turned(params: CalibrationParams, angle_name: str) -> CalibrationParams:

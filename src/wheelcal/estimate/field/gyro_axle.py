@@ -43,6 +43,14 @@ def _lowpass(x: np.ndarray, rate_hz: float, band_hz: float) -> np.ndarray:
     return signal.sosfiltfilt(sos, x, axis=0)
 
 
+def smoothed_accel(time_s: np.ndarray, accel_mps2: np.ndarray) -> np.ndarray:
+    """The accelerometer low-passed at ``RATE_BAND_HZ``: the force the gyro feels."""
+    t = np.asarray(time_s, dtype=float)
+    return _lowpass(
+        np.asarray(accel_mps2, dtype=float), 1.0 / float(np.median(np.diff(t))), RATE_BAND_HZ
+    )
+
+
 def gyro_axle(time_s: np.ndarray, gyro_radps: np.ndarray) -> GyroAxle | None:
     """The axle from the gyro's samples (one row per time), or None if the wheel never turns."""
     t = np.asarray(time_s, dtype=float)

@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.information import fisher_covariance
+from wheelcal.estimate.joint.information import covariance_from_fisher, fisher_covariance
 from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.normal_equations import effect_priors
 from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
 
@@ -59,7 +60,13 @@ def cramer_rao_bound(
     layout = layout or ParameterLayout(spin_degree=params.spin.degree)
     out = evaluate(params, t_s, layout, jacobian=True)
     _, jw = noise.whiten(np.zeros_like(out.predicted_mps2), out.jacobian)
-    cov, fisher = fisher_covariance(jw)
+    prior = effect_priors(params, layout)
+    if prior is None:
+        cov, fisher = fisher_covariance(jw)
+    else:  # the effects' priors add their information (a Bayesian bound)
+        flat = jw.reshape(jw.shape[0], -1)
+        fisher = flat @ flat.T + np.diag(prior[2])
+        cov = covariance_from_fisher(fisher)
     names, values, g = report_transform(params, layout)
     return Bound(names=names, values=values, covariance=transform_covariance(g, cov), fisher=fisher)
 

@@ -104,6 +104,49 @@ def local_view(
     return LocalView(local, local_params, index)
 
 
+def effect_priors(
+    params: CalibrationParams, layout: ParameterLayout
+) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """The effects' Gaussian priors (zero mean): cost Σ x²/σ², gradient x/σ², information 1/σ².
+
+    An effect with ``prior_std_values()`` (σ per parameter, ∞ for none) — e.g. a
+    gyro's sensitivity to acceleration of its sensor class — adds them once per
+    stream, as pseudo-observations; gradient and information are over the layout.
+    """
+    found = False
+    cost, grad, info = 0.0, np.zeros(layout.size), np.zeros(layout.size)
+    for effect in layout.effects:
+        std = getattr(effect, "prior_std_values", lambda: None)()
+        if std is None:
+            continue
+        found = True
+        block = layout.blocks[f"effect:{effect.name}"]
+        x = np.asarray(params.effect(effect.name, effect.size), dtype=float)
+        weight = 1.0 / np.asarray(std, dtype=float) ** 2
+        cost += float(np.sum(weight * x * x))
+        grad[block] += weight * x
+        info[block] += weight
+    return (cost, grad, info) if found else None
+
+
+def _with_priors(
+    normal: NormalEquations, params: CalibrationParams, layout: ParameterLayout
+) -> NormalEquations:
+    prior = effect_priors(params, layout)
+    if prior is None:
+        return normal
+    cost, grad, info = prior
+    hess, gradient = normal.hessian, normal.gradient
+    if gradient is not None:
+        gradient = gradient.copy()
+        gradient[: layout.size] += grad
+    if hess is not None:
+        hess = hess.copy()
+        index = np.arange(layout.size)
+        hess[index, index] += info
+    return NormalEquations(normal.cost + cost, hess, gradient, normal.entries)
+
+
 def accumulate(
     params: CalibrationParams,
     t_s: np.ndarray,
@@ -154,7 +197,8 @@ def accumulate(
             grad[index] += gram[:-1, -1]
         cost += float(gram[-1, -1])
         entries += rows
-    return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
+    normal = NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
+    return _with_priors(normal, params, layout)
 
 
 def _filled_buffer(
@@ -364,7 +408,8 @@ def gradient_pass(
             grad += jacobian_transpose_times(params, t_s[lo:stop], layout, u, out)
         else:
             grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
-    return NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
+    normal = NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
+    return _with_priors(normal, params, layout)
 
 
 def whitened_back(
