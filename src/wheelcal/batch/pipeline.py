@@ -42,9 +42,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from wheelcal.estimate.joint.fit import GEOMETRY_MODES
 from wheelcal.recording import SESSION_FACT_KEYS
-from wheelcal.session.compute import SessionOptions
+from wheelcal.session.compute import SESSION_GEOMETRIES, SessionOptions
 from wheelcal.session.gates import Gates
 
 
@@ -123,7 +122,7 @@ _SECTIONS: dict[str, dict[str, _Key]] = {
         "closure": _BOOL,
         "alpha": _Key("number", "a number in (0, 1)", lambda v: 0 < v < 1),
         "rerun": _BOOL,
-        "geometry": _choice(*GEOMETRY_MODES),
+        "geometry": _choice(*SESSION_GEOMETRIES),
         "known_tilt_deg": _Key("number", "a number in [0, 90] (°)", lambda v: 0 <= v <= 90),
         "tilt_std_deg": _Key("number", "a number >= 0 (°)", lambda v: v >= 0),
         "gyro": _choice("auto", "on", "off"),
@@ -362,7 +361,7 @@ def _session_options(path: str, data: dict) -> SessionOptions:
     try:
         return SessionOptions(
             topic=data.get("inputs", {}).get("topic"),
-            geometry=run.get("geometry", "radius"),
+            geometry=run.get("geometry", "auto"),
             known_tilt_deg=run.get("known_tilt_deg"),
             tilt_std_deg=run.get("tilt_std_deg", 0.5),
             rrd=bool(run.get("rerun", False)),

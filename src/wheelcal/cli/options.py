@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from wheelcal.cli.errors import UsageError
+from wheelcal.session.compute import SESSION_GEOMETRIES
 
 
 def positive_float(text: str) -> float:
@@ -63,11 +64,13 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     m = parser.add_argument_group("geometry")
     m.add_argument(
         "--geometry",
-        choices=("radius", "tilt", "vertical", "rolling"),
-        default="radius",
-        help="what is known: the radius (default), the tilt (--tilt-deg), a vertical wheel, or "
-        "a vertical wheel rolling on level ground (a robot's or car's; needs the gyroscope and "
-        "--radius, the sensor's distance from the axle; fits the rolling radius)",
+        choices=SESSION_GEOMETRIES,
+        default="auto",
+        help="auto (default): read from the data — a bench's free spin (needs --radius), or, "
+        "with a gyroscope, a wheel rolling in the field (car, robot, wheelchair: vertical or "
+        "cambered, the sensor's radius fitted) or a vertical wheel on a stand; or say what is "
+        "known: the radius, the tilt (--tilt-deg), a vertical wheel, or a vertical wheel "
+        "rolling on level ground with --radius (the spline fit of earlier versions)",
     )
     m.add_argument(
         "--model",

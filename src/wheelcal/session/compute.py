@@ -29,6 +29,8 @@ from wheelcal.session.result import SessionResult
 EARTH_GRAVITY_RANGE_MPS2 = (9.7, 9.9)
 #: What a calibration fits: the closed loop's final model, or the paper's bare model.
 MODELS = ("closed_loop", "paper")
+#: ``--geometry``: "auto" (read from the data, :mod:`wheelcal.session.auto`) or a JointFit mode.
+SESSION_GEOMETRIES = ("auto", "radius", "tilt", "vertical", "rolling")
 
 
 @dataclass(frozen=True)
@@ -50,7 +52,7 @@ class SessionOptions:
     mounting_id: str | None = None
     start_s: float | None = None
     end_s: float | None = None
-    geometry: str = "radius"
+    geometry: str = "auto"
     known_tilt_deg: float | None = None
     tilt_std_deg: float = 0.5
     rrd: bool = False
@@ -110,6 +112,10 @@ class SessionOptions:
             raise ValueError("diagnose runs the closed loop: it cannot use --model paper")
         if self.accel_unit not in (None, "m/s^2", "g"):
             raise ValueError(f"--accel-unit must be 'm/s^2' or 'g', got {self.accel_unit!r}")
+        if self.geometry not in SESSION_GEOMETRIES:
+            raise ValueError(
+                f"--geometry must be one of {', '.join(SESSION_GEOMETRIES)}, got {self.geometry!r}"
+            )
         if self.geometry == "tilt" and self.known_tilt_deg is None:
             raise ValueError("--geometry tilt needs --tilt-deg")
         if self.gyro not in ("auto", "on", "off"):
@@ -129,7 +135,7 @@ class SessionOptions:
     def fitter(self) -> JointFit:
         """The joint-fit configuration for these options."""
         return JointFit(
-            geometry=self.geometry,
+            geometry="radius" if self.geometry == "auto" else self.geometry,
             known_tilt_deg=self.known_tilt_deg,
             tilt_std_deg=self.tilt_std_deg,
             use_gyro=self.geometry == "rolling",  # the yaw rate comes from the gyro
@@ -188,6 +194,11 @@ def compute_recording(
     """Calibrate a recording already read and checked (see :func:`compute_session`)."""
     timings = dict(timings or {})
     t1 = time.perf_counter()
-    session = options.session_fit().run(recording)
+    if options.geometry == "auto":
+        from wheelcal.session.auto import calibrate_auto
+
+        session = calibrate_auto(recording, options)
+    else:
+        session = options.session_fit().run(recording)
     timings["fit"] = time.perf_counter() - t1
     return dataclasses.replace(session, timings_s=timings)

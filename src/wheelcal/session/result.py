@@ -29,7 +29,9 @@ class SessionResult:
     it (noise floor, motion and rest checks, undetermined parameters, warnings, the
     gyroscope's calibration).  ``diagnosis`` is the closed loop's report (None for
     the paper's model), ``rests`` the rests it was judged by, ``recording`` the whole
-    recording, ``geometry`` and ``model`` what was fitted.
+    recording, ``geometry`` and ``model`` what was fitted (``model="field"``: a wheel in
+    the field, :mod:`wheelcal.session.field`), ``geometry_source`` whether the geometry
+    was given or read from the data, and ``geometry_reason`` why.
     """
 
     source: str
@@ -42,6 +44,10 @@ class SessionResult:
     geometry: str = "radius"
     model: str = "closed_loop"
     timings_s: dict[str, float] = field(default_factory=dict)
+    #: "given" (the options chose the geometry) or "detected" (read from the data).
+    geometry_source: str = "given"
+    #: Why the geometry is what it is, when detected.
+    geometry_reason: str = ""
 
     @property
     def undetermined(self) -> tuple[str, ...]:

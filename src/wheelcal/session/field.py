@@ -1,0 +1,90 @@
+"""A recording of a wheel in the field → a calibration: the drive, the field fit, the gates.
+
+The geometry is read from the data (:mod:`wheelcal.estimate.field`): a rolling
+wheel — vertical or cambered, the camber measured by its turns — or a fixed
+axle.  :func:`calibrate_field` runs it on the drive (first motion to last,
+stops and turns kept) and judges the answer like any other calibration
+(:func:`wheelcal.session.fit.assess`): parameters the drive cannot determine are
+reported null with the reason, a misfit is refused.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wheelcal.estimate.field.fit import FieldFit, FieldResult
+from wheelcal.estimate.rests import find_rests
+from wheelcal.recording import Recording, RecordingError
+from wheelcal.session.fit import assess
+from wheelcal.session.gates import Gates
+from wheelcal.session.result import SessionResult, WindowChoice
+from wheelcal.session.window import find_drive_window
+
+
+def field_window(recording: Recording) -> WindowChoice:
+    """The drive: from the gyro's first motion to its last, stops included."""
+    found = find_drive_window(recording)
+    return WindowChoice(recording.window(found.start_s, found.end_s), found, found.reason)
+
+
+def calibrate_field(
+    recording: Recording,
+    gates: Gates | None = None,
+    fit: FieldFit | None = None,
+    window: WindowChoice | None = None,
+    why: str = "",
+) -> tuple[SessionResult, FieldResult]:
+    """Calibrate a wheel in the field (module docstring); also the field fit's own result.
+
+    ``why`` says why the field fit was chosen (it joins the geometry's reason).
+    Raises :class:`~wheelcal.recording.RecordingError` without a gyroscope, and
+    :class:`~wheelcal.recording.CalibrationRefused` as the gates do.
+    """
+    gates = gates or Gates()
+    if recording.gyro_radps is None:
+        raise RecordingError(f"{recording.source}: a wheel in the field needs the gyroscope")
+    window = window or field_window(recording)
+    drive = window.recording
+    field = (fit or FieldFit()).fit(drive)
+    span = (float(drive.time_s[0]), float(drive.time_s[-1]))
+    rests = find_rests(recording, span)
+    assessment = assess(field.result, rests, gates)
+    reason = "; ".join(x for x in (why, field.geometry.reason) if x)
+    choice = WindowChoice(drive, window.found, f"{window.reason}; {reason}")
+    session = SessionResult(
+        source=recording.source,
+        result=field.result,
+        assessment=assessment,
+        window=choice,
+        rests=rests,
+        diagnosis=None,
+        recording=recording,
+        geometry="rolling" if field.geometry.kind == "rolling" else "vertical",
+        model="field",
+        geometry_source="detected",
+        geometry_reason=reason,
+    )
+    return session, field
+
+
+def yaw_rms_radps(recording: Recording) -> float:
+    """The carrier's yaw seen by the gyro over the drive (rad/s rms; 0 without motion).
+
+    Phase-free (the size of the gyro across its axle, less its noise): no fit needed.
+    """
+    from wheelcal.estimate.field.gyro_axle import gyro_axle
+
+    if recording.gyro_radps is None:
+        return 0.0
+    try:
+        drive = field_window(recording).recording
+    except RecordingError:
+        return 0.0
+    axle = gyro_axle(drive.time_s, drive.gyro_radps)
+    return 0.0 if axle is None else float(axle.yaw_rms_radps)
+
+
+def is_vertical_axle(recording: Recording, axis: np.ndarray) -> bool:
+    """Whether the mean specific force along the gyro's axle is near zero (a vertical wheel)."""
+    along = float(np.mean(recording.accel_mps2 @ axis))
+    return abs(along) < recording.info.gravity_or_standard_mps2 * np.sin(np.deg2rad(5.0))
