@@ -43,14 +43,14 @@ from numpy.lib.stride_tricks import sliding_window_view
 from wheelcal.io.accel_json_single import decode_single_samples
 from wheelcal.io.growing import GrowingColumns
 from wheelcal.io.mcap_scan import MessageBlock
+from wheelcal.recording import ACCEL_UNITS
 
 ACCEL_BATCH_SCHEMA_NAME = "wheelcal.AccelBatch"
 JSON_SCHEMA_ENCODING = "jsonschema"
 JSON_MESSAGE_ENCODING = "json"
 UNIT_KEY = "unit"
-UNITS = ("m/s^2", "g")
+UNITS = ACCEL_UNITS  # the channel metadata ``unit`` (CONTRACT: g is 9.80665 m/s²)
 GYRO_UNIT_KEY = "gyro_unit"
-GYRO_UNITS = ("rad/s", "deg/s")
 
 ACCEL_BATCH_SCHEMA = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",

@@ -34,7 +34,6 @@ import numpy as np
 from wheelcal.io.accel_json import (
     ACCEL_BATCH_SCHEMA_NAME,
     GYRO_UNIT_KEY,
-    GYRO_UNITS,
     JSON_MESSAGE_ENCODING,
     JSON_SCHEMA_ENCODING,
     UNIT_KEY,
@@ -58,7 +57,7 @@ from wheelcal.io.temperature_cdr import (
     TEMPERATURE_SCHEMA_NAME,
     encode_temperature_messages,
 )
-from wheelcal.recording import Recording, SessionInfo
+from wheelcal.recording import GYRO_UNITS, Recording, SessionInfo
 
 DEFAULT_TOPICS = {"ros2": "/imu/data_raw", "json": "/wheelcal/accel"}
 DEFAULT_TEMPERATURE_TOPIC = "/imu/temperature"
