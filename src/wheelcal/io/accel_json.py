@@ -41,15 +41,14 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from wheelcal.io.accel_json_single import decode_single_samples
+from wheelcal.io.channel_format import ChannelFormat
 from wheelcal.io.growing import GrowingColumns
 from wheelcal.io.mcap_scan import MessageBlock
-from wheelcal.recording import ACCEL_UNITS
 
 ACCEL_BATCH_SCHEMA_NAME = "wheelcal.AccelBatch"
 JSON_SCHEMA_ENCODING = "jsonschema"
 JSON_MESSAGE_ENCODING = "json"
-UNIT_KEY = "unit"
-UNITS = ACCEL_UNITS  # the channel metadata ``unit`` (CONTRACT: g is 9.80665 m/s²)
+UNIT_KEY = "unit"  # the channel metadata: "m/s^2" or "g" (recording.ACCEL_UNITS)
 GYRO_UNIT_KEY = "gyro_unit"
 
 ACCEL_BATCH_SCHEMA = {
@@ -99,6 +98,11 @@ def schema_bytes() -> bytes:
     return json.dumps(ACCEL_BATCH_SCHEMA, indent=2).encode("utf-8")
 
 
+ACCEL_BATCH_FORMAT = ChannelFormat(
+    ACCEL_BATCH_SCHEMA_NAME, JSON_SCHEMA_ENCODING, JSON_MESSAGE_ENCODING, schema_bytes()
+)
+
+
 @dataclass(frozen=True, eq=False)
 class AccelBatchArrays:
     """All samples of a ``wheelcal.AccelBatch`` channel, in the channel's units.
@@ -113,44 +117,24 @@ class AccelBatchArrays:
     temperature_c: np.ndarray | None = None
 
 
-def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Timestamps and samples of all ``wheelcal.AccelBatch`` messages of a channel.
-
-    Parameters
-    ----------
-    blocks:
-        Message blocks of one channel, from :func:`~wheelcal.io.mcap_scan.scan_mcap`.
-
-    Returns
-    -------
-    time_ns : ndarray of int64, shape (N,)
-    accel : ndarray, shape (N, 3)
-        In the channel's unit (the caller converts ``g``).
-
-    Raises
-    ------
-    AccelBatchError
-        Invalid JSON, missing keys, non-integer stamps, or rows that are not
-        three numbers or do not match the stamps one to one.
-    """
-    out = decode_accel_batch(blocks, optional=False)
-    return out.time_ns, out.accel
-
-
 def decode_accel_batch(
     blocks: tuple[MessageBlock, ...], optional: bool = True, first_message: int = 0
 ) -> AccelBatchArrays:
-    """As :func:`decode_accel_blocks`, with the optional ``gyro`` and ``temperature_c``.
+    """Stamps and samples of ``wheelcal.AccelBatch`` messages, and the optional channels.
 
-    ``optional=False`` ignores them (they are then not even parsed);
-    ``first_message`` is the channel's index of the first message (for errors).
+    ``blocks`` are one channel's, from :func:`~wheelcal.io.mcap_scan.scan_mcap`;
+    the samples are in the channel's unit (the reader converts ``g``).
+    ``optional=False`` ignores ``gyro`` and ``temperature_c`` (they are then not
+    even parsed); ``first_message`` is the channel's index of the first message
+    (for errors).
 
     Raises
     ------
     AccelBatchError
-        As :func:`decode_accel_blocks`; also a ``gyro`` row that is neither
-        three numbers nor null, or a ``gyro``/``temperature_c`` list whose
-        length differs from the message's ``timestamps_ns``.
+        Invalid JSON, missing keys, non-integer stamps, rows that are not three
+        numbers or do not match the stamps one to one; a ``gyro`` row that is
+        neither three numbers nor null, or a ``gyro``/``temperature_c`` list
+        whose length differs from the message's ``timestamps_ns``.
     """
     if len(blocks) == 1:
         single = decode_single_samples(blocks[0])

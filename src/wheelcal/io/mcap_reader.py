@@ -44,46 +44,32 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.io.accel_json import (
-    ACCEL_BATCH_SCHEMA_NAME,
+    ACCEL_BATCH_FORMAT,
     GYRO_UNIT_KEY,
-    JSON_MESSAGE_ENCODING,
-    JSON_SCHEMA_ENCODING,
     UNIT_KEY,
-    UNITS,
     AccelBatchError,
     AccelBatchSink,
     decode_accel_batch,
 )
 from wheelcal.io.errors import InputError, TopicError
-from wheelcal.io.imu_cdr import (
-    CDR_MESSAGE_ENCODING,
-    IMU_SCHEMA_NAME,
-    ROS2_SCHEMA_ENCODING,
-    ImuLayoutError,
-    ImuSink,
-    decode_imu_with_gyro,
-)
-from wheelcal.io.imu_ros1 import (
-    ROS1_IMU_SCHEMA_NAME,
-    ROS1_MESSAGE_ENCODING,
-    ROS1_SCHEMA_ENCODING,
-    decode_ros1_block,
-)
+from wheelcal.io.imu_cdr import IMU_FORMAT, ImuLayoutError, ImuSink, decode_imu_with_gyro
+from wheelcal.io.imu_ros1 import ROS1_IMU_FORMAT, decode_ros1_block
 from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord
 from wheelcal.io.recording_scan import scan_recording
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
-from wheelcal.io.temperature_cdr import TEMPERATURE_SCHEMA_NAME, decode_temperature_blocks
-from wheelcal.recording import GYRO_UNITS, Recording
+from wheelcal.io.temperature_cdr import TEMPERATURE_FORMAT, decode_temperature_blocks
+from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording
 from wheelcal.recording.samples import InputPolicy
 from wheelcal.recording.temperature import TemperatureReadings
 
-_IMU_NAMES = (IMU_SCHEMA_NAME, "sensor_msgs/Imu")
-_TEMPERATURE_NAMES = (TEMPERATURE_SCHEMA_NAME, "sensor_msgs/Temperature")
-_EXPECTED = (
-    f"{IMU_SCHEMA_NAME} ({ROS2_SCHEMA_ENCODING}/{CDR_MESSAGE_ENCODING}), "
-    f"{ROS1_IMU_SCHEMA_NAME} ({ROS1_SCHEMA_ENCODING}/{ROS1_MESSAGE_ENCODING}) or "
-    f"{ACCEL_BATCH_SCHEMA_NAME} ({JSON_SCHEMA_ENCODING}/{JSON_MESSAGE_ENCODING})"
-)
+#: The channels the reader takes, by kind, in the order they are tried.
+_FORMATS = {
+    "ros2": IMU_FORMAT,
+    "ros1": ROS1_IMU_FORMAT,  # a ROS 1 bag, or an MCAP written by `mcap convert` from one
+    "json": ACCEL_BATCH_FORMAT,
+    "temperature": TEMPERATURE_FORMAT,
+}
+_EXPECTED = f"{IMU_FORMAT}, {ROS1_IMU_FORMAT} or {ACCEL_BATCH_FORMAT}"
 
 
 @dataclass(frozen=True)
@@ -102,33 +88,7 @@ def _kind(scan: McapScan, channel: ChannelRecord) -> str | None:
 
 
 def _kind_of(channel: ChannelRecord, schema: SchemaRecord | None) -> str | None:
-    if schema is None:
-        return None
-    if (
-        schema.encoding == ROS2_SCHEMA_ENCODING
-        and schema.name in _IMU_NAMES
-        and channel.message_encoding == CDR_MESSAGE_ENCODING
-    ):
-        return "ros2"
-    if (
-        schema.encoding == ROS1_SCHEMA_ENCODING
-        and schema.name in _IMU_NAMES
-        and channel.message_encoding == ROS1_MESSAGE_ENCODING
-    ):
-        return "ros1"  # a ROS 1 bag, or an MCAP written by `mcap convert` from one
-    if (
-        schema.encoding == JSON_SCHEMA_ENCODING
-        and schema.name == ACCEL_BATCH_SCHEMA_NAME
-        and channel.message_encoding == JSON_MESSAGE_ENCODING
-    ):
-        return "json"
-    if (
-        schema.encoding == ROS2_SCHEMA_ENCODING
-        and schema.name in _TEMPERATURE_NAMES
-        and channel.message_encoding == CDR_MESSAGE_ENCODING
-    ):
-        return "temperature"
-    return None
+    return next((kind for kind, fmt in _FORMATS.items() if fmt.matches(channel, schema)), None)
 
 
 class _CountSink:
@@ -309,16 +269,7 @@ def _gyro_unit(scan: McapScan, chosen: AccelTopic, where: str, override: str | N
 
 def temperature_topics(scan: McapScan) -> list[ChannelRecord]:
     """The ROS 2 ``sensor_msgs/msg/Temperature`` channels of a file, by topic."""
-    found = []
-    for channel in scan.channels.values():
-        schema = scan.schema_of(channel)
-        if (
-            schema is not None
-            and schema.encoding == ROS2_SCHEMA_ENCODING
-            and schema.name in _TEMPERATURE_NAMES
-            and channel.message_encoding == CDR_MESSAGE_ENCODING
-        ):
-            found.append(channel)
+    found = [c for c in scan.channels.values() if _kind(scan, c) == "temperature"]
     return sorted(found, key=lambda c: c.topic)
 
 
@@ -439,8 +390,8 @@ def read_recording(
         scan.path, records, info_overrides, info_defaults, gravity_forced=not gravity_checked
     )
     unit = accel_unit or chosen.unit
-    if unit not in UNITS:
-        raise InputError(scan.path, f"{where}: unit {unit!r} is not one of {list(UNITS)}")
+    if unit not in ACCEL_UNITS:
+        raise InputError(scan.path, f"{where}: unit {unit!r} is not one of {list(ACCEL_UNITS)}")
     samples = _samples_of(scan, chosen, unit, gyro, gyro_unit, temperature, temperature_topic)
     del scan  # the decoded columns are all that is left of the file
     # The decoded columns are ours to give away: converted and kept in place, no copy.

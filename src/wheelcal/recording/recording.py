@@ -381,15 +381,9 @@ class Recording:
         raw = (time_ns, mps2, clean.time_ns)
         gyro_radps = _gyro_on_kept(label, raw, radps, info, gyro_unit_hint, notes)
         temperature_c = _temperature_on_kept(raw, temperature, notes)
-        return cls(
-            **_kept_columns(clean, time_ns, accel, consume),
-            info=info,
-            source=source,
-            topic=topic,
-            notes=tuple(notes),
-            gyro_radps=gyro_radps,
-            temperature_c=temperature_c,
-        )
+        columns = _kept_columns(clean, time_ns, accel, consume)  # consumes the kept stamps
+        columns.update(gyro_radps=gyro_radps, temperature_c=temperature_c, notes=tuple(notes))
+        return cls(**columns, info=info, source=source, topic=topic)
 
     def checked(
         self,
