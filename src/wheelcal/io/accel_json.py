@@ -42,7 +42,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from wheelcal.io.accel_json_single import decode_single_samples
 from wheelcal.io.channel_format import ChannelFormat
-from wheelcal.io.growing import GrowingColumns
+from wheelcal.io.growing import ColumnSink
 from wheelcal.io.mcap_scan import MessageBlock
 
 ACCEL_BATCH_SCHEMA_NAME = "wheelcal.AccelBatch"
@@ -381,48 +381,44 @@ def _first_too_deep(payloads: list[bytes]) -> int:
     return 0
 
 
-class AccelBatchSink:
+class AccelBatchSink(ColumnSink):
     """Decodes an AccelBatch channel block by block as the scan finds it (see ``scan_mcap``).
 
     Keeps the decoded columns only (no message text); a decoding error is kept
     and raised by :meth:`result`.
     """
 
+    errors = (AccelBatchError,)
+
     def __init__(self) -> None:
-        self.count = 0
-        self._columns = GrowingColumns()
-        self._error: AccelBatchError | None = None
+        super().__init__()
         self._optional_error: AccelBatchError | None = None
 
-    def add(self, block: MessageBlock) -> None:
-        """Decode one block's messages into the columns."""
-        first = self.count
-        self.count += block.count
-        if self._error is not None or block.count == 0:
-            return
+    def decode(self, block: MessageBlock, first_message: int) -> dict[str, np.ndarray | None]:
+        """One block's samples, and its gyro and temperature if it has them."""
         try:
-            out = decode_accel_batch((block,), optional=True, first_message=first)
+            out = decode_accel_batch((block,), optional=True, first_message=first_message)
         except AccelBatchError as exc:
             try:  # a defect in the optional gyro / temperature only matters if they are read
-                out = decode_accel_batch((block,), optional=False, first_message=first)
+                out = decode_accel_batch((block,), optional=False, first_message=first_message)
             except AccelBatchError:
-                self._error = exc
-                return
+                raise exc from None
             self._optional_error = self._optional_error or exc
-        self._columns.append(
-            time_ns=out.time_ns, accel=out.accel, gyro=out.gyro, temperature_c=out.temperature_c
-        )
+        return {
+            "time_ns": out.time_ns,
+            "accel": out.accel,
+            "gyro": out.gyro,
+            "temperature_c": out.temperature_c,
+        }
 
     def result(self, optional: bool = True) -> AccelBatchArrays:
         """All samples of the channel; raises the first decoding error.
 
         ``optional=False``: errors in ``gyro`` / ``temperature_c`` do not count.
         """
-        if self._error is not None:
-            raise self._error
+        columns = self.columns()
         if optional and self._optional_error is not None:
             raise self._optional_error
-        columns = self._columns.finish()
         if not columns:
             return AccelBatchArrays(np.empty(0, np.int64), np.empty((0, 3)))
         return AccelBatchArrays(

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from wheelcal.io.channel_format import ChannelFormat
-from wheelcal.io.growing import GrowingColumns
+from wheelcal.io.growing import ColumnSink
 from wheelcal.io.mcap_scan import MessageBlock
 from wheelcal.io.ros2_cdr import (
     CDR_MESSAGE_ENCODING,
@@ -176,7 +176,7 @@ def _decode(blocks: tuple[MessageBlock, ...], gyro: bool, decode_block=None) -> 
     return np.concatenate(stamps), np.concatenate(logs), np.concatenate(accels), rate_all
 
 
-class ImuSink:
+class ImuSink(ColumnSink):
     """Decodes an Imu channel block by block as the scan finds it (see ``scan_mcap``).
 
     Keeps per sample the time (``header.stamp``, or the log time where the
@@ -185,37 +185,27 @@ class ImuSink:
     raised by :meth:`result`.
     """
 
+    errors = (ImuLayoutError,)
+
     def __init__(self, decode_block=None) -> None:
-        self.count = 0
+        super().__init__()
         self.unstamped = 0
-        self._columns = GrowingColumns()
-        self._error: ImuLayoutError | None = None
         #: ``(block, gyro, first_message) -> (stamp, log, accel, rate)``: CDR by default,
         #: :func:`wheelcal.io.imu_ros1.decode_ros1_block` for ROS 1 messages.
         self._decode_block = decode_block or _decode_block
 
-    def add(self, block: MessageBlock) -> None:
-        """Decode one block's messages into the columns."""
-        first = self.count
-        self.count += block.count
-        if self._error is not None or block.count == 0:
-            return
-        try:
-            stamp, log, accel, rate = self._decode_block(block, True, first)
-        except ImuLayoutError as exc:
-            self._error = exc
-            return
+    def decode(self, block: MessageBlock, first_message: int) -> dict[str, np.ndarray | None]:
+        """One block's times (log time where the stamp is zero), accelerations and gyro rows."""
+        stamp, log, accel, rate = self._decode_block(block, True, first_message)
         zero = stamp == 0
         if np.any(zero):
             self.unstamped += int(zero.sum())
             stamp = np.where(zero, log, stamp)
-        self._columns.append(time_ns=stamp, accel=accel, gyro=rate)
+        return {"time_ns": stamp, "accel": accel, "gyro": rate}
 
     def result(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(time_ns, accel, gyro or None) of every message; raises the first decoding error."""
-        if self._error is not None:
-            raise self._error
-        columns = self._columns.finish()
+        columns = self.columns()
         if not columns:
             return np.empty(0, np.int64), np.empty((0, 3)), None
         return columns["time_ns"], columns["accel"], columns.get("gyro")

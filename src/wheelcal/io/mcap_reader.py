@@ -52,6 +52,7 @@ from wheelcal.io.accel_json import (
     decode_accel_batch,
 )
 from wheelcal.io.errors import InputError, TopicError
+from wheelcal.io.growing import ColumnSink
 from wheelcal.io.imu_cdr import IMU_FORMAT, ImuLayoutError, ImuSink, decode_imu_with_gyro
 from wheelcal.io.imu_ros1 import ROS1_IMU_FORMAT, decode_ros1_block
 from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord
@@ -104,28 +105,21 @@ class _CountSink:
         self.count += block.count
 
 
-class _TemperatureSink:
+class _TemperatureSink(ColumnSink):
     """Decodes a Temperature channel block by block; a decoding error is kept for later."""
 
-    def __init__(self) -> None:
-        self.count = 0
-        self._parts: list[tuple[np.ndarray, ...]] = []
-        self._error: ImuLayoutError | None = None
+    errors = (ImuLayoutError,)
 
-    def add(self, block) -> None:
-        self.count += block.count
-        if self._error is None and block.count:
-            try:
-                self._parts.append(decode_temperature_blocks((block,)))
-            except ImuLayoutError as exc:
-                self._error = exc
+    def decode(self, block, first_message: int) -> dict[str, np.ndarray | None]:
+        """One block's stamps, log times and temperatures."""
+        stamp, log_time, temp = decode_temperature_blocks((block,), first_message)
+        return {"stamp": stamp, "log_time": log_time, "temperature_c": temp}
 
     def result(self) -> tuple[np.ndarray, ...]:
-        if self._error is not None:
-            raise self._error
-        if not self._parts:
+        columns = self.columns()
+        if not columns:
             return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0)
-        return tuple(np.concatenate(column) for column in zip(*self._parts, strict=True))
+        return columns["stamp"], columns["log_time"], columns["temperature_c"]
 
 
 def _sink_for(channel: ChannelRecord, schema: SchemaRecord | None):

@@ -53,8 +53,12 @@ class TemperatureLayoutError(ImuLayoutError):
     """Message bytes that do not have the CDR layout of ``sensor_msgs/msg/Temperature``."""
 
 
-def decode_temperature_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, ...]:
+def decode_temperature_blocks(
+    blocks: tuple[MessageBlock, ...], first_message: int = 0
+) -> tuple[np.ndarray, ...]:
     """Stamps, log times and temperatures (°C) of CDR ``Temperature`` messages.
+
+    ``first_message`` is the channel's index of the first message (for errors).
 
     Returns
     -------
@@ -67,7 +71,7 @@ def decode_temperature_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndar
         A message whose size or encapsulation does not fit the layout.
     """
     stamps, logs, temps = [], [], []
-    first = 0  # the channel's index of the block's first message
+    first = first_message  # the channel's index of the block's first message
     for block in blocks:
         first, before = first + block.count, first
         if block.count == 0:
