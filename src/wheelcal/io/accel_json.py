@@ -38,12 +38,11 @@ from dataclasses import dataclass
 from itertools import chain
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
-from wheelcal.io.accel_json_single import decode_single_samples
+from wheelcal.io.accel_json_single import blank_runs, decode_single_samples
 from wheelcal.io.channel_format import ChannelFormat
 from wheelcal.io.growing import ColumnSink
-from wheelcal.io.mcap_scan import MessageBlock
+from wheelcal.io.mcap_scan import RECORD_GAP_BYTES, MessageBlock
 
 ACCEL_BATCH_SCHEMA_NAME = "wheelcal.AccelBatch"
 JSON_SCHEMA_ENCODING = "jsonschema"
@@ -253,9 +252,6 @@ def _payload_list(blocks: tuple[MessageBlock, ...]) -> list:
     ]
 
 
-_RECORD_GAP = 9 + 22  # a Message record's opcode and length, then its header
-
-
 def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytearray | None:
     """The payloads of one block as lines, without a Python object per message, or None.
 
@@ -264,19 +260,13 @@ def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytearray | None:
     the stretch with those bytes made a newline and 30 blanks (JSON white space
     before the next line's value) is the newline-delimited text.  Otherwise None.
     """
-    if len(blocks) != 1 or blocks[0].count < 2:
+    if len(blocks) != 1 or blocks[0].count < 2 or not blocks[0].back_to_back():
         return None
     block = blocks[0]
-    starts, lengths = block.payload_offsets, block.payload_lengths
-    gap_starts = starts[:-1] + lengths[:-1]
-    if not np.all(starts[1:] - gap_starts == _RECORD_GAP):
-        return None
-    first, last = int(starts[0]), int(starts[-1] + lengths[-1])
+    first, last = block.span()
     lines = bytearray(memoryview(block.buffer)[first:last])  # one copy, written in place
-    text = np.frombuffer(lines, np.uint8)
-    at = gap_starts - first
-    sliding_window_view(text, _RECORD_GAP, writeable=True)[at] = ord(" ")
-    text[at] = ord("\n")
+    gap_starts = block.payload_offsets[:-1] + block.payload_lengths[:-1]
+    blank_runs(np.frombuffer(lines, np.uint8), gap_starts - first, RECORD_GAP_BYTES, ord("\n"))
     return lines
 
 

@@ -58,6 +58,8 @@ except ImportError:  # pragma: no cover - a dependency; zlib computes the same C
 
 MAGIC = b"\x89MCAP0\r\n"
 MESSAGE_HEADER_BYTES = 22  # channel u16, sequence u32, log_time u64, publish_time u64
+#: Between two payloads of Message records in a row: the next one's opcode, length and header.
+RECORD_GAP_BYTES = 9 + MESSAGE_HEADER_BYTES
 _RECORD_PREFIX = struct.Struct("<BQ")
 _GALLOP_MIN = 16  # try the vectorised stride test only with this many candidates left
 _GALLOP_COOLDOWN = 32  # after a failed gallop, walk at least this many records one by one
@@ -122,6 +124,17 @@ class MessageBlock:
     def count(self) -> int:
         """Number of messages in the block."""
         return int(self.payload_offsets.size)
+
+    def back_to_back(self) -> bool:
+        """Whether the payloads are Message records in a row: only the records' heads between."""
+        starts, lengths = self.payload_offsets, self.payload_lengths
+        return bool(np.all(starts[1:] - (starts[:-1] + lengths[:-1]) == RECORD_GAP_BYTES))
+
+    def span(self) -> tuple[int, int]:
+        """Where the first payload starts and the last ends in ``buffer`` (a non-empty block)."""
+        return int(self.payload_offsets[0]), int(
+            self.payload_offsets[-1] + self.payload_lengths[-1]
+        )
 
 
 @dataclass(frozen=True, eq=False)
