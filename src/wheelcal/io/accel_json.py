@@ -119,10 +119,8 @@ class AccelBatchArrays:
 def decode_accel_batch(
     blocks: tuple[MessageBlock, ...], optional: bool = True, first_message: int = 0
 ) -> AccelBatchArrays:
-    """Stamps and samples of ``wheelcal.AccelBatch`` messages, and the optional channels.
+    """Stamps and samples (in the channel's unit) of one channel's ``wheelcal.AccelBatch`` blocks.
 
-    ``blocks`` are one channel's, from :func:`~wheelcal.io.mcap_scan.scan_mcap`;
-    the samples are in the channel's unit (the reader converts ``g``).
     ``optional=False`` ignores ``gyro`` and ``temperature_c`` (they are then not
     even parsed); ``first_message`` is the channel's index of the first message
     (for errors).

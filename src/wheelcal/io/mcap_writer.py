@@ -472,10 +472,6 @@ def copy_with_channels(
         ``False`` refuses an existing ``destination``
         (:class:`~wheelcal.io.atomic.OutputExistsError`).
     """
-    from mcap.exceptions import McapError
-    from mcap.records import Attachment, Channel, Message, Metadata, Schema
-    from mcap.stream_reader import StreamReader
-
     if os.path.abspath(source) == os.path.abspath(destination):
         raise ValueError(f"{destination}: the copy must not overwrite its source")
     scan = scan_mcap(source)  # clear errors for damaged or non-MCAP sources
@@ -488,41 +484,7 @@ def copy_with_channels(
     with atomic_output(destination, replace=replace) as stream:
         writer = _new_writer(stream, compression, chunk_bytes)
         writer.start(profile=scan.profile, library=scan.library)
-        schema_ids: dict[int, int] = {0: 0}
-        channel_ids: dict[int, int] = {}
-        originals = []
-        attachments = []
-        metadata_records = []
-        try:
-            with open(source, "rb") as src:
-                for record in StreamReader(src, validate_crcs=True).records:
-                    if isinstance(record, Schema) and record.id not in schema_ids:
-                        schema_ids[record.id] = writer.register_schema(
-                            record.name, record.encoding, record.data
-                        )
-                    elif isinstance(record, Channel) and record.id not in channel_ids:
-                        channel_ids[record.id] = writer.register_channel(
-                            record.topic,
-                            record.message_encoding,
-                            schema_ids[record.schema_id],
-                            dict(record.metadata),
-                        )
-                    elif isinstance(record, Message):
-                        originals.append(
-                            (
-                                record.log_time,
-                                channel_ids[record.channel_id],
-                                record.sequence,
-                                record.publish_time,
-                                record.data,
-                            )
-                        )
-                    elif isinstance(record, Attachment):
-                        attachments.append(record)
-                    elif isinstance(record, Metadata):
-                        metadata_records.append(record)
-        except (McapError, KeyError, EOFError) as exc:
-            raise CorruptFileError(source, f"cannot be copied: {exc}") from None
+        originals, attachments, metadata_records = _copy_definitions(source, writer)
         ids = [_register(writer, channel) for channel in channels]
         _write_messages(writer, originals, channels, ids)
         for att in attachments:
@@ -532,3 +494,50 @@ def copy_with_channels(
         for name, values in (metadata or {}).items():
             writer.add_metadata(name, dict(values))
         writer.finish()
+
+
+def _copy_definitions(source, writer) -> tuple[list, list, list]:
+    """``source``'s schemas and channels registered with ``writer``; its other records.
+
+    Returns the messages as ``(log, new channel id, sequence, publish, data)``,
+    the attachments and the metadata records, in file order, for the caller
+    to write after its own channels are registered.
+    """
+    from mcap.exceptions import McapError
+    from mcap.records import Attachment, Channel, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader
+
+    schema_ids: dict[int, int] = {0: 0}
+    channel_ids: dict[int, int] = {}
+    originals, attachments, metadata_records = [], [], []
+    try:
+        with open(source, "rb") as src:
+            for record in StreamReader(src, validate_crcs=True).records:
+                if isinstance(record, Schema) and record.id not in schema_ids:
+                    schema_ids[record.id] = writer.register_schema(
+                        record.name, record.encoding, record.data
+                    )
+                elif isinstance(record, Channel) and record.id not in channel_ids:
+                    channel_ids[record.id] = writer.register_channel(
+                        record.topic,
+                        record.message_encoding,
+                        schema_ids[record.schema_id],
+                        dict(record.metadata),
+                    )
+                elif isinstance(record, Message):
+                    originals.append(
+                        (
+                            record.log_time,
+                            channel_ids[record.channel_id],
+                            record.sequence,
+                            record.publish_time,
+                            record.data,
+                        )
+                    )
+                elif isinstance(record, Attachment):
+                    attachments.append(record)
+                elif isinstance(record, Metadata):
+                    metadata_records.append(record)
+    except (McapError, KeyError, EOFError) as exc:
+        raise CorruptFileError(source, f"cannot be copied: {exc}") from None
+    return originals, attachments, metadata_records
