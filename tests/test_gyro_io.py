@@ -404,3 +404,20 @@ def test_bad_temperature_message_layout_is_an_error_naming_the_topic(recording, 
     )
     with pytest.raises(InputError, match=r"bt\.mcap: topic /imu/temperature: .*too short"):
         read_recording(tmp_path / "bt.mcap")
+
+
+def test_a_bad_temperature_message_in_a_later_chunk_is_named_by_its_place_in_the_topic(
+    recording, tmp_path
+):
+    stamps = recording_stamps_ns(recording)
+    temperature = temperature_channel(stamps, np.full(stamps.size, 25.0), stride=2)
+    messages = list(temperature.messages)
+    log_time, payload = messages[1500]
+    messages[1500] = (log_time, payload + bytes(8))  # 8 bytes too many
+    broken = dataclasses.replace(temperature, messages=tuple(messages))
+    accel = accel_channel(stamps, recording.accel_mps2)
+    path = tmp_path / "late.mcap"
+    write_channels(path, [accel, broken], chunk_bytes=64 * 1024)
+    assert scan_mcap(path).chunks > 5  # the message is far from its chunk's start
+    with pytest.raises(InputError, match=r"temperature: message 1500's size .* \(44 bytes"):
+        read_recording(path)

@@ -386,3 +386,45 @@ def test_csv_errors_name_the_file_and_write_nothing(tmp_path):
     with pytest.raises(InputError, match=r"missing\.csv: no such file"):
         convert_csv(tmp_path / "missing.csv", tmp_path / "out.mcap")
     assert _listing(tmp_path) == ["bad.csv"]
+
+
+def test_ros2_channels_decode_with_the_reference_decoder(tmp_path):
+    """mcap_ros2 parses the message definitions wheelcal stores and reads the same values."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from wheelcal.io.mcap_writer import temperature_channel
+
+    stamps = 1_712_345_678_000_000_000 + np.arange(40, dtype=np.int64) * 5_000_000
+    accel = np.random.default_rng(2).normal(0.0, 9.8, size=(40, 3))
+    gyro = accel[:, ::-1] * 0.1
+    gyro[5] = np.nan  # no reading: covariance[0] = -1
+    temperature = 20.0 + 0.01 * np.arange(40)
+    path = tmp_path / "ros2.mcap"
+    write_channels(
+        path,
+        [
+            accel_channel(stamps, accel, gyro=gyro, frame_id="a_longer_frame"),
+            temperature_channel(stamps, temperature, frame_id="t"),
+        ],
+    )
+    seen = {"/imu/data_raw": [], "/imu/temperature": []}
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _, channel, _, msg in reader.iter_decoded_messages():
+            seen[channel.topic].append(msg)
+    imu, temp = seen["/imu/data_raw"], seen["/imu/temperature"]
+    assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in imu] == stamps.tolist()
+    assert {m.header.frame_id for m in imu} == {"a_longer_frame"}
+    got = np.array(
+        [[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for m in imu]
+    )
+    np.testing.assert_array_equal(got, accel)
+    rate = np.array(
+        [[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z] for m in imu]
+    )
+    absent = np.array([m.angular_velocity_covariance[0] == -1.0 for m in imu])
+    assert np.flatnonzero(absent).tolist() == [5]
+    np.testing.assert_array_equal(rate[~absent], gyro[~absent])
+    np.testing.assert_array_equal([m.temperature for m in temp], temperature)
+    assert [m.header.frame_id for m in temp] == ["t"] * 40

@@ -20,8 +20,6 @@ from __future__ import annotations
 import dataclasses
 import os
 
-import numpy as np
-
 from wheelcal.calibration.document import Calibration
 from wheelcal.recording import Recording
 
@@ -43,48 +41,6 @@ def _options(radius_m, options: dict):
     return SessionOptions(radius_m=radius_m, **options)
 
 
-def _checked(recording: Recording, options) -> Recording:
-    """An in-memory recording through the reader's sample checks and the session facts."""
-    from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
-    from wheelcal.recording.gyro import align_to_samples, check_gyro
-    from wheelcal.recording.samples import InputPolicy, clean_samples
-
-    info = recording.info.merged(**options.info_overrides())
-    accel = recording.accel_mps2
-    if options.accel_unit == "g":
-        accel = accel * STANDARD_GRAVITY_MPS2
-    time_ns = recording.epoch_unix_ns + np.rint(recording.time_s * 1e9).astype(np.int64)
-    clean = clean_samples(
-        recording.source,
-        time_ns,
-        accel,
-        unit="m/s^2",
-        full_scale_g=info.full_scale_g,
-        policy=InputPolicy(),
-    )
-    notes = recording.notes + clean.notes
-    gyro = None
-    if recording.gyro_radps is not None:  # the same rows, through the same repairs
-        aligned = align_to_samples(time_ns, accel, recording.gyro_radps, clean.time_ns)
-        gyro, gyro_notes = check_gyro(recording.source, aligned, info.gyro_full_scale_dps)
-        notes += gyro_notes
-    temperature = None
-    if recording.temperature_c is not None:
-        temperature = np.interp(clean.time_ns, time_ns, recording.temperature_c)
-    epoch = int(clean.time_ns[0])
-    return dataclasses.replace(
-        recording,
-        time_s=(clean.time_ns - epoch) * 1e-9,
-        accel_mps2=clean.accel_mps2,
-        epoch_unix_ns=epoch,
-        info=info,
-        notes=notes,
-        clip_limits_mps2=clean.clip_limits_mps2,
-        gyro_radps=gyro,
-        temperature_c=temperature,
-    )
-
-
 def calibrate(
     source: str | os.PathLike | Recording, radius_m: float | None = None, **options
 ) -> Calibration:
@@ -103,7 +59,8 @@ def calibrate(
 
     opts = _options(radius_m, options)
     if isinstance(source, Recording):
-        outcome = compute_recording(_checked(source, opts), opts)
+        info = source.info.merged(**opts.info_overrides())
+        outcome = compute_recording(source.checked(unit=opts.accel_unit, info=info), opts)
     else:
         outcome = compute_session(source, opts)
     return Calibration.from_session(outcome)

@@ -38,19 +38,17 @@ from dataclasses import dataclass
 from itertools import chain
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
-from wheelcal.io.accel_json_single import decode_single_samples
-from wheelcal.io.growing import GrowingColumns
-from wheelcal.io.mcap_scan import MessageBlock
+from wheelcal.io.accel_json_single import blank_runs, decode_single_samples
+from wheelcal.io.channel_format import ChannelFormat
+from wheelcal.io.growing import ColumnSink
+from wheelcal.io.mcap_scan import RECORD_GAP_BYTES, MessageBlock
 
 ACCEL_BATCH_SCHEMA_NAME = "wheelcal.AccelBatch"
 JSON_SCHEMA_ENCODING = "jsonschema"
 JSON_MESSAGE_ENCODING = "json"
-UNIT_KEY = "unit"
-UNITS = ("m/s^2", "g")
+UNIT_KEY = "unit"  # the channel metadata: "m/s^2" or "g" (recording.ACCEL_UNITS)
 GYRO_UNIT_KEY = "gyro_unit"
-GYRO_UNITS = ("rad/s", "deg/s")
 
 ACCEL_BATCH_SCHEMA = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -99,6 +97,11 @@ def schema_bytes() -> bytes:
     return json.dumps(ACCEL_BATCH_SCHEMA, indent=2).encode("utf-8")
 
 
+ACCEL_BATCH_FORMAT = ChannelFormat(
+    ACCEL_BATCH_SCHEMA_NAME, JSON_SCHEMA_ENCODING, JSON_MESSAGE_ENCODING, schema_bytes()
+)
+
+
 @dataclass(frozen=True, eq=False)
 class AccelBatchArrays:
     """All samples of a ``wheelcal.AccelBatch`` channel, in the channel's units.
@@ -113,44 +116,22 @@ class AccelBatchArrays:
     temperature_c: np.ndarray | None = None
 
 
-def decode_accel_blocks(blocks: tuple[MessageBlock, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Timestamps and samples of all ``wheelcal.AccelBatch`` messages of a channel.
-
-    Parameters
-    ----------
-    blocks:
-        Message blocks of one channel, from :func:`~wheelcal.io.mcap_scan.scan_mcap`.
-
-    Returns
-    -------
-    time_ns : ndarray of int64, shape (N,)
-    accel : ndarray, shape (N, 3)
-        In the channel's unit (the caller converts ``g``).
-
-    Raises
-    ------
-    AccelBatchError
-        Invalid JSON, missing keys, non-integer stamps, or rows that are not
-        three numbers or do not match the stamps one to one.
-    """
-    out = decode_accel_batch(blocks, optional=False)
-    return out.time_ns, out.accel
-
-
 def decode_accel_batch(
     blocks: tuple[MessageBlock, ...], optional: bool = True, first_message: int = 0
 ) -> AccelBatchArrays:
-    """As :func:`decode_accel_blocks`, with the optional ``gyro`` and ``temperature_c``.
+    """Stamps and samples (in the channel's unit) of one channel's ``wheelcal.AccelBatch`` blocks.
 
-    ``optional=False`` ignores them (they are then not even parsed);
-    ``first_message`` is the channel's index of the first message (for errors).
+    ``optional=False`` ignores ``gyro`` and ``temperature_c`` (they are then not
+    even parsed); ``first_message`` is the channel's index of the first message
+    (for errors).
 
     Raises
     ------
     AccelBatchError
-        As :func:`decode_accel_blocks`; also a ``gyro`` row that is neither
-        three numbers nor null, or a ``gyro``/``temperature_c`` list whose
-        length differs from the message's ``timestamps_ns``.
+        Invalid JSON, missing keys, non-integer stamps, rows that are not three
+        numbers or do not match the stamps one to one; a ``gyro`` row that is
+        neither three numbers nor null, or a ``gyro``/``temperature_c`` list
+        whose length differs from the message's ``timestamps_ns``.
     """
     if len(blocks) == 1:
         single = decode_single_samples(blocks[0])
@@ -269,9 +250,6 @@ def _payload_list(blocks: tuple[MessageBlock, ...]) -> list:
     ]
 
 
-_RECORD_GAP = 9 + 22  # a Message record's opcode and length, then its header
-
-
 def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytearray | None:
     """The payloads of one block as lines, without a Python object per message, or None.
 
@@ -280,19 +258,13 @@ def _lines_in_place(blocks: tuple[MessageBlock, ...]) -> bytearray | None:
     the stretch with those bytes made a newline and 30 blanks (JSON white space
     before the next line's value) is the newline-delimited text.  Otherwise None.
     """
-    if len(blocks) != 1 or blocks[0].count < 2:
+    if len(blocks) != 1 or blocks[0].count < 2 or not blocks[0].back_to_back():
         return None
     block = blocks[0]
-    starts, lengths = block.payload_offsets, block.payload_lengths
-    gap_starts = starts[:-1] + lengths[:-1]
-    if not np.all(starts[1:] - gap_starts == _RECORD_GAP):
-        return None
-    first, last = int(starts[0]), int(starts[-1] + lengths[-1])
+    first, last = block.span()
     lines = bytearray(memoryview(block.buffer)[first:last])  # one copy, written in place
-    text = np.frombuffer(lines, np.uint8)
-    at = gap_starts - first
-    sliding_window_view(text, _RECORD_GAP, writeable=True)[at] = ord(" ")
-    text[at] = ord("\n")
+    gap_starts = block.payload_offsets[:-1] + block.payload_lengths[:-1]
+    blank_runs(np.frombuffer(lines, np.uint8), gap_starts - first, RECORD_GAP_BYTES, ord("\n"))
     return lines
 
 
@@ -397,48 +369,44 @@ def _first_too_deep(payloads: list[bytes]) -> int:
     return 0
 
 
-class AccelBatchSink:
+class AccelBatchSink(ColumnSink):
     """Decodes an AccelBatch channel block by block as the scan finds it (see ``scan_mcap``).
 
     Keeps the decoded columns only (no message text); a decoding error is kept
     and raised by :meth:`result`.
     """
 
+    errors = (AccelBatchError,)
+
     def __init__(self) -> None:
-        self.count = 0
-        self._columns = GrowingColumns()
-        self._error: AccelBatchError | None = None
+        super().__init__()
         self._optional_error: AccelBatchError | None = None
 
-    def add(self, block: MessageBlock) -> None:
-        """Decode one block's messages into the columns."""
-        first = self.count
-        self.count += block.count
-        if self._error is not None or block.count == 0:
-            return
+    def decode(self, block: MessageBlock, first_message: int) -> dict[str, np.ndarray | None]:
+        """One block's samples, and its gyro and temperature if it has them."""
         try:
-            out = decode_accel_batch((block,), optional=True, first_message=first)
+            out = decode_accel_batch((block,), optional=True, first_message=first_message)
         except AccelBatchError as exc:
             try:  # a defect in the optional gyro / temperature only matters if they are read
-                out = decode_accel_batch((block,), optional=False, first_message=first)
+                out = decode_accel_batch((block,), optional=False, first_message=first_message)
             except AccelBatchError:
-                self._error = exc
-                return
+                raise exc from None
             self._optional_error = self._optional_error or exc
-        self._columns.append(
-            time_ns=out.time_ns, accel=out.accel, gyro=out.gyro, temperature_c=out.temperature_c
-        )
+        return {
+            "time_ns": out.time_ns,
+            "accel": out.accel,
+            "gyro": out.gyro,
+            "temperature_c": out.temperature_c,
+        }
 
     def result(self, optional: bool = True) -> AccelBatchArrays:
         """All samples of the channel; raises the first decoding error.
 
         ``optional=False``: errors in ``gyro`` / ``temperature_c`` do not count.
         """
-        if self._error is not None:
-            raise self._error
+        columns = self.columns()
         if optional and self._optional_error is not None:
             raise self._optional_error
-        columns = self._columns.finish()
         if not columns:
             return AccelBatchArrays(np.empty(0, np.int64), np.empty((0, 3)))
         return AccelBatchArrays(

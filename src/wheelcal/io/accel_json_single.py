@@ -38,12 +38,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from wheelcal.io.mcap_scan import MESSAGE_HEADER_BYTES, MessageBlock
+from wheelcal.io.mcap_scan import RECORD_GAP_BYTES, MessageBlock
 
 _PREFIX = b'{"timestamps_ns":['
 _MIDDLE = b'],"accel":[['
 _SUFFIX = b"]]}"
-_RECORD_GAP = 9 + MESSAGE_HEADER_BYTES  # a Message record's opcode and length, then its header
 # the shortest such message: one digit for the stamp, "0,0,0" for the sample
 _SHORTEST = len(_PREFIX) + 1 + len(_MIDDLE) + 5 + len(_SUFFIX)
 _COMMA, _CLOSE, _ZERO_BYTE = ord(","), ord("]"), ord("0")
@@ -64,14 +63,10 @@ def decode_single_samples(block: MessageBlock) -> tuple[np.ndarray, np.ndarray] 
     if n == 0:
         return None
     starts, lengths = block.payload_offsets, block.payload_lengths
-    if lengths.min() < _SHORTEST:
+    if lengths.min() < _SHORTEST or not block.back_to_back():
         return None
-    if n > 1 and not np.all(starts[1:] - (starts[:-1] + lengths[:-1]) == _RECORD_GAP):
-        return None
-    first = int(starts[0])
-    stretch = np.frombuffer(
-        block.buffer, np.uint8, count=int(starts[-1] + lengths[-1]) - first, offset=first
-    )
+    first, last = block.span()
+    stretch = np.frombuffer(block.buffer, np.uint8, count=last - first, offset=first)
     begin = starts - first
     end = begin + lengths
     # one look at the first message turns away other shapes (several samples) at no cost
@@ -89,6 +84,16 @@ def decode_single_samples(block: MessageBlock) -> tuple[np.ndarray, np.ndarray] 
     if width <= _MAX_STAMP_DIGITS and np.all(stamp_digits == width):
         return _decode_uniform(stretch, begin, end, middle, width, number_bytes)
     return _decode_labelled(stretch, begin, end, middle, stamp_digits, number_bytes)
+
+
+def blank_runs(text: np.ndarray, at: np.ndarray, width: int, head: int) -> None:
+    """``text[a]`` made ``head``, the ``width - 1`` bytes after it blanks, for each ``a`` of ``at``.
+
+    One strided write (the runs must not overlap): what lies between two
+    messages' values becomes one separator and JSON white space.
+    """
+    sliding_window_view(text, width, writeable=True)[at] = _BLANK
+    text[at] = head
 
 
 def _windows(stretch: np.ndarray, at: np.ndarray, width: int) -> np.ndarray:
@@ -126,11 +131,9 @@ def _decode_uniform(
     first = middle + len(_MIDDLE)  # each message's first number byte
     stop = end - len(_SUFFIX)  # and the byte after its last
     text = stretch[first[0] : stop[-1]].copy()
-    between = len(_SUFFIX) + _RECORD_GAP + len(_PREFIX) + width + len(_MIDDLE)
+    between = len(_SUFFIX) + RECORD_GAP_BYTES + len(_PREFIX) + width + len(_MIDDLE)
     if n > 1:
-        at = stop[:-1] - first[0]
-        sliding_window_view(text, between, writeable=True)[at] = _BLANK
-        text[at] = _COMMA
+        blank_runs(text, stop[:-1] - first[0], between, _COMMA)
     kept = text != _BLANK
     numbers = text[kept]
     if numbers.size != text.size - (n - 1) * (between - 1):
@@ -172,7 +175,7 @@ def _decode_labelled(
     # per message: prefix | stamp | middle | numbers and the suffix's "]" | rest of the suffix
     # | record gap (none after the last); the "]" becomes the "," before the next message's
     counts = np.empty((n, 6), np.int64)
-    counts[:] = (len(_PREFIX), 0, len(_MIDDLE), 0, len(_SUFFIX) - 1, _RECORD_GAP)
+    counts[:] = (len(_PREFIX), 0, len(_MIDDLE), 0, len(_SUFFIX) - 1, RECORD_GAP_BYTES)
     counts[:, 1] = stamp_digits
     counts[:, 3] = number_bytes + 1
     counts[-1, 3:] = (number_bytes[-1], len(_SUFFIX), 0)

@@ -640,11 +640,70 @@ def convert_csv(
         data contradict — always naming the file.
     """
     layout = layout or CsvLayout()
-    path = str(csv_path)
     if not replace:
         refuse_existing(mcap_path)
+    log = _read_log(str(csv_path), layout, encoding)
+    write_accel_mcap(
+        mcap_path,
+        log.stamps_ns,
+        log.accel,
+        encoding=encoding,
+        topic=topic,
+        batch_size=batch_size,
+        unit=log.accel_unit,
+        compression=compression,
+        session=dict(session or {}),
+        gyro=log.gyro,
+        gyro_unit=log.gyro_unit,
+        temperature_c=log.temperature_c,
+        replace=replace,
+    )
+    return log.conversion
+
+
+@dataclass(frozen=True, eq=False)
+class _Log:
+    """A CSV log read: its samples in the units the output carries, and the report."""
+
+    stamps_ns: np.ndarray
+    accel: np.ndarray
+    accel_unit: str
+    gyro: np.ndarray | None
+    gyro_unit: str
+    temperature_c: np.ndarray | None
+    conversion: CsvConversion
+
+
+def _read_log(path: str, layout: CsvLayout, encoding: str) -> _Log:
+    """The log's samples, units converted as the contract and ``encoding`` need, and the report."""
+    header, body, notes = _read_table(path, layout)
+    cols = _columns(path, header, layout)
+    gyro_unit = _stated_gyro_unit(path, header, cols, layout, notes)
+    rows = _numbers(path, body, cols, layout)
+    time_name = header[cols.time].strip() if not layout.by_index else f"#{cols.time}"
+    stamps, unit, rate_hz = _stamps_ns(path, time_name, rows.times, cols, layout, notes)
+    accel, accel_unit = _accel_for_output(path, header, cols, layout, rows.accel, encoding, notes)
+    gyro, gyro_unit = _gyro_for_output(
+        path, rows.gyro, gyro_unit or "rad/s", layout, encoding, notes
+    )
+    if rows.skipped:
+        notes.append(f"skipped {rows.skipped} rows without a numeric time")
+    conversion = CsvConversion(
+        rows=len(body),
+        samples=len(rows.times),
+        skipped_rows=rows.skipped,
+        notes=tuple(notes),
+        columns=_column_names(header, cols, layout),
+        time_unit=unit,
+        rate_hz=rate_hz,
+    )
+    return _Log(stamps, accel, accel_unit, gyro, gyro_unit, rows.temperature_c, conversion)
+
+
+def _read_table(path: str, layout: CsvLayout) -> tuple[list[str], list[list[str]], list[str]]:
+    """The header, the data rows (cells as text) and the notes on reading them."""
     try:
-        text = Path(csv_path).read_text(encoding="utf-8-sig")
+        text = Path(path).read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise InputError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -669,7 +728,13 @@ def convert_csv(
     body = rows if layout.by_index else rows[1:]
     if not body:
         raise InputError(path, "the CSV file has a header but no data rows")
-    cols = _columns(path, header, layout)
+    return header, body, notes
+
+
+def _stated_gyro_unit(
+    path: str, header: list[str], cols: _Columns, layout: CsvLayout, notes: list[str]
+) -> str | None:
+    """The gyro columns' unit, as given or as the header states it; refused if neither."""
     gyro_unit = layout.gyro_unit
     if cols.gyro is not None and gyro_unit is None and not layout.by_index:
         gyro_unit = _header_unit(path, header, cols.gyro, _HEADER_GYRO_UNITS, "gyro")
@@ -682,6 +747,22 @@ def convert_csv(
             f"gyro columns {names} found: state their unit (--gyro-unit rad/s or deg/s), "
             "or leave them out (--no-gyro)",
         )
+    return gyro_unit
+
+
+@dataclass(frozen=True, eq=False)
+class _Numbers:
+    """The rows with a numeric time: times as decimals, the other columns as floats."""
+
+    times: list[Decimal]
+    accel: np.ndarray
+    gyro: np.ndarray | None
+    temperature_c: np.ndarray | None
+    skipped: int  # rows whose time is not a number
+
+
+def _numbers(path: str, body: list[list[str]], cols: _Columns, layout: CsvLayout) -> _Numbers:
+    """The data rows as numbers; a row without a numeric time is skipped, other text refused."""
     times: list[Decimal] = []
     accel_rows: list[list[float]] = []
     gyro_rows: list[list[float]] = []
@@ -712,7 +793,24 @@ def convert_csv(
             temps.append(temp)
     if not times:
         raise InputError(path, f"none of the {len(body)} rows has a numeric time")
-    time_name = header[cols.time].strip() if not layout.by_index else f"#{cols.time}"
+    return _Numbers(
+        times,
+        np.array(accel_rows, dtype=float),
+        np.array(gyro_rows, dtype=float) if cols.gyro else None,
+        np.array(temps, dtype=float) if cols.temperature is not None else None,
+        skipped,
+    )
+
+
+def _stamps_ns(
+    path: str,
+    time_name: str,
+    times: list[Decimal],
+    cols: _Columns,
+    layout: CsvLayout,
+    notes: list[str],
+) -> tuple[np.ndarray, str, float]:
+    """Integer ns stamps, exactly from the decimal times; the time unit and the rate it implies."""
     times = _unwrap_counter(times, notes, time_name)
     unit, rate_hz, how = _choose_time_unit(
         path, time_name, times, layout.time_unit, cols.time_unit_hint
@@ -724,7 +822,19 @@ def convert_csv(
         [int((t * scale).to_integral_value()) + layout.epoch_unix_ns for t in times],
         dtype=np.int64,
     )
-    accel = np.array(accel_rows, dtype=float)
+    return stamps, unit, rate_hz
+
+
+def _accel_for_output(
+    path: str,
+    header: list[str],
+    cols: _Columns,
+    layout: CsvLayout,
+    accel: np.ndarray,
+    encoding: str,
+    notes: list[str],
+) -> tuple[np.ndarray, str]:
+    """The samples checked against their unit, in g or m/s² (m/s² for ROS 2), and that unit."""
     accel_unit = _accel_unit(path, header, cols, layout, notes)
     if layout.check_units:
         seen = _check_accel_unit(path, accel, accel_unit, layout.counts_per_g)
@@ -734,59 +844,48 @@ def convert_csv(
         accel = accel / _g_in_unit(accel_unit, layout.counts_per_g)
         notes.append(f"converted {_unit_name(accel_unit, layout.counts_per_g)} to g")
         accel_unit = "g"
-    gyro = np.array(gyro_rows, dtype=float) if cols.gyro else None
-    gyro_unit = gyro_unit or "rad/s"
-    if gyro is not None and layout.check_units:
-        _check_gyro_unit(path, gyro, gyro_unit)
-    temperature = np.array(temps, dtype=float) if cols.temperature is not None else None
     if encoding == "ros2" and accel_unit == "g":
         accel = accel * STANDARD_GRAVITY_MPS2
         accel_unit = "m/s^2"
         notes.append("converted g to m/s^2 (sensor_msgs/msg/Imu carries m/s^2)")
+    return accel, accel_unit
+
+
+def _gyro_for_output(
+    path: str,
+    gyro: np.ndarray | None,
+    gyro_unit: str,
+    layout: CsvLayout,
+    encoding: str,
+    notes: list[str],
+) -> tuple[np.ndarray | None, str]:
+    """The gyro rows checked against their unit (rad/s for ROS 2), and that unit."""
+    if gyro is not None and layout.check_units:
+        _check_gyro_unit(path, gyro, gyro_unit)
     if encoding == "ros2" and gyro is not None and gyro_unit == "deg/s":
         gyro = np.radians(gyro)
         gyro_unit = "rad/s"
         notes.append("converted deg/s to rad/s (sensor_msgs/msg/Imu carries rad/s)")
-    if skipped:
-        notes.append(f"skipped {skipped} rows without a numeric time")
-    write_accel_mcap(
-        mcap_path,
-        stamps,
-        accel,
-        encoding=encoding,
-        topic=topic,
-        batch_size=batch_size,
-        unit=accel_unit,
-        compression=compression,
-        session=dict(session or {}),
-        gyro=gyro,
-        gyro_unit=gyro_unit,
-        temperature_c=temperature,
-        replace=replace,
-    )
+    return gyro, gyro_unit
+
+
+def _column_names(header: list[str], cols: _Columns, layout: CsvLayout) -> dict[str, object]:
+    """The columns used, by role: header names (or indices for a file without a header)."""
     names = {
         "time": cols.time,
         "accel": cols.accel,
         "gyro": cols.gyro,
         "temperature": cols.temperature,
     }
-    if not layout.by_index:
-        names = {
-            role: (
-                None
-                if where is None
-                else [header[i].strip() for i in where]
-                if isinstance(where, list)
-                else header[where].strip()
-            )
-            for role, where in names.items()
-        }
-    return CsvConversion(
-        rows=len(body),
-        samples=len(times),
-        skipped_rows=skipped,
-        notes=tuple(notes),
-        columns=names,
-        time_unit=unit,
-        rate_hz=rate_hz,
-    )
+    if layout.by_index:
+        return names
+    return {
+        role: (
+            None
+            if where is None
+            else [header[i].strip() for i in where]
+            if isinstance(where, list)
+            else header[where].strip()
+        )
+        for role, where in names.items()
+    }

@@ -3,14 +3,20 @@
 A reader that keeps every decompressed chunk until the end holds the whole
 file's message bytes (~340 B per ROS 2 Imu sample) when it needs 24–56 B.
 Decoding each chunk as it is decompressed, into these columns, lets the chunk
-go at once.  The columns grow with :meth:`numpy.ndarray.resize` — ``realloc``,
-which for large arrays remaps pages instead of copying, so the peak is about the
-final size rather than the 2–3× of "collect pieces, then concatenate".
+go at once (a :class:`ColumnSink` per channel).  The columns grow with
+:meth:`numpy.ndarray.resize` — ``realloc``, which for large arrays remaps pages
+instead of copying, so the peak is about the final size rather than the 2–3× of
+"collect pieces, then concatenate".
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from wheelcal.io.mcap_scan import MessageBlock
 
 _MIN_CAPACITY = 4096
 
@@ -70,3 +76,43 @@ class GrowingColumns:
             column.resize((self.size, *column.shape[1:]), refcheck=False)
         self._capacity = self.size
         return dict(self._columns)
+
+
+class ColumnSink:
+    """Decodes a channel block by block as the scan finds it (see ``scan_mcap``).
+
+    Keeps the decoded columns only (no message bytes).  A decoding error
+    (one of :attr:`errors`) is kept, the blocks after it are only counted, and
+    :meth:`columns` raises it.  A codec implements :meth:`decode`.
+    """
+
+    #: The exceptions that mean "this channel cannot be decoded".
+    errors: tuple[type[Exception], ...] = (ValueError,)
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._columns = GrowingColumns()
+        self._error: Exception | None = None
+
+    def decode(self, block: MessageBlock, first_message: int) -> dict[str, np.ndarray | None]:
+        """One block's columns; ``first_message``: the channel's index of its first message."""
+        raise NotImplementedError
+
+    def add(self, block: MessageBlock) -> None:
+        """Decode one block's messages into the columns."""
+        first = self.count
+        self.count += block.count
+        if self._error is not None or block.count == 0:
+            return
+        try:
+            columns = self.decode(block, first)
+        except self.errors as exc:
+            self._error = exc
+            return
+        self._columns.append(**columns)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Every column, trimmed (empty if no message); raises the first decoding error."""
+        if self._error is not None:
+            raise self._error
+        return self._columns.finish()

@@ -23,12 +23,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.io.imu_cdr import _ACCEL_AT, _TAIL_BYTES, ImuLayoutError, _gather, imu_gyro_rows
+from wheelcal.io.channel_format import ChannelFormat
+from wheelcal.io.imu_cdr import _ACCEL_AT, _TAIL_BYTES, ImuLayoutError, imu_gyro_rows
 from wheelcal.io.mcap_scan import MessageBlock
+from wheelcal.io.ros2_cdr import gather
 
 ROS1_IMU_SCHEMA_NAME = "sensor_msgs/Imu"
 ROS1_SCHEMA_ENCODING = "ros1msg"
 ROS1_MESSAGE_ENCODING = "ros1"
+ROS1_IMU_FORMAT = ChannelFormat(
+    ROS1_IMU_SCHEMA_NAME,
+    ROS1_SCHEMA_ENCODING,
+    ROS1_MESSAGE_ENCODING,
+    also_named=("sensor_msgs/msg/Imu",),  # a ROS 2 type name kept by a converter
+)
 _HEADER_FIXED = 16  # seq, sec, nsec, frame_id length
 
 
@@ -53,9 +61,9 @@ def decode_ros1_block(block: MessageBlock, gyro: bool, first_message: int = 0) -
             f"message {first_message + at} is too short to be a ROS 1 sensor_msgs/Imu "
             f"({int(length[at])} bytes)"
         )
-    sec = _gather(arr, body + 4, "<u4").astype(np.int64)
-    nsec = _gather(arr, body + 8, "<u4").astype(np.int64)
-    name_len = _gather(arr, body + 12, "<u4").astype(np.int64)
+    sec = gather(arr, body + 4, "<u4").astype(np.int64)
+    nsec = gather(arr, body + 8, "<u4").astype(np.int64)
+    name_len = gather(arr, body + 12, "<u4").astype(np.int64)
     expected = _HEADER_FIXED + name_len + _TAIL_BYTES
     wrong = length != expected
     if np.any(wrong):
@@ -70,7 +78,7 @@ def decode_ros1_block(block: MessageBlock, gyro: bool, first_message: int = 0) -
             f"message {first_message + int(np.argmax(late))}: header.stamp.nsec is 1e9 or more"
         )
     tail = body + _HEADER_FIXED + name_len
-    accel = _gather(arr, tail + _ACCEL_AT, "<f8", 3)
+    accel = gather(arr, tail + _ACCEL_AT, "<f8", 3)
     rate = None
     if gyro:
         rate = imu_gyro_rows(arr, tail, "<", np.arange(body.size), body.size, None)

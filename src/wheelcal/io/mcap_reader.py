@@ -28,9 +28,11 @@ Optional channels (additive, issue 13), read onto the accelerometer's samples:
 
 The pipeline is: :func:`~wheelcal.io.mcap_scan.scan_mcap` (record walk, every
 CRC verified) → a vectorised decoder (:mod:`~wheelcal.io.imu_cdr`,
-:mod:`~wheelcal.io.accel_json`) → :func:`~wheelcal.recording.samples.clean_samples`
-(repairs noted in ``Recording.notes``, or refusal) → ``Recording`` with times
-in seconds from the first sample (``epoch_unix_ns``).
+:mod:`~wheelcal.io.accel_json`) → :meth:`Recording.from_samples
+<wheelcal.recording.Recording.from_samples>` (units, the sample checks of
+:mod:`~wheelcal.recording.samples`: repairs noted in ``Recording.notes``, or
+refusal) → ``Recording`` with times in seconds from the first sample
+(``epoch_unix_ns``).
 """
 
 from __future__ import annotations
@@ -42,49 +44,33 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.io.accel_json import (
-    ACCEL_BATCH_SCHEMA_NAME,
+    ACCEL_BATCH_FORMAT,
     GYRO_UNIT_KEY,
-    GYRO_UNITS,
-    JSON_MESSAGE_ENCODING,
-    JSON_SCHEMA_ENCODING,
     UNIT_KEY,
-    UNITS,
     AccelBatchError,
     AccelBatchSink,
     decode_accel_batch,
 )
 from wheelcal.io.errors import InputError, TopicError
-from wheelcal.io.imu_cdr import (
-    CDR_MESSAGE_ENCODING,
-    IMU_SCHEMA_NAME,
-    ROS2_SCHEMA_ENCODING,
-    ImuLayoutError,
-    ImuSink,
-    decode_imu_with_gyro,
-)
-from wheelcal.io.imu_ros1 import (
-    ROS1_IMU_SCHEMA_NAME,
-    ROS1_MESSAGE_ENCODING,
-    ROS1_SCHEMA_ENCODING,
-    decode_ros1_block,
-)
+from wheelcal.io.growing import ColumnSink
+from wheelcal.io.imu_cdr import IMU_FORMAT, ImuLayoutError, ImuSink, decode_imu_with_gyro
+from wheelcal.io.imu_ros1 import ROS1_IMU_FORMAT, decode_ros1_block
 from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord
 from wheelcal.io.recording_scan import scan_recording
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
-from wheelcal.io.temperature_cdr import TEMPERATURE_SCHEMA_NAME, decode_temperature_blocks
-from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
-from wheelcal.recording import Recording
-from wheelcal.recording.gyro import RADPS_PER_DPS, align_to_samples, check_gyro
-from wheelcal.recording.samples import InputPolicy, clean_samples
-from wheelcal.recording.temperature import temperature_at
+from wheelcal.io.temperature_cdr import TEMPERATURE_FORMAT, decode_temperature_blocks
+from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording
+from wheelcal.recording.samples import InputPolicy
+from wheelcal.recording.temperature import TemperatureReadings
 
-_IMU_NAMES = (IMU_SCHEMA_NAME, "sensor_msgs/Imu")
-_TEMPERATURE_NAMES = (TEMPERATURE_SCHEMA_NAME, "sensor_msgs/Temperature")
-_EXPECTED = (
-    f"{IMU_SCHEMA_NAME} ({ROS2_SCHEMA_ENCODING}/{CDR_MESSAGE_ENCODING}), "
-    f"{ROS1_IMU_SCHEMA_NAME} ({ROS1_SCHEMA_ENCODING}/{ROS1_MESSAGE_ENCODING}) or "
-    f"{ACCEL_BATCH_SCHEMA_NAME} ({JSON_SCHEMA_ENCODING}/{JSON_MESSAGE_ENCODING})"
-)
+#: The channels the reader takes, by kind, in the order they are tried.
+_FORMATS = {
+    "ros2": IMU_FORMAT,
+    "ros1": ROS1_IMU_FORMAT,  # a ROS 1 bag, or an MCAP written by `mcap convert` from one
+    "json": ACCEL_BATCH_FORMAT,
+    "temperature": TEMPERATURE_FORMAT,
+}
+_EXPECTED = f"{IMU_FORMAT}, {ROS1_IMU_FORMAT} or {ACCEL_BATCH_FORMAT}"
 
 
 @dataclass(frozen=True)
@@ -103,33 +89,7 @@ def _kind(scan: McapScan, channel: ChannelRecord) -> str | None:
 
 
 def _kind_of(channel: ChannelRecord, schema: SchemaRecord | None) -> str | None:
-    if schema is None:
-        return None
-    if (
-        schema.encoding == ROS2_SCHEMA_ENCODING
-        and schema.name in _IMU_NAMES
-        and channel.message_encoding == CDR_MESSAGE_ENCODING
-    ):
-        return "ros2"
-    if (
-        schema.encoding == ROS1_SCHEMA_ENCODING
-        and schema.name in _IMU_NAMES
-        and channel.message_encoding == ROS1_MESSAGE_ENCODING
-    ):
-        return "ros1"  # a ROS 1 bag, or an MCAP written by `mcap convert` from one
-    if (
-        schema.encoding == JSON_SCHEMA_ENCODING
-        and schema.name == ACCEL_BATCH_SCHEMA_NAME
-        and channel.message_encoding == JSON_MESSAGE_ENCODING
-    ):
-        return "json"
-    if (
-        schema.encoding == ROS2_SCHEMA_ENCODING
-        and schema.name in _TEMPERATURE_NAMES
-        and channel.message_encoding == CDR_MESSAGE_ENCODING
-    ):
-        return "temperature"
-    return None
+    return next((kind for kind, fmt in _FORMATS.items() if fmt.matches(channel, schema)), None)
 
 
 class _CountSink:
@@ -145,28 +105,21 @@ class _CountSink:
         self.count += block.count
 
 
-class _TemperatureSink:
+class _TemperatureSink(ColumnSink):
     """Decodes a Temperature channel block by block; a decoding error is kept for later."""
 
-    def __init__(self) -> None:
-        self.count = 0
-        self._parts: list[tuple[np.ndarray, ...]] = []
-        self._error: ImuLayoutError | None = None
+    errors = (ImuLayoutError,)
 
-    def add(self, block) -> None:
-        self.count += block.count
-        if self._error is None and block.count:
-            try:
-                self._parts.append(decode_temperature_blocks((block,)))
-            except ImuLayoutError as exc:
-                self._error = exc
+    def decode(self, block, first_message: int) -> dict[str, np.ndarray | None]:
+        """One block's stamps, log times and temperatures."""
+        stamp, log_time, temp = decode_temperature_blocks((block,), first_message)
+        return {"stamp": stamp, "log_time": log_time, "temperature_c": temp}
 
     def result(self) -> tuple[np.ndarray, ...]:
-        if self._error is not None:
-            raise self._error
-        if not self._parts:
+        columns = self.columns()
+        if not columns:
             return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0)
-        return tuple(np.concatenate(column) for column in zip(*self._parts, strict=True))
+        return columns["stamp"], columns["log_time"], columns["temperature_c"]
 
 
 def _sink_for(channel: ChannelRecord, schema: SchemaRecord | None):
@@ -310,16 +263,7 @@ def _gyro_unit(scan: McapScan, chosen: AccelTopic, where: str, override: str | N
 
 def temperature_topics(scan: McapScan) -> list[ChannelRecord]:
     """The ROS 2 ``sensor_msgs/msg/Temperature`` channels of a file, by topic."""
-    found = []
-    for channel in scan.channels.values():
-        schema = scan.schema_of(channel)
-        if (
-            schema is not None
-            and schema.encoding == ROS2_SCHEMA_ENCODING
-            and schema.name in _TEMPERATURE_NAMES
-            and channel.message_encoding == CDR_MESSAGE_ENCODING
-        ):
-            found.append(channel)
+    found = [c for c in scan.channels.values() if _kind(scan, c) == "temperature"]
     return sorted(found, key=lambda c: c.topic)
 
 
@@ -430,7 +374,6 @@ def read_recording(
         ``TopicError``, ``SessionInfoError``, ``SampleError``) with the file
         and the problem in the message.
     """
-    policy = policy or InputPolicy()
     if gyro_unit is not None and gyro_unit not in GYRO_UNITS:
         raise InputError(path, f"gyro unit {gyro_unit!r} is not one of {list(GYRO_UNITS)}")
     scan = scan_recording(path, sink_for=_sink_for)
@@ -440,75 +383,53 @@ def read_recording(
     info = session_info(
         scan.path, records, info_overrides, info_defaults, gravity_forced=not gravity_checked
     )
-
     unit = accel_unit or chosen.unit
-    if unit not in UNITS:
-        raise InputError(scan.path, f"{where}: unit {unit!r} is not one of {list(UNITS)}")
+    if unit not in ACCEL_UNITS:
+        raise InputError(scan.path, f"{where}: unit {unit!r} is not one of {list(ACCEL_UNITS)}")
+    samples = _samples_of(scan, chosen, unit, gyro, gyro_unit, temperature, temperature_topic)
+    del scan  # the decoded columns are all that is left of the file
+    # The decoded columns are ours to give away: converted and kept in place, no copy.
+    return Recording.from_samples(**samples, info=info, policy=policy, consume=True)
+
+
+def _samples_of(
+    scan: McapScan,
+    chosen: AccelTopic,
+    unit: str,
+    gyro: bool,
+    gyro_unit: str | None,
+    temperature: bool,
+    temperature_topic: str | None,
+) -> dict[str, object]:
+    """The file's part of :meth:`Recording.from_samples`' arguments: decoded columns, notes."""
+    where = f"topic {chosen.topic}"
     decoded = _decode(scan, chosen, where, gyro, temperature)
-    time_ns, accel, notes = decoded.time_ns, decoded.accel, decoded.notes
-    if unit == "g":
-        # CONTRACT: g always means 9.80665 m/s² (in place: the decoded array is ours).
-        accel = np.multiply(accel, STANDARD_GRAVITY_MPS2, out=accel)
-        notes.append("samples converted from g (9.80665 m/s²)")
-    raw_gyro = decoded.gyro
-    if raw_gyro is not None and _gyro_unit(scan, chosen, where, gyro_unit) == "deg/s":
-        raw_gyro = raw_gyro * RADPS_PER_DPS
-        notes.append("gyro converted from deg/s")
-    temp_source = None
+    notes = decoded.notes
+    stated_gyro_unit = "rad/s"
+    if decoded.gyro is not None:
+        stated_gyro_unit = _gyro_unit(scan, chosen, where, gyro_unit)
+    readings = None
     if temperature:
-        temp_source = _temperature_source(scan, chosen, decoded, temperature_topic, notes)
+        readings = _temperature_source(scan, chosen, decoded, temperature_topic, notes)
     if scan.chunks_without_crc:
         notes.append(
             f"{scan.chunks_without_crc} of {scan.chunks} chunks carry no CRC; "
             "their integrity could not be verified"
         )
-    path_name = scan.path
-    del decoded, scan  # the decoded columns are all that is left of the file
-    clean = clean_samples(
-        f"{path_name} ({where})",
-        time_ns,
-        accel,
-        unit=unit,
-        full_scale_g=info.full_scale_g,
-        policy=policy,
-        unit_remedy=_unit_remedy(chosen, unit),
-    )
-    extra_notes: list[str] = []
-    gyro_rows = None
-    if raw_gyro is not None:
-        aligned = align_to_samples(time_ns, accel, raw_gyro, clean.time_ns)
-        hint = (
-            "state the channel metadata gyro_unit ('rad/s' or 'deg/s')"
-            if chosen.encoding == "json"
-            else "sensor_msgs/msg/Imu carries rad/s (REP 103): fix the driver, or read with "
-            "gyro_unit='deg/s'"
-        )
-        gyro_rows, gyro_notes = check_gyro(
-            f"{path_name} ({where})", aligned, info.gyro_full_scale_dps, unit_hint=hint
-        )
-        extra_notes += gyro_notes
-    temp_rows = None
-    if temp_source is not None:
-        what, stamps, values = temp_source
-        temp_rows, temp_notes = temperature_at(what, stamps, values, clean.time_ns)
-        extra_notes += temp_notes
-    del time_ns, accel, raw_gyro, temp_source
-    epoch = int(clean.time_ns[0])
-    time_s = _seconds_since(clean.time_ns, epoch)
-    accel_mps2 = clean.accel_mps2
-    accel_mps2.setflags(write=False)  # handed over: Recording keeps read-only arrays as they are
-    return Recording(
-        time_s=time_s,
-        accel_mps2=accel_mps2,
-        info=info,
-        epoch_unix_ns=epoch,
-        source=path_name,
-        topic=chosen.topic,
-        notes=tuple(notes) + clean.notes + tuple(extra_notes),
-        gyro_radps=gyro_rows,
-        temperature_c=temp_rows,
-        clip_limits_mps2=clean.clip_limits_mps2,
-    )
+    return {
+        "source": scan.path,
+        "time_ns": decoded.time_ns,
+        "accel": decoded.accel,
+        "unit": unit,
+        "gyro": decoded.gyro,
+        "gyro_unit": stated_gyro_unit,
+        "temperature": readings,
+        "topic": chosen.topic,
+        "notes": notes,
+        "label": f"{scan.path} ({where})",
+        "unit_remedy": _unit_remedy(chosen, unit),
+        "gyro_unit_hint": _gyro_unit_hint(chosen),
+    }
 
 
 def _unit_remedy(chosen: AccelTopic, unit: str) -> str:
@@ -526,29 +447,25 @@ def _unit_remedy(chosen: AccelTopic, unit: str) -> str:
     )
 
 
-def _seconds_since(time_ns: np.ndarray, epoch_ns: int) -> np.ndarray:
-    """Read-only seconds since ``epoch_ns``, computed in the stamps' own memory (consumed).
-
-    (A 2.9 M-sample recording's stamps and seconds would otherwise coexist.)
-    """
-    if not (time_ns.flags.writeable and time_ns.flags.c_contiguous):
-        time_ns = np.array(time_ns, dtype=np.int64)
-    time_ns -= epoch_ns
-    seconds = time_ns.view(np.float64)
-    np.multiply(time_ns, 1e-9, out=seconds, casting="unsafe")
-    seconds.setflags(write=False)
-    return seconds
+def _gyro_unit_hint(chosen: AccelTopic) -> str:
+    """How to state the right gyro unit for this file's format."""
+    if chosen.encoding == "json":
+        return "state the channel metadata gyro_unit ('rad/s' or 'deg/s')"
+    return (
+        "sensor_msgs/msg/Imu carries rad/s (REP 103): fix the driver, or read with "
+        "gyro_unit='deg/s'"
+    )
 
 
 def _temperature_source(
     scan: McapScan, chosen: AccelTopic, decoded: _Decoded, wanted: str | None, notes: list[str]
-) -> tuple[str, np.ndarray, np.ndarray] | None:
-    """(description, stamps, °C) of the temperature to use: the batch's own, else a topic."""
+) -> TemperatureReadings | None:
+    """The temperature readings to use: the batch's own, else a topic's."""
     if decoded.temperature is not None:
         if wanted is not None:
             notes.append(f"temperature from the batches' temperature_c; topic {wanted} not used")
         stamps, values = decoded.temperature
-        return "temperature_c of the batches", stamps, values
+        return TemperatureReadings("temperature_c of the batches", stamps, values)
     if not temperature_topics(scan):
         if wanted is not None:
             raise TopicError(scan.path, f"there is no sensor_msgs/msg/Temperature topic {wanted!r}")
@@ -557,4 +474,4 @@ def _temperature_source(
     if found is None:
         return None
     channel, stamps, values = found
-    return f"topic {channel.topic}", stamps, values
+    return TemperatureReadings(f"topic {channel.topic}", stamps, values)

@@ -58,6 +58,8 @@ except ImportError:  # pragma: no cover - a dependency; zlib computes the same C
 
 MAGIC = b"\x89MCAP0\r\n"
 MESSAGE_HEADER_BYTES = 22  # channel u16, sequence u32, log_time u64, publish_time u64
+#: Between two payloads of Message records in a row: the next one's opcode, length and header.
+RECORD_GAP_BYTES = 9 + MESSAGE_HEADER_BYTES
 _RECORD_PREFIX = struct.Struct("<BQ")
 _GALLOP_MIN = 16  # try the vectorised stride test only with this many candidates left
 _GALLOP_COOLDOWN = 32  # after a failed gallop, walk at least this many records one by one
@@ -122,6 +124,17 @@ class MessageBlock:
     def count(self) -> int:
         """Number of messages in the block."""
         return int(self.payload_offsets.size)
+
+    def back_to_back(self) -> bool:
+        """Whether the payloads are Message records in a row: only the records' heads between."""
+        starts, lengths = self.payload_offsets, self.payload_lengths
+        return bool(np.all(starts[1:] - (starts[:-1] + lengths[:-1]) == RECORD_GAP_BYTES))
+
+    def span(self) -> tuple[int, int]:
+        """Where the first payload starts and the last ends in ``buffer`` (a non-empty block)."""
+        return int(self.payload_offsets[0]), int(
+            self.payload_offsets[-1] + self.payload_lengths[-1]
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -456,6 +469,8 @@ class _Collector:
         self.blocks: dict[int, list[MessageBlock]] = {}
         self.sink_for = sink_for
         self.sinks: dict[int, MessageSink] = {}
+        self.chunks = 0
+        self.chunks_without_crc = 0
 
     def fail(self, where: str):
         return lambda text: CorruptFileError(self.path, f"{where}: {text}")
@@ -477,6 +492,69 @@ class _Collector:
             else:
                 name = cur.string()
                 self.metadata.append((name, MappingProxyType(cur.string_map())))
+
+    def chunk(self, buf, i: int, stop: int, table: tuple[np.ndarray, ...]) -> None:
+        """Record ``i`` of the data section's ``table``, a Chunk: decompressed, checked, read.
+
+        The records after it up to ``stop`` (the next chunk) hold its
+        MessageIndex records, which list its messages (spec) and spare a walk
+        through the decompressed records.  The chunk's pages of the mapped file
+        are released when it is done.
+        """
+        ops, starts, lengths = table
+        chunk_start, chunk_length = int(starts[i]), int(lengths[i])
+        follow = slice(i + 1, stop)
+        is_index = ops[follow] == Opcode.MESSAGE_INDEX
+        index_offsets = _message_index_offsets(
+            buf, starts[follow][is_index], lengths[follow][is_index]
+        )
+        where = f"chunk at byte {chunk_start}"
+        cur = _Cursor(buf, chunk_start + 9, chunk_start + 9 + chunk_length, self.fail(where))
+        cur.u64()  # message_start_time
+        cur.u64()  # message_end_time
+        size, crc = cur.u64(), cur.u32()
+        compression = cur.string()
+        records = cur.view(cur.u64())
+        data = _decompress(self.path, compression, records, size, where)
+        if crc == 0:
+            self.chunks_without_crc += 1  # the writer chose not to compute it (spec: 0 = absent)
+        elif (computed := crc32(data)) != crc:
+            raise CorruptFileError(
+                self.path,
+                f"{where}: CRC mismatch, the chunk's data is damaged (stored {crc:#010x}, "
+                f"computed {computed:#010x})",
+            )
+        inner = None
+        if index_offsets.size:
+            inner = _records_from_index(data, index_offsets, self.fail(where))
+        if inner is None:
+            inner = _walk_records(data, 0, len(data), self.fail(where))
+        c_ops, c_starts, c_lengths = inner
+        self.definitions(data, c_ops, c_starts, c_lengths, where)
+        self.messages(data, c_ops, c_starts, c_lengths, where)
+        self.chunks += 1
+        del data, inner, c_ops, c_starts, c_lengths, records
+        _release(buf, chunk_start, chunk_start + 9 + chunk_length)
+
+    def scan(self, profile: str, library: str) -> McapScan:
+        """What was found, once every record was read; refuses messages of undefined channels."""
+        for cid in list(self.blocks) + list(self.sinks):
+            if cid not in self.channels:
+                raise CorruptFileError(
+                    self.path, f"messages refer to channel {cid}, which is never defined"
+                )
+        return McapScan(
+            path=self.path,
+            profile=profile,
+            library=library,
+            schemas=MappingProxyType(self.schemas),
+            channels=MappingProxyType(self.channels),
+            metadata=tuple(self.metadata),
+            blocks=MappingProxyType({k: tuple(v) for k, v in self.blocks.items()}),
+            chunks=self.chunks,
+            chunks_without_crc=self.chunks_without_crc,
+            sinks=MappingProxyType(self.sinks),
+        )
 
     def messages(self, buf: bytes, ops, starts, lengths, where: str) -> None:
         """Group the Message records of ``buf`` by channel."""
@@ -536,11 +614,48 @@ def scan_mcap(path: str | os.PathLike, sink_for=None) -> McapScan:
     """
     name = str(path)
     buf = _map_file(name)
+    ops, starts, lengths = _records(name, buf)
+    footer = ops.size - 1
+    col = _Collector(name, sink_for)
+    header = _Cursor(
+        buf, int(starts[0]) + 9, int(starts[0]) + 9 + int(lengths[0]), col.fail("header")
+    )
+    profile, library = header.string(), header.string()
+
+    data_end_at = np.flatnonzero(ops == Opcode.DATA_END)
+    data_stop = int(data_end_at[0]) if data_end_at.size else footer
+
+    # Data section: loose definitions and messages, metadata, and chunks.
+    d_ops, d_starts, d_lengths = ops[:data_stop], starts[:data_stop], lengths[:data_stop]
+    col.definitions(buf, d_ops, d_starts, d_lengths, "data section")
+    col.messages(buf, d_ops, d_starts, d_lengths, "data section")
+    chunk_at = np.flatnonzero(d_ops == Opcode.CHUNK)
+    for k, i in enumerate(chunk_at.tolist()):
+        # The MessageIndex records that follow a chunk (spec) list its messages.
+        stop = int(chunk_at[k + 1]) if k + 1 < chunk_at.size else d_ops.size
+        col.chunk(buf, i, stop, (d_ops, d_starts, d_lengths))
+    # After the chunks, so a damaged chunk is reported as precisely as possible.
+    _check_section_crcs(name, buf, starts, data_end_at, footer)
+    # Summary section: repeated schemas and channels (harmless duplicates by id).
+    s_ops, s_starts, s_lengths = (
+        ops[data_stop:footer],
+        starts[data_stop:footer],
+        lengths[data_stop:footer],
+    )
+    keep = (s_ops == Opcode.SCHEMA) | (s_ops == Opcode.CHANNEL)
+    col.definitions(buf, s_ops[keep], s_starts[keep], s_lengths[keep], "summary section")
+    return col.scan(profile, library)
+
+
+def _records(name: str, buf) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Opcodes, starts and lengths of the file's top-level records, from Header to Footer.
+
+    Refuses what is no MCAP file (magic), and a file that is truncated or whose
+    records do not run from a Header to a Footer and the end magic.
+    """
     if buf[: len(MAGIC)] != MAGIC:
         hint = " (it looks like text, e.g. a CSV: see `wheelcal convert`)" if _is_text(buf) else ""
         raise NotMcapError(name, f"not an MCAP file: it does not start with the MCAP magic{hint}")
-
-    col = _Collector(name, sink_for)
     size = len(buf)
     complete = size >= 2 * len(MAGIC) and buf[size - len(MAGIC) :] == MAGIC
     end = size - len(MAGIC) if complete else size
@@ -558,87 +673,9 @@ def scan_mcap(path: str | os.PathLike, sink_for=None) -> McapScan:
             "the file is truncated: it has no footer and end magic (the recording was cut "
             "off; `mcap recover` can salvage the complete chunks)",
         )
-    footer = ops.size - 1
     if ops[0] != Opcode.HEADER:
         raise CorruptFileError(name, "the first record is not an MCAP Header")
-
-    header = _Cursor(
-        buf, int(starts[0]) + 9, int(starts[0]) + 9 + int(lengths[0]), col.fail("header")
-    )
-    profile, library = header.string(), header.string()
-
-    data_end_at = np.flatnonzero(ops == Opcode.DATA_END)
-    data_stop = int(data_end_at[0]) if data_end_at.size else footer
-
-    # Data section: loose definitions and messages, metadata, and chunks.
-    d_ops, d_starts, d_lengths = ops[:data_stop], starts[:data_stop], lengths[:data_stop]
-    col.definitions(buf, d_ops, d_starts, d_lengths, "data section")
-    col.messages(buf, d_ops, d_starts, d_lengths, "data section")
-    chunks = 0
-    chunks_without_crc = 0
-    chunk_at = np.flatnonzero(d_ops == Opcode.CHUNK)
-    for k, i in enumerate(chunk_at.tolist()):
-        chunk_start, chunk_length = int(d_starts[i]), int(d_lengths[i])
-        # The MessageIndex records that follow a chunk (spec) list its messages.
-        stop = int(chunk_at[k + 1]) if k + 1 < chunk_at.size else d_ops.size
-        follow = slice(i + 1, stop)
-        is_index = d_ops[follow] == Opcode.MESSAGE_INDEX
-        index_offsets = _message_index_offsets(
-            buf, d_starts[follow][is_index], d_lengths[follow][is_index]
-        )
-        where = f"chunk at byte {chunk_start}"
-        cur = _Cursor(buf, chunk_start + 9, chunk_start + 9 + chunk_length, col.fail(where))
-        cur.u64()  # message_start_time
-        cur.u64()  # message_end_time
-        size, crc = cur.u64(), cur.u32()
-        compression = cur.string()
-        records = cur.view(cur.u64())
-        data = _decompress(name, compression, records, size, where)
-        if crc == 0:
-            chunks_without_crc += 1  # the writer chose not to compute it (spec: 0 = absent)
-        elif (computed := crc32(data)) != crc:
-            raise CorruptFileError(
-                name,
-                f"{where}: CRC mismatch, the chunk's data is damaged (stored {crc:#010x}, "
-                f"computed {computed:#010x})",
-            )
-        table = None
-        if index_offsets.size:
-            table = _records_from_index(data, index_offsets, col.fail(where))
-        if table is None:
-            table = _walk_records(data, 0, len(data), col.fail(where))
-        c_ops, c_starts, c_lengths = table
-        col.definitions(data, c_ops, c_starts, c_lengths, where)
-        col.messages(data, c_ops, c_starts, c_lengths, where)
-        chunks += 1
-        del data, table, c_ops, c_starts, c_lengths, records
-        _release(buf, chunk_start, chunk_start + 9 + chunk_length)
-    # After the chunks, so a damaged chunk is reported as precisely as possible.
-    _check_section_crcs(name, buf, starts, data_end_at, footer)
-    # Summary section: repeated schemas and channels (harmless duplicates by id).
-    s_ops, s_starts, s_lengths = (
-        ops[data_stop:footer],
-        starts[data_stop:footer],
-        lengths[data_stop:footer],
-    )
-    keep = (s_ops == Opcode.SCHEMA) | (s_ops == Opcode.CHANNEL)
-    col.definitions(buf, s_ops[keep], s_starts[keep], s_lengths[keep], "summary section")
-
-    for cid in list(col.blocks) + list(col.sinks):
-        if cid not in col.channels:
-            raise CorruptFileError(name, f"messages refer to channel {cid}, which is never defined")
-    return McapScan(
-        path=name,
-        profile=profile,
-        library=library,
-        schemas=MappingProxyType(col.schemas),
-        channels=MappingProxyType(col.channels),
-        metadata=tuple(col.metadata),
-        blocks=MappingProxyType({k: tuple(v) for k, v in col.blocks.items()}),
-        chunks=chunks,
-        chunks_without_crc=chunks_without_crc,
-        sinks=MappingProxyType(col.sinks),
-    )
+    return ops, starts, lengths
 
 
 def _check_section_crcs(name, buf, starts, data_end_at, footer) -> None:

@@ -32,33 +32,19 @@ from typing import Literal
 import numpy as np
 
 from wheelcal.io.accel_json import (
-    ACCEL_BATCH_SCHEMA_NAME,
+    ACCEL_BATCH_FORMAT,
     GYRO_UNIT_KEY,
-    GYRO_UNITS,
-    JSON_MESSAGE_ENCODING,
-    JSON_SCHEMA_ENCODING,
     UNIT_KEY,
-    UNITS,
     encode_accel_batches,
-    schema_bytes,
 )
 from wheelcal.io.atomic import atomic_output
+from wheelcal.io.channel_format import ChannelFormat
 from wheelcal.io.errors import CorruptFileError
-from wheelcal.io.imu_cdr import (
-    CDR_MESSAGE_ENCODING,
-    IMU_MSGDEF,
-    IMU_SCHEMA_NAME,
-    ROS2_SCHEMA_ENCODING,
-    encode_imu_messages,
-)
+from wheelcal.io.imu_cdr import IMU_FORMAT, encode_imu_messages
 from wheelcal.io.mcap_scan import scan_mcap
 from wheelcal.io.session_meta import SESSION_METADATA_NAME
-from wheelcal.io.temperature_cdr import (
-    TEMPERATURE_MSGDEF,
-    TEMPERATURE_SCHEMA_NAME,
-    encode_temperature_messages,
-)
-from wheelcal.recording import Recording, SessionInfo
+from wheelcal.io.temperature_cdr import TEMPERATURE_FORMAT, encode_temperature_messages
+from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording, SessionInfo
 
 DEFAULT_TOPICS = {"ros2": "/imu/data_raw", "json": "/wheelcal/accel"}
 DEFAULT_TEMPERATURE_TOPIC = "/imu/temperature"
@@ -83,6 +69,25 @@ class ChannelData:
     message_encoding: str
     messages: tuple[tuple[int, bytes], ...] = field(repr=False)
     metadata: Mapping[str, str] = field(default_factory=dict)
+
+    @classmethod
+    def of(
+        cls,
+        fmt: ChannelFormat,
+        topic: str,
+        messages: tuple[tuple[int, bytes], ...],
+        metadata: Mapping[str, str] | None = None,
+    ) -> ChannelData:
+        """A channel of the format ``fmt`` (its schema stored with it)."""
+        return cls(
+            topic=topic,
+            schema_name=fmt.schema_name,
+            schema_encoding=fmt.schema_encoding,
+            schema_data=fmt.schema_data,
+            message_encoding=fmt.message_encoding,
+            messages=messages,
+            metadata={} if metadata is None else metadata,
+        )
 
 
 def session_metadata(info: SessionInfo) -> dict[str, str]:
@@ -156,8 +161,8 @@ def accel_channel(
         message's ``linear_acceleration_covariance`` (``None``: zeros, unknown);
         JSON stores it as the channel metadata ``accel_covariance_mps2sq``.
     """
-    if unit not in UNITS:
-        raise ValueError(f"unit must be one of {UNITS}, got {unit!r}")
+    if unit not in ACCEL_UNITS:
+        raise ValueError(f"unit must be one of {ACCEL_UNITS}, got {unit!r}")
     if gyro_unit not in GYRO_UNITS:
         raise ValueError(f"gyro_unit must be one of {GYRO_UNITS}, got {gyro_unit!r}")
     time_ns = np.asarray(time_ns, dtype=np.int64).reshape(-1)
@@ -174,14 +179,8 @@ def accel_channel(
                 "ROS 2 carries the temperature on its own topic: temperature_channel()"
             )
         payloads = encode_imu_messages(time_ns, accel, frame_id, gyro, accel_covariance_mps2sq)
-        return ChannelData(
-            topic=topic or DEFAULT_TOPICS["ros2"],
-            schema_name=IMU_SCHEMA_NAME,
-            schema_encoding=ROS2_SCHEMA_ENCODING,
-            schema_data=IMU_MSGDEF.encode("utf-8"),
-            message_encoding=CDR_MESSAGE_ENCODING,
-            messages=tuple(zip(time_ns.tolist(), payloads, strict=True)),
-        )
+        messages = tuple(zip(time_ns.tolist(), payloads, strict=True))
+        return ChannelData.of(IMU_FORMAT, topic or DEFAULT_TOPICS["ros2"], messages)
     if encoding == "json":
         metadata = {UNIT_KEY: unit}
         if gyro is not None:
@@ -189,14 +188,9 @@ def accel_channel(
         if accel_covariance_mps2sq is not None:
             cov = np.asarray(accel_covariance_mps2sq, dtype=float).reshape(3, 3)
             metadata["accel_covariance_mps2sq"] = json.dumps(cov.tolist())
-        return ChannelData(
-            topic=topic or DEFAULT_TOPICS["json"],
-            schema_name=ACCEL_BATCH_SCHEMA_NAME,
-            schema_encoding=JSON_SCHEMA_ENCODING,
-            schema_data=schema_bytes(),
-            message_encoding=JSON_MESSAGE_ENCODING,
-            messages=tuple(encode_accel_batches(time_ns, accel, batch_size, gyro, temperature_c)),
-            metadata=metadata,
+        messages = tuple(encode_accel_batches(time_ns, accel, batch_size, gyro, temperature_c))
+        return ChannelData.of(
+            ACCEL_BATCH_FORMAT, topic or DEFAULT_TOPICS["json"], messages, metadata
         )
     raise ValueError(f"encoding must be 'ros2' or 'json', got {encoding!r}")
 
@@ -220,14 +214,8 @@ def temperature_channel(
     keep = np.isfinite(temp)
     time_ns, temp = time_ns[keep], temp[keep]
     payloads = encode_temperature_messages(time_ns, temp, frame_id)
-    return ChannelData(
-        topic=topic,
-        schema_name=TEMPERATURE_SCHEMA_NAME,
-        schema_encoding=ROS2_SCHEMA_ENCODING,
-        schema_data=TEMPERATURE_MSGDEF.encode("utf-8"),
-        message_encoding=CDR_MESSAGE_ENCODING,
-        messages=tuple(zip(time_ns.tolist(), payloads, strict=True)),
-    )
+    messages = tuple(zip(time_ns.tolist(), payloads, strict=True))
+    return ChannelData.of(TEMPERATURE_FORMAT, topic, messages)
 
 
 def _compression(name: str):
@@ -484,10 +472,6 @@ def copy_with_channels(
         ``False`` refuses an existing ``destination``
         (:class:`~wheelcal.io.atomic.OutputExistsError`).
     """
-    from mcap.exceptions import McapError
-    from mcap.records import Attachment, Channel, Message, Metadata, Schema
-    from mcap.stream_reader import StreamReader
-
     if os.path.abspath(source) == os.path.abspath(destination):
         raise ValueError(f"{destination}: the copy must not overwrite its source")
     scan = scan_mcap(source)  # clear errors for damaged or non-MCAP sources
@@ -500,41 +484,7 @@ def copy_with_channels(
     with atomic_output(destination, replace=replace) as stream:
         writer = _new_writer(stream, compression, chunk_bytes)
         writer.start(profile=scan.profile, library=scan.library)
-        schema_ids: dict[int, int] = {0: 0}
-        channel_ids: dict[int, int] = {}
-        originals = []
-        attachments = []
-        metadata_records = []
-        try:
-            with open(source, "rb") as src:
-                for record in StreamReader(src, validate_crcs=True).records:
-                    if isinstance(record, Schema) and record.id not in schema_ids:
-                        schema_ids[record.id] = writer.register_schema(
-                            record.name, record.encoding, record.data
-                        )
-                    elif isinstance(record, Channel) and record.id not in channel_ids:
-                        channel_ids[record.id] = writer.register_channel(
-                            record.topic,
-                            record.message_encoding,
-                            schema_ids[record.schema_id],
-                            dict(record.metadata),
-                        )
-                    elif isinstance(record, Message):
-                        originals.append(
-                            (
-                                record.log_time,
-                                channel_ids[record.channel_id],
-                                record.sequence,
-                                record.publish_time,
-                                record.data,
-                            )
-                        )
-                    elif isinstance(record, Attachment):
-                        attachments.append(record)
-                    elif isinstance(record, Metadata):
-                        metadata_records.append(record)
-        except (McapError, KeyError, EOFError) as exc:
-            raise CorruptFileError(source, f"cannot be copied: {exc}") from None
+        originals, attachments, metadata_records = _copy_definitions(source, writer)
         ids = [_register(writer, channel) for channel in channels]
         _write_messages(writer, originals, channels, ids)
         for att in attachments:
@@ -544,3 +494,50 @@ def copy_with_channels(
         for name, values in (metadata or {}).items():
             writer.add_metadata(name, dict(values))
         writer.finish()
+
+
+def _copy_definitions(source, writer) -> tuple[list, list, list]:
+    """``source``'s schemas and channels registered with ``writer``; its other records.
+
+    Returns the messages as ``(log, new channel id, sequence, publish, data)``,
+    the attachments and the metadata records, in file order, for the caller
+    to write after its own channels are registered.
+    """
+    from mcap.exceptions import McapError
+    from mcap.records import Attachment, Channel, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader
+
+    schema_ids: dict[int, int] = {0: 0}
+    channel_ids: dict[int, int] = {}
+    originals, attachments, metadata_records = [], [], []
+    try:
+        with open(source, "rb") as src:
+            for record in StreamReader(src, validate_crcs=True).records:
+                if isinstance(record, Schema) and record.id not in schema_ids:
+                    schema_ids[record.id] = writer.register_schema(
+                        record.name, record.encoding, record.data
+                    )
+                elif isinstance(record, Channel) and record.id not in channel_ids:
+                    channel_ids[record.id] = writer.register_channel(
+                        record.topic,
+                        record.message_encoding,
+                        schema_ids[record.schema_id],
+                        dict(record.metadata),
+                    )
+                elif isinstance(record, Message):
+                    originals.append(
+                        (
+                            record.log_time,
+                            channel_ids[record.channel_id],
+                            record.sequence,
+                            record.publish_time,
+                            record.data,
+                        )
+                    )
+                elif isinstance(record, Attachment):
+                    attachments.append(record)
+                elif isinstance(record, Metadata):
+                    metadata_records.append(record)
+    except (McapError, KeyError, EOFError) as exc:
+        raise CorruptFileError(source, f"cannot be copied: {exc}") from None
+    return originals, attachments, metadata_records

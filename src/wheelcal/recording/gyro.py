@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.recording.errors import SampleError
-from wheelcal.recording.samples import rows_all, rows_any
+from wheelcal.recording.samples import percent, rows_all, rows_any, run_lengths
 
 RADPS_PER_DPS = np.pi / 180.0
 
@@ -72,10 +72,6 @@ class GyroPolicy:
     rail_jitter_lsb: float = 1.5
     #: Largest jitter window, as a fraction of the rail value (a sparse tail is not a count).
     max_lsb_fraction: float = 0.005
-
-
-def _pct(part: int, whole: int) -> str:
-    return f"{100.0 * part / max(whole, 1):.2g} %"
 
 
 def align_to_samples(
@@ -177,7 +173,7 @@ def check_gyro(
         )
     if np.any(bad):
         notes.append(
-            f"gyro: {int(bad.sum())} of {n} samples ({_pct(int(bad.sum()), n)}) have no "
+            f"gyro: {int(bad.sum())} of {n} samples ({percent(int(bad.sum()), n)}) have no "
             "reading (absent from their message, or NaN/inf); left out"
         )
     outliers = _gross_outliers(w, valid, policy)
@@ -187,7 +183,7 @@ def check_gyro(
         valid &= ~outliers
         worst = float(np.nanmax(np.abs(np.asarray(gyro_radps, dtype=float)[outliers])))
         notes.append(
-            f"gyro: {count} of {n} samples ({_pct(count, n)}) far from their neighbours "
+            f"gyro: {count} of {n} samples ({percent(count, n)}) far from their neighbours "
             f"(largest {worst:.3g} rad/s: a logger's glitch); left out"
         )
     _check_range(path, w[valid], full_scale_dps, policy, unit_hint)
@@ -196,7 +192,7 @@ def check_gyro(
     if count:
         w[clipped] = np.nan
         notes.append(
-            f"gyro: {count} of {n} samples ({_pct(count, n)}) clipped {how}; left out "
+            f"gyro: {count} of {n} samples ({percent(count, n)}) clipped {how}; left out "
             "(their accelerometer samples are kept)"
         )
         if not np.any(np.isfinite(w[:, 0])):
@@ -268,7 +264,8 @@ def _clipped_rows(w, valid, full_scale_dps, policy) -> tuple[np.ndarray, str]:
                 continue
             tol = policy.rail_jitter_lsb * _count_size(x, extreme, policy)
             at = x >= extreme - tol if side > 0 else x <= extreme + tol
-            if at.sum() >= policy.clip_run_samples and _longest_run(at) >= policy.clip_run_samples:
+            longest = np.max(run_lengths(at), initial=0)
+            if at.sum() >= policy.clip_run_samples and longest >= policy.clip_run_samples:
                 clipped[rows[at]] = True
                 rails.append(f"{'xyz'[k]} = {extreme:+.4g}")
     return clipped, "at the rails " + ", ".join(rails) + " rad/s (runs at the extreme value)"
@@ -283,11 +280,3 @@ def _count_size(x: np.ndarray, extreme: float, policy: GyroPolicy) -> float:
         return 0.0
     step = float(steps.min())
     return step if step <= span else 0.0
-
-
-def _longest_run(mask: np.ndarray) -> int:
-    if not np.any(mask):
-        return 0
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    return int(np.max(stops - starts))

@@ -18,10 +18,19 @@ Optional channels on the accelerometer's clock (additive, issue 13):
   gyro reads −ω R e_Z (R maps bench → sensor).
 * ``temperature_c`` (N,), °C, finite: the sensor's temperature interpolated
   onto the sample times.
+
+Two ways in, one set of checks: the constructor takes samples already checked
+and checks only the invariants above (cheap: shapes, finite values, strictly
+increasing times), raising :class:`RecordingError` naming ``source``;
+:meth:`Recording.from_samples` takes raw samples — any order, any unit the
+contract names, defects and all — through the repairs and refusals of
+:mod:`.samples`, :mod:`.gyro` and :mod:`.temperature` first.  Every reader and
+``wheelcal.calibrate(recording)`` build their recording with it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -29,6 +38,9 @@ import numpy as np
 
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 from wheelcal.recording.errors import CalibrationRefused, RecordingError  # noqa: F401
+from wheelcal.recording.gyro import RADPS_PER_DPS, align_to_samples, check_gyro
+from wheelcal.recording.samples import CleanSamples, InputPolicy, clean_samples
+from wheelcal.recording.temperature import TemperatureReadings, temperature_at
 
 DEFAULT_RADIUS_STD_M = 1e-3
 #: Session facts a user may give (file metadata, command line, pipeline file).
@@ -41,18 +53,111 @@ SESSION_FACT_KEYS = (
     "sensor_id",
     "mounting_id",
 )
+#: Units of accelerometer samples a source may state (CONTRACT: ``g`` is 9.80665 m/s²).
+ACCEL_UNITS = ("m/s^2", "g")
+#: Units of gyroscope samples a source may state.
+GYRO_UNITS = ("rad/s", "deg/s")
 
 
-def _frozen_or_copy(values) -> np.ndarray:
+def _frozen_or_copy(values, source: str, name: str) -> np.ndarray:
     """A float64 array the recording can keep: a read-only float64 array as it is, else a copy.
 
     Read-only arrays are taken without a copy (a 2.9 M-sample recording is
     70 MB per copy): whoever passes one promises not to change its memory
     through another view.  The reader hands over its arrays this way.
+    Anything but real numbers is a :class:`RecordingError` naming ``source``.
     """
     if isinstance(values, np.ndarray) and values.dtype == np.float64 and not values.flags.writeable:
         return values
-    return np.array(values, dtype=float)
+    if isinstance(values, np.ndarray) and values.dtype.kind not in "biuf":
+        raise RecordingError(f"{source}: {name} must be real numbers, not {values.dtype}")
+    try:
+        return np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise RecordingError(f"{source}: {name} must be real numbers") from None
+
+
+def _accel_in_mps2(label: str, accel, unit: str, consume: bool, notes: list[str]) -> np.ndarray:
+    """The samples in m/s² (in place when they are the caller's to give away)."""
+    if unit not in ACCEL_UNITS:
+        raise RecordingError(f"{label}: unit {unit!r} is not one of {list(ACCEL_UNITS)}")
+    if unit != "g":
+        return accel
+    notes.append("samples converted from g (9.80665 m/s²)")
+    owned = consume and isinstance(accel, np.ndarray) and accel.dtype == np.float64
+    if owned and accel.flags.writeable:
+        return np.multiply(accel, STANDARD_GRAVITY_MPS2, out=accel)
+    return np.multiply(accel, STANDARD_GRAVITY_MPS2)
+
+
+def _gyro_in_radps(label: str, gyro, unit: str, notes: list[str]) -> np.ndarray:
+    """The gyro rows in rad/s."""
+    if unit not in GYRO_UNITS:
+        raise RecordingError(f"{label}: gyro unit {unit!r} is not one of {list(GYRO_UNITS)}")
+    if unit != "deg/s":
+        return gyro
+    notes.append("gyro converted from deg/s")
+    return np.multiply(gyro, RADPS_PER_DPS)
+
+
+def _seconds_since(time_ns: np.ndarray, epoch_ns: int) -> np.ndarray:
+    """Read-only seconds since ``epoch_ns``, computed in the stamps' own memory (consumed).
+
+    (A 2.9 M-sample recording's stamps and seconds would otherwise coexist.)
+    """
+    if not (time_ns.flags.writeable and time_ns.flags.c_contiguous):
+        time_ns = np.array(time_ns, dtype=np.int64)
+    time_ns -= epoch_ns
+    seconds = time_ns.view(np.float64)
+    np.multiply(time_ns, 1e-9, out=seconds, casting="unsafe")
+    seconds.setflags(write=False)
+    return seconds
+
+
+def _gyro_on_kept(label, raw, radps, info, unit_hint, notes) -> np.ndarray | None:
+    """The gyro rows of the kept samples, judged (``raw``: stamps, samples, kept stamps)."""
+    if radps is None:
+        return None
+    time_ns, accel, kept_ns = raw
+    aligned = align_to_samples(time_ns, accel, radps, kept_ns)  # the same repairs
+    gyro, gyro_notes = check_gyro(label, aligned, info.gyro_full_scale_dps, unit_hint=unit_hint)
+    notes += gyro_notes
+    return gyro
+
+
+def _temperature_on_kept(raw, temperature, notes) -> np.ndarray | None:
+    """The temperature at the kept stamps: readings interpolated, or one per sample followed."""
+    time_ns, accel, kept_ns = raw
+    if isinstance(temperature, TemperatureReadings):
+        values, temperature_notes = temperature_at(
+            temperature.what, temperature.stamp_ns, temperature.values_c, kept_ns
+        )
+        notes += temperature_notes
+        return values
+    if temperature is None:
+        return None
+    column = np.asarray(temperature, dtype=float).reshape(-1, 1)
+    return align_to_samples(time_ns, accel, column, kept_ns)[:, 0]  # as the gyro
+
+
+def _kept_columns(clean: CleanSamples, given_ns, given_accel, consume: bool) -> dict:
+    """The kept samples as a recording's columns: s since the first kept stamp, read-only.
+
+    Without a copy where the arrays are ours (:func:`_frozen_or_copy`): made by
+    the checks, or handed over (``consume``); the caller's are never changed.
+    """
+    kept_ns, accel = clean.time_ns, clean.accel_mps2
+    if not consume and np.may_share_memory(kept_ns, given_ns):
+        kept_ns = np.array(kept_ns, dtype=np.int64)
+    if consume or not np.may_share_memory(accel, given_accel):
+        accel.setflags(write=False)
+    epoch = int(kept_ns[0])
+    return {
+        "time_s": _seconds_since(kept_ns, epoch),
+        "accel_mps2": accel,
+        "epoch_unix_ns": epoch,
+        "clip_limits_mps2": clean.clip_limits_mps2,
+    }
 
 
 @dataclass(frozen=True)
@@ -133,12 +238,20 @@ class Recording:
     clip_limits_mps2: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        """The invariants (cheap: no repair, one pass per check), or :class:`RecordingError`."""
+        if not isinstance(self.info, SessionInfo):
+            raise RecordingError(f"{self.source}: info must be a SessionInfo, got {self.info!r}")
         if self.clip_limits_mps2 is not None:
-            limits = np.array(self.clip_limits_mps2, dtype=float).reshape(3, 2)
+            limits = _frozen_or_copy(self.clip_limits_mps2, self.source, "clip_limits_mps2")
+            if limits.size != 6:
+                raise RecordingError(
+                    f"{self.source}: clip_limits_mps2 must be (3, 2), got {limits.shape}"
+                )
+            limits = limits.reshape(3, 2)
             limits.setflags(write=False)
             object.__setattr__(self, "clip_limits_mps2", limits)
-        t = _frozen_or_copy(self.time_s).reshape(-1)
-        a = _frozen_or_copy(self.accel_mps2)
+        t = _frozen_or_copy(self.time_s, self.source, "time_s").reshape(-1)
+        a = _frozen_or_copy(self.accel_mps2, self.source, "accel_mps2")
         if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] != t.size:
             raise RecordingError(
                 f"{self.source}: need N times and (N, 3) samples, got {t.shape} and {a.shape}"
@@ -163,7 +276,7 @@ class Recording:
             object.__setattr__(self, "temperature_c", self._checked_temperature(t.size))
 
     def _checked_gyro(self, n: int) -> np.ndarray:
-        w = _frozen_or_copy(self.gyro_radps)
+        w = _frozen_or_copy(self.gyro_radps, self.source, "gyro_radps")
         if w.shape != (n, 3):
             raise RecordingError(
                 f"{self.source}: gyro_radps must be (N, 3) = ({n}, 3), got {w.shape}"
@@ -181,7 +294,7 @@ class Recording:
         return w
 
     def _checked_temperature(self, n: int) -> np.ndarray:
-        temp = _frozen_or_copy(self.temperature_c).reshape(-1)
+        temp = _frozen_or_copy(self.temperature_c, self.source, "temperature_c").reshape(-1)
         if temp.size != n:
             raise RecordingError(
                 f"{self.source}: temperature_c needs one value per sample ({n}), got {temp.size}"
@@ -190,6 +303,112 @@ class Recording:
             raise RecordingError(f"{self.source}: temperature_c holds NaN or inf")
         temp.setflags(write=False)
         return temp
+
+    @classmethod
+    def from_samples(
+        cls,
+        *,
+        source: str,
+        time_ns: np.ndarray,
+        accel: np.ndarray,
+        unit: str = "m/s^2",
+        info: SessionInfo | None = None,
+        policy: InputPolicy | None = None,
+        gyro: np.ndarray | None = None,
+        gyro_unit: str = "rad/s",
+        temperature: TemperatureReadings | np.ndarray | None = None,
+        topic: str = "",
+        notes: Sequence[str] = (),
+        label: str | None = None,
+        unit_remedy: str | None = None,
+        gyro_unit_hint: str = "",
+        consume: bool = False,
+    ) -> Recording:
+        """A checked recording from raw samples: repaired where that invents nothing, or refused.
+
+        The one way in for raw samples (every reader; :meth:`checked`): SI units,
+        then :func:`~wheelcal.recording.samples.clean_samples` (its table: what is
+        repaired, what refused); gyro rows follow the repairs by stamp and are judged
+        by :func:`~wheelcal.recording.gyro.check_gyro`; the temperature goes onto the
+        kept stamps.  Times: s from the first kept stamp.
+
+        Parameters
+        ----------
+        source, topic:
+            The file (or ``"<memory>"``) and the topic, kept by the recording.
+        time_ns, accel, unit:
+            (N,) int64 stamps in any order; (N, 3) samples in ``unit``: ``"m/s^2"``,
+            or ``"g"`` (converted, noted, and what the unit check holds them to).
+        info, policy:
+            The session's facts (its ranges find clipping); the thresholds of
+            repair and refusal (:class:`~wheelcal.recording.samples.InputPolicy`).
+        gyro, gyro_unit:
+            ``None`` or (N, 3) rows on the same stamps (NaN: no reading), in
+            ``"rad/s"`` or ``"deg/s"`` (converted and noted).
+        temperature:
+            :class:`~wheelcal.recording.temperature.TemperatureReadings` on their own
+            clock (judged and interpolated), or (N,) °C, one per sample.
+        notes:
+            What the source already says about the samples; the repairs' follow.
+        label, unit_remedy, gyro_unit_hint:
+            How messages name the samples (default ``source``), and how to state
+            the units right in this source's format.
+        consume:
+            ``time_ns`` and ``accel`` are the caller's to give away (a reader's
+            decoded columns): converted and kept in place, no copy.
+
+        Raises
+        ------
+        RecordingError
+            Naming ``label``: samples the checks refuse (``SampleError``), or a
+            unit not in :data:`ACCEL_UNITS` / :data:`GYRO_UNITS`.
+        """
+        label = source if label is None else label
+        info = SessionInfo() if info is None else info
+        notes = list(notes)
+        mps2 = _accel_in_mps2(label, accel, unit, consume, notes)
+        radps = None if gyro is None else _gyro_in_radps(label, gyro, gyro_unit, notes)
+        clean = clean_samples(
+            label,
+            time_ns,
+            mps2,
+            unit=unit,
+            full_scale_g=info.full_scale_g,
+            policy=InputPolicy() if policy is None else policy,
+            unit_remedy=unit_remedy,
+        )
+        notes += clean.notes
+        raw = (time_ns, mps2, clean.time_ns)
+        gyro_radps = _gyro_on_kept(label, raw, radps, info, gyro_unit_hint, notes)
+        temperature_c = _temperature_on_kept(raw, temperature, notes)
+        columns = _kept_columns(clean, time_ns, accel, consume)  # consumes the kept stamps
+        columns.update(gyro_radps=gyro_radps, temperature_c=temperature_c, notes=tuple(notes))
+        return cls(**columns, info=info, source=source, topic=topic)
+
+    def checked(
+        self,
+        *,
+        unit: str | None = None,
+        info: SessionInfo | None = None,
+        policy: InputPolicy | None = None,
+    ) -> Recording:
+        """A copy through the readers' checks (:meth:`from_samples`), e.g. of one built in memory.
+
+        ``unit="g"``: its samples are in fact in g; ``info`` replaces its facts.
+        Its notes stay, the repairs' notes follow.
+        """
+        return Recording.from_samples(
+            source=self.source,
+            time_ns=self.epoch_unix_ns + np.rint(self.time_s * 1e9).astype(np.int64),
+            accel=self.accel_mps2,
+            unit=unit or "m/s^2",
+            info=self.info if info is None else info,
+            policy=policy,
+            gyro=self.gyro_radps,
+            temperature=self.temperature_c,
+            topic=self.topic,
+            notes=self.notes,
+        )
 
     @property
     def has_gyro(self) -> bool:

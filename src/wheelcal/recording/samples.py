@@ -92,7 +92,8 @@ class CleanSamples:
     clip_limits_mps2: np.ndarray | None = None
 
 
-def _pct(part: int, whole: int) -> str:
+def percent(part: int, whole: int) -> str:
+    """``part`` of ``whole`` in per cent, for notes (two significant digits)."""
     return f"{100.0 * part / max(whole, 1):.2g} %"
 
 
@@ -194,10 +195,10 @@ def _drop_nonfinite(path, t, a, policy, notes):
     if count > policy.max_nonfinite_fraction * t.size:
         raise SampleError(
             path,
-            f"{count} of {t.size} samples ({_pct(count, t.size)}) are NaN or infinite; "
+            f"{count} of {t.size} samples ({percent(count, t.size)}) are NaN or infinite; "
             f"at most {policy.max_nonfinite_fraction:.0%} can be dropped",
         )
-    notes.append(f"dropped {count} NaN/inf samples ({_pct(count, t.size)})")
+    notes.append(f"dropped {count} NaN/inf samples ({percent(count, t.size)})")
     return t[~bad], a[~bad]
 
 
@@ -369,7 +370,7 @@ def _merge_duplicates(path, t, a, policy, notes):
     if count > policy.max_duplicate_fraction * t.size:
         raise SampleError(
             path,
-            f"{count} of {t.size} samples ({_pct(count, t.size)}) repeat the previous "
+            f"{count} of {t.size} samples ({percent(count, t.size)}) repeat the previous "
             "timestamp: the device seems to stamp whole packets, but every sample needs "
             "its own time",
         )
@@ -473,14 +474,14 @@ def _drop_gross_outliers(path, t, a, policy, notes):
     if count > policy.max_outlier_fraction * n:
         raise SampleError(
             path,
-            f"{count} of {n} samples ({_pct(count, n)}) jump far from their neighbours "
+            f"{count} of {n} samples ({percent(count, n)}) jump far from their neighbours "
             f"(more than {policy.outlier_floor_g:g} g and {policy.outlier_sigmas:g} robust σ "
             "from the running median): the data are too damaged to clean",
         )
     flagged = np.flatnonzero(bad)
     worst = int(flagged[np.argmax(np.max(np.abs(a[flagged]), axis=1))])
     notes.append(
-        f"dropped {count} gross outlier sample(s) ({_pct(count, n)}) far from their "
+        f"dropped {count} gross outlier sample(s) ({percent(count, n)}) far from their "
         f"neighbours (largest |a| = {np.max(np.abs(a[worst])):.3g} m/s² at "
         f"t = {(t[worst] - t[0]) * 1e-9:.3f} s)"
     )
@@ -554,14 +555,15 @@ def _drop_clipped(path, t, a, full_scale_g, policy, notes):
     if count > policy.max_clipped_fraction * t.size:
         raise SampleError(
             path,
-            f"{count} of {t.size} samples ({_pct(count, t.size)}) are clipped {how}: "
+            f"{count} of {t.size} samples ({percent(count, t.size)}) are clipped {how}: "
             "the sensor range is too small for this spin (use a larger range or spin slower)",
         )
-    notes.append(f"dropped {count} clipped samples ({_pct(count, t.size)}) {how}")
+    notes.append(f"dropped {count} clipped samples ({percent(count, t.size)}) {how}")
     return t[~clipped], a[~clipped], limits
 
 
-def _run_lengths(mask: np.ndarray) -> np.ndarray:
+def run_lengths(mask: np.ndarray) -> np.ndarray:
+    """The lengths of the runs of True in ``mask``, in order."""
     edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
     return np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
 
@@ -581,10 +583,10 @@ def _at_rail(axis: np.ndarray, value: float, policy: InputPolicy) -> np.ndarray 
     count = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
     band = policy.rail_jitter_counts * count + 1e-12 * abs(value)
     at = (axis >= value - band) & (axis <= value + band)  # |axis − value| ≤ band, no temporary
-    runs = _run_lengths(at)
+    runs = run_lengths(at)
     long_runs = runs[runs >= policy.clip_run_samples]
     exact = axis == value
-    exact_runs = _run_lengths(exact)
+    exact_runs = run_lengths(exact)
     if np.any(exact_runs >= policy.clip_run_samples):
         return at  # the rail repeats exactly (the original signature)
     if long_runs.size >= 2:

@@ -20,9 +20,23 @@ in ``Recording.notes``) and never refuses the recording:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 PLAUSIBLE_C = (-60.0, 150.0)
+
+
+@dataclass(frozen=True, eq=False)
+class TemperatureReadings:
+    """A series of temperature readings on their own clock, for :func:`temperature_at`."""
+
+    #: Where the readings come from (e.g. ``"topic /imu/temperature"``), for notes.
+    what: str
+    #: int64 stamps, ns, any order, repeats allowed.
+    stamp_ns: np.ndarray
+    #: °C, NaN allowed.
+    values_c: np.ndarray
 
 
 def temperature_at(
