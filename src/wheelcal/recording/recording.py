@@ -460,6 +460,12 @@ class Recording:
             )
         return self._take(slice(lo, hi))
 
+    def thinned(self, stride: int) -> Recording:
+        """Every ``stride``-th sample, every channel (views: a quick look, e.g. a fit's start)."""
+        if int(stride) < 1:
+            raise ValueError(f"stride must be >= 1, got {stride}")
+        return self if int(stride) == 1 else self._take(slice(None, None, int(stride)))
+
     def _take(self, index: np.ndarray | slice) -> Recording:
         """Every channel at ``index`` (a mask copies; a slice keeps read-only views)."""
         return replace(

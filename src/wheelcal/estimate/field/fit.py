@@ -44,6 +44,10 @@ from wheelcal.recording import Recording, RecordingError
 TRAVEL_Z = 5.0
 #: The yaw (rms, rad/s) above which the carrier turns: a rolling wheel's turns.
 YAW_RMS_RADPS = 0.01
+#: The passes that lead the way run on about this many samples.
+LEAD_SAMPLES = 4000
+#: Gauss–Newton steps of the passes that lead the way (a fixed axle, the hub's travel).
+LEAD_ITERATIONS = 12
 #: The yaw's scale across the axle is fitted where the data give it to this σ.
 YAW_SCALE_PINNED = 0.01
 
@@ -91,7 +95,12 @@ class FieldFit:
     fit_g_sensitivity: bool = True
 
     def fit(self, window: Recording) -> FieldResult:
-        """Calibrate ``window`` (a drive, stops included; its gyro on the same rows)."""
+        """Calibrate ``window`` (a drive, stops included; its gyro on the same rows).
+
+        The passes that lead the way run on every k-th sample (about
+        ``LEAD_SAMPLES``; the gyro's angle is integrated from all of them); the
+        final fit uses every sample.
+        """
         if window.gyro_radps is None:
             raise RecordingError(f"{window.source}: a field fit needs the gyroscope")
         t = window.time_s
@@ -101,11 +110,19 @@ class FieldFit:
             raise RecordingError(f"{window.source}: the gyroscope shows no wheel turning")
         radius = window.info.radius_m
         start, axle = self._start(window, tc, axle)
-        first = self._joint(radius, False, (start.angle,)).fit(window, initial=start.params)
+        stride = max(1, t.size // LEAD_SAMPLES)
+        lead = window.thinned(stride)
+        frame = (float(t[0]), float(t[-1]))  # the thinned passes keep the window's centre
+        first = self._joint(radius, False, (start.angle,)).fit(
+            lead, initial=start.params, frame=frame
+        )
         travel = Rolling(tc, np.zeros_like(tc), yaw_scale_free=False)
         moved = first.params.with_changes(effects={**first.params.effects, travel.name: [0.0]})
-        second = self._joint(radius, False, (start.angle, travel)).fit(window, initial=moved)
-        z = abs(second.value_of("rolling.radius_m")) / second.std_of("rolling.radius_m")
+        second = self._joint(radius, False, (start.angle, travel)).fit(
+            lead, initial=moved, frame=frame
+        )
+        rho, rho_std = second.value_of("rolling.radius_m"), second.std_of("rolling.radius_m")
+        z = abs(rho) / rho_std * np.sqrt(stride)  # σ_ρ of all the samples
         rolling = z > self.travel_z or axle.yaw_rms_radps > self.yaw_rms_radps
         if not rolling:
             geometry = FieldGeometry(
@@ -117,14 +134,11 @@ class FieldFit:
                 axle.yaw_rms_radps,
             )
             return FieldResult(first, geometry, axle)
-        final = self._turns(window, tc, axle, second, radius)
-        tilt = final.params.bench.tilt_rad
-        camber = 90.0 - float(np.rad2deg(tilt))
+        final = self._turns(window, lead, tc, axle, second, radius, stride)
+        camber = 90.0 - float(np.rad2deg(final.params.bench.tilt_rad))
         why = []
         if z > self.travel_z:
-            why.append(
-                f"the hub travels (ρ = {second.value_of('rolling.radius_m'):.3f} m, {z:.0f} σ)"
-            )
+            why.append(f"the hub travels (ρ = {rho:.3f} m, {z:.0f} σ)")
         if axle.yaw_rms_radps > self.yaw_rms_radps:
             why.append(f"the carrier turns (yaw {axle.yaw_rms_radps:.3g} rad/s rms)")
         geometry = FieldGeometry(
@@ -153,6 +167,9 @@ class FieldFit:
             coloured_noise=self.coloured_noise,
             max_ar_order=self.max_ar_order,
             effects=effects,
+            # Passes 1–2 only lead the way (a cambered wheel held vertical cannot fit):
+            # a few steps give the wheel angle and R for the yaw, and ρ's size.
+            max_iterations=100 if tilt_free or radius_m is not None else LEAD_ITERATIONS,
         )
 
     def _start(self, window: Recording, tc: np.ndarray, axle: GyroAxle) -> tuple:
@@ -166,13 +183,16 @@ class FieldFit:
         )
         return start, start.axle
 
-    def _turns(self, window, tc, axle, travelled: CalibrationResult, radius_m) -> CalibrationResult:
+    def _turns(
+        self, window, lead, tc, axle, travelled: CalibrationResult, radius_m, stride: int
+    ) -> CalibrationResult:
         """Pass 3: the yaw across the axle, the tilt free (module docstring).
 
         The yaw is first taken as the gyro measures it (its scale across the axle as
         along it); then its scale κ is fitted too, and kept only where the data pin it
         (σ_κ below ``YAW_SCALE_PINNED``: a robot turning hard) — elsewhere κ trades
-        with the camber and the gains.
+        with the camber and the gains.  Both on the thinned samples (``lead``); the
+        chosen model is then fitted to every sample.
         """
         params = travelled.params
         theta = wheel_kinematics(params, tc, travelled.layout.effects).theta_rad
@@ -180,41 +200,48 @@ class FieldFit:
         scale = float(params.effect("gyro_angle", 1)[0])
         cross = np.vstack([y * np.cos(theta), y * np.sin(theta)]) if self.fit_cross else None
         accel = smoothed_accel(tc, window.accel_mps2) if self.fit_g_sensitivity else None
-        angle = GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel)
+        frame = (float(window.time_s[0]), float(window.time_s[-1]))
+
+        def angle_of(axle):
+            return GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel)
+
+        angle = angle_of(axle)
         held = Rolling(tc, scale * y, scale * y_dot, yaw_scale_free=False, yaw_across_axle=True)
         effects = {
             angle.name: [scale] + [0.0] * (angle.size - 1),
             held.name: [float(params.effect(held.name, 1)[0])],
         }
-        result = self._joint(radius_m, True, (angle, held)).fit(
-            window, initial=params.with_changes(effects=effects)
+        model = (angle, held)
+        result = self._joint(radius_m, True, model).fit(
+            lead, initial=params.with_changes(effects=effects), frame=frame
         )
         if result.params.bench.tilt_rad > np.pi / 2:
             # Z came out pointing down (the start cannot tell up from down on a nearly
             # vertical wheel): the same physics with the frame turned 180° about X —
             # α → 180° − α, R → R·diag(1, −1, −1), ϑ → −ϑ (the gyro's axle from its other end).
-            axle = axle.flipped()
-            angle = GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel)
+            angle = angle_of(axle.flipped())
+            model = (angle, held)
             twin = _turned(result.params, angle.name)
-            result = self._joint(radius_m, True, (angle, held)).fit(window, initial=twin)
-        if not self.fit_yaw_scale:
+            result = self._joint(radius_m, True, model).fit(lead, initial=twin, frame=frame)
+        if self.fit_yaw_scale:
+            free = Rolling(
+                tc,
+                scale * y,
+                scale * y_dot,
+                yaw_across_axle=True,
+                yaw_offset_free=self.fit_yaw_offset,
+            )
+            rho = float(result.params.effect(held.name, 1)[0])
+            effects = {**result.params.effects, free.name: [rho, 1.0, 0.0][: free.size]}
+            refined = self._joint(radius_m, True, (angle, free)).fit(
+                lead, initial=result.params.with_changes(effects=effects), frame=frame
+            )
+            kappa_std = refined.std_of("rolling.yaw_scale") / np.sqrt(stride)
+            if kappa_std < YAW_SCALE_PINNED and refined.params.bench.tilt_rad <= np.pi / 2:
+                result, model = refined, (angle, free)
+        if stride == 1:
             return result
-        free = Rolling(
-            tc,
-            scale * y,
-            scale * y_dot,
-            yaw_across_axle=True,
-            yaw_offset_free=self.fit_yaw_offset,
-        )
-        rho = float(result.params.effect(held.name, 1)[0])
-        effects = {**result.params.effects, free.name: [rho, 1.0, 0.0][: free.size]}
-        refined = self._joint(radius_m, True, (angle, free)).fit(
-            window, initial=result.params.with_changes(effects=effects)
-        )
-        pinned = refined.std_of("rolling.yaw_scale") < YAW_SCALE_PINNED
-        if pinned and refined.params.bench.tilt_rad <= np.pi / 2:
-            return refined
-        return result
+        return self._joint(radius_m, True, model).fit(window, initial=result.params)
 
 
 def _turned(params: CalibrationParams, angle_name: str) -> CalibrationParams:
