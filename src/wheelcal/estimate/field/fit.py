@@ -31,10 +31,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.field.gyro_axle import GyroAxle, gyro_axle, smoothed_accel, yaw_across
+from wheelcal.estimate.field.robust import robust_result
 from wheelcal.estimate.field.start import field_start
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model import CalibrationParams, Rotation, SpinParams
+from wheelcal.model.effects import CrossAxis
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.gyro_angle import GyroAngle
 from wheelcal.model.rolling import Rolling
@@ -48,6 +50,8 @@ YAW_RMS_RADPS = 0.01
 LEAD_SAMPLES = 4000
 #: Gauss–Newton steps of the passes that lead the way (a fixed axle, the hub's travel).
 LEAD_ITERATIONS = 12
+#: Gains outside this range after the leading passes are restarted at 1.
+PLAUSIBLE_GAIN = (0.7, 1.4)
 #: The yaw's scale across the axle is fitted where the data give it to this σ.
 YAW_SCALE_PINNED = 0.01
 
@@ -93,6 +97,10 @@ class FieldFit:
     fit_yaw_offset: bool = False
     fit_cross: bool = True
     fit_g_sensitivity: bool = True
+    #: Each σ the larger of the model's and the sandwich's (:mod:`~wheelcal.estimate.field.robust`).
+    robust_sigma: bool = True
+    #: The final fit lets the sensor's axes be non-orthogonal (:class:`CrossAxis`).
+    fit_cross_axis: bool = True
 
     def fit(self, window: Recording) -> FieldResult:
         """Calibrate ``window`` (a drive, stops included; its gyro on the same rows).
@@ -194,7 +202,7 @@ class FieldFit:
         with the camber and the gains.  Both on the thinned samples (``lead``); the
         chosen model is then fitted to every sample.
         """
-        params = travelled.params
+        params = _plausible_gains(travelled.params)
         theta = wheel_kinematics(params, tc, travelled.layout.effects).theta_rad
         y, y_dot = yaw_across(tc, window.gyro_radps, axle, theta, params.bench.misalignment.matrix)
         scale = float(params.effect("gyro_angle", 1)[0])
@@ -239,9 +247,29 @@ class FieldFit:
             kappa_std = refined.std_of("rolling.yaw_scale") / np.sqrt(stride)
             if kappa_std < YAW_SCALE_PINNED and refined.params.bench.tilt_rad <= np.pi / 2:
                 result, model = refined, (angle, free)
-        if stride == 1:
-            return result
-        return self._joint(radius_m, True, model).fit(window, initial=result.params)
+        initial = result.params
+        if self.fit_cross_axis:  # the axle axis's gain from the turns, not from a leak
+            axes = CrossAxis()
+            model = (*model, axes)
+            initial = initial.with_changes(effects={**initial.effects, axes.name: [0.0] * 3})
+        if stride > 1 or self.fit_cross_axis:
+            result = self._joint(radius_m, True, model).fit(window, initial=initial)
+        return robust_result(result, window.accel_mps2) if self.robust_sigma else result
+
+
+def _plausible_gains(params: CalibrationParams) -> CalibrationParams:
+    """Gains the leading passes let wander, restarted at 1 before the turns' pass.
+
+    (An axis along the axle sees little but a cambered wheel's g sin γ, which the
+    passes held vertical cannot place.)
+    """
+    gain = np.array(params.sensor.gain, dtype=float)
+    wild = (gain < PLAUSIBLE_GAIN[0]) | (gain > PLAUSIBLE_GAIN[1])
+    if not np.any(wild):
+        return params
+    gain[wild] = 1.0
+    sensor = dataclasses.replace(params.sensor, gain=gain)
+    return params.with_changes(sensor=sensor)
 
 
 def _turned(params: CalibrationParams, angle_name: str) -> CalibrationParams:

@@ -15,6 +15,8 @@ from scipy import signal
 
 #: Rates above this (rad/s) count as a moving wheel when finding the axle.
 MOVING_RADPS = 0.5
+#: A wheel turning slower than this (rad/s) rests: there the gyro shows its noise.
+RESTING_RADPS = 0.1
 #: Corner of the low-pass before the axle rate is differentiated (Hz).
 RATE_BAND_HZ = 10.0
 #: Corner of the yaw's low-pass (Hz): a vehicle turns within seconds, the wheel many
@@ -79,18 +81,29 @@ def yaw_across(
     theta_rad: np.ndarray,
     rotation: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The gyro across the axle, demodulated with the wheel angle: y = k ψ̇ cos γ and ẏ.
+    """The gyro across the axle as a yaw rate: y = k ψ̇ cos γ, and ẏ.
 
-    The yaw's share of the gyro turns with the wheel as R u(ϑ), u = (cos ϑ, sin ϑ, 0)
-    (R bench → sensor, the accelerometer's: the gyro's axes lie within a degree or
-    two of it on one chip), so its projection on R u(ϑ), low-passed, is the yaw.
+    Its size needs no angle: |q|² of the gyro across the axle, low-passed, less
+    its noise (the gyro's while the wheel rests), is (k ψ̇ cos γ)² whatever the
+    wheel's angle (an error of R or ϑ, which the passes leading the way may still
+    carry, cannot scale it).  Its sign does: the yaw's share turns with the wheel as R u(ϑ),
+    u = (cos ϑ, sin ϑ, 0) (R bench → sensor, the accelerometer's: the gyro's axes
+    lie within a degree or two of it on one chip), so the sign of the
+    projection on R u(ϑ), low-passed, is the yaw's.
     """
     t = np.asarray(time_s, dtype=float)
     gyro = np.asarray(gyro_radps, dtype=float)
     across = gyro - np.outer(gyro @ axle.axis, axle.axis)
     c, s = np.cos(theta_rad), np.sin(theta_rad)
     up = np.column_stack([c, s, np.zeros_like(c)]) @ rotation.T
-    raw = np.sum(across * up, axis=1)
     rate_hz = 1.0 / float(np.median(np.diff(t)))
-    y = _lowpass(raw, rate_hz, YAW_BAND_HZ)
-    return y, np.gradient(y, t)
+    signed = _lowpass(np.sum(across * up, axis=1), rate_hz, YAW_BAND_HZ)
+    power = np.sum(across * across, axis=1)
+    resting = np.abs(axle.rate_radps) < RESTING_RADPS  # the gyro's noise power, where known
+    noise = 0.0
+    if np.count_nonzero(resting) >= 50:
+        rest = across[resting]
+        noise = float(np.mean(np.sum((rest - rest.mean(axis=0)) ** 2, axis=1)))
+    size = np.sqrt(np.maximum(_lowpass(power, rate_hz, YAW_BAND_HZ) - noise, 0.0))
+    y = np.sign(signed) * size
+    return y, np.gradient(_lowpass(y, rate_hz, YAW_BAND_HZ), t)
