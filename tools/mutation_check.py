@@ -186,28 +186,14 @@ MUTATIONS: tuple[Mutation, ...] = (
         (
             Replacement(
                 _ROLLING,
-                "delta[:, 0] = rho * w_dot * s + r * yaw2 * s * s",
-                "delta[:, 0] = -rho * w_dot * s + r * yaw2 * s * s",
+                "return self.Pd * self.sg - self.wd",
+                "return self.Pd * self.sg + self.wd",
             ),
             Replacement(
                 _ROLLING,
-                "delta[:, 1] = -rho * w_dot * c - r * yaw2 * s * c",
-                "delta[:, 1] = rho * w_dot * c - r * yaw2 * s * c",
+                "return self._stack(rho * s, -rho * c, np.zeros_like(s))",
+                "return self._stack(-rho * s, rho * c, np.zeros_like(s))",
             ),
-            Replacement(_ROLLING, "d_own[0, :, 0] = w_dot * s", "d_own[0, :, 0] = -w_dot * s"),
-            Replacement(_ROLLING, "d_own[0, :, 1] = -w_dot * c", "d_own[0, :, 1] = w_dot * c"),
-            Replacement(
-                _ROLLING,
-                "by_theta[:, 0] = rho * w_dot * c + 2 * r * yaw2 * s * c",
-                "by_theta[:, 0] = -rho * w_dot * c + 2 * r * yaw2 * s * c",
-            ),
-            Replacement(
-                _ROLLING,
-                "by_theta[:, 1] = rho * w_dot * s - r * yaw2 * (c * c - s * s)",
-                "by_theta[:, 1] = -rho * w_dot * s - r * yaw2 * (c * c - s * s)",
-            ),
-            Replacement(_ROLLING, "by_omega_dot[:, 0] = rho * s", "by_omega_dot[:, 0] = -rho * s"),
-            Replacement(_ROLLING, "by_omega_dot[:, 1] = -rho * c", "by_omega_dot[:, 1] = rho * c"),
         ),
     ),
     Mutation(

@@ -54,6 +54,10 @@ from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 G_PRIOR_RADPS_PER_MPS2 = np.deg2rad(G_SENSITIVITY_PRIOR_DPS_PER_G) / STANDARD_GRAVITY_MPS2
 
 
+#: Chunks of times whose interpolated series an effect keeps.
+_CACHED_CHUNKS = 8
+
+
 def _integral(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
     """∫ rate dt by the trapezoid rule, zero at t = 0 (the window's centre)."""
     out = np.empty_like(rate)
@@ -129,6 +133,8 @@ class GyroAngle(_SpinEffect):
             for name, row in zip(("g_x", "g_y", "g_z"), accel.T, strict=True):
                 self.terms.append((name, self._series(row), float(g_prior_std)))
         self.param_names = ("scale", *(name for name, _, _ in self.terms))
+        self._stacked: np.ndarray | None = None
+        self._cache: dict = {}
 
     def _series(self, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return _integral(self.time_s, rate), rate, np.gradient(rate, self.time_s)
@@ -150,18 +156,39 @@ class GyroAngle(_SpinEffect):
         """Identity hash (see :meth:`__eq__`)."""
         return id(self)
 
-    def _at(self, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return np.interp(t, self.time_s, x)
+    def _rows_at(self, t: np.ndarray) -> np.ndarray:
+        """Every series at times ``t`` (linear interpolation), (3 + 3 + 3·terms, N).
+
+        A fit evaluates the same chunks of times again and again: the last few
+        are kept.
+        """
+        key = (t.size, float(t[0]), float(t[-1]), float(t[t.size // 2]))
+        cached = self._cache.get(key)
+        if cached is not None:
+            return cached
+        if self._stacked is None:
+            series = [self.angle, self.rate, self.rate_dot, self.yaw_angle, self.yaw, self.yaw_dot]
+            series += [x for _, triple, _ in self.terms for x in triple]
+            self._stacked = np.vstack(series)
+        grid = self.time_s
+        right = np.clip(np.searchsorted(grid, t), 1, grid.size - 1)
+        left = right - 1
+        weight = np.clip((t - grid[left]) / (grid[right] - grid[left]), 0.0, 1.0)
+        rows = self._stacked[:, left] * (1.0 - weight) + self._stacked[:, right] * weight
+        if len(self._cache) >= _CACHED_CHUNKS:
+            self._cache.pop(next(iter(self._cache)))
+        self._cache[key] = rows
+        return rows
 
     def spin_delta(self, values, t_s, kin, jacobian, tilt_rad: float = np.pi / 2):
         """Δϑ, Δω, Δω̇ at centred times ``t_s`` and tilt α (module docstring)."""
         t = np.asarray(t_s, dtype=float)
         scale = float(values[0])
         cot = float(np.cos(tilt_rad) / np.sin(tilt_rad))
-        base = [self._at(t, x) for x in (self.angle, self.rate, self.rate_dot)]
-        yaw = [self._at(t, x) for x in (self.yaw_angle, self.yaw, self.yaw_dot)]
+        rows = self._rows_at(t)
+        base, yaw = list(rows[0:3]), list(rows[3:6])
         total = [b + cot * y for b, y in zip(base, yaw, strict=True)]
-        cross = [[self._at(t, x) for x in series] for _, series, _ in self.terms]
+        cross = [list(rows[6 + 3 * k : 9 + 3 * k]) for k in range(len(self.terms))]
         for m, series in zip(values[1:], cross, strict=True):
             total = [x + float(m) * c for x, c in zip(total, series, strict=True)]
         if not jacobian:

@@ -285,7 +285,7 @@ class _CamberTerms:
 
     def delta(self) -> np.ndarray:
         rho, r, P, Pd, w, s, c, sg, cg = self._vars()
-        oz, ozd = P * sg - w, Pd * sg - self.wd
+        oz, ozd = P * sg - w, self._oz_dot()
         P2 = P * P
         return self._stack(
             -rho * ozd * s
@@ -295,12 +295,16 @@ class _CamberTerms:
             rho * oz * P * cg + r * cg * (Pd * s + 2 * w * P * c - P2 * sg * c),
         )
 
+    def _oz_dot(self) -> np.ndarray:
+        """Ω̇_z: the yaw's acceleration along the axle less the wheel's own (ρ·ω̇ is the travel)."""
+        return self.Pd * self.sg - self.wd
+
     def _vars(self):
         return self.rho, self.r, self.P, self.Pd, self.w, self.s, self.c, self.sg, self.cg
 
     def by_rho(self) -> np.ndarray:
         _, _, P, Pd, w, s, c, sg, cg = self._vars()
-        oz, ozd = P * sg - w, Pd * sg - self.wd
+        oz, ozd = P * sg - w, self._oz_dot()
         return self._stack(-ozd * s - oz * P * sg * c, ozd * c - oz * P * sg * s, oz * P * cg)
 
     def by_radius(self) -> np.ndarray:
@@ -314,7 +318,7 @@ class _CamberTerms:
 
     def by_theta(self) -> np.ndarray:
         rho, r, P, Pd, w, s, c, sg, cg = self._vars()
-        oz, ozd = P * sg - w, Pd * sg - self.wd
+        oz, ozd = P * sg - w, self._oz_dot()
         P2 = P * P
         return self._stack(
             -rho * ozd * c + rho * oz * P * sg * s + 2 * r * P2 * cg * cg * s * c,

@@ -33,6 +33,7 @@ import numpy as np
 from wheelcal.estimate.field.gyro_axle import GyroAxle, gyro_axle, smoothed_accel, yaw_across
 from wheelcal.estimate.field.robust import robust_result
 from wheelcal.estimate.field.start import field_start
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model import CalibrationParams, Rotation, SpinParams
@@ -241,12 +242,16 @@ class FieldFit:
             )
             rho = float(result.params.effect(held.name, 1)[0])
             effects = {**result.params.effects, free.name: [rho, 1.0, 0.0][: free.size]}
-            refined = self._joint(radius_m, True, (angle, free)).fit(
-                lead, initial=result.params.with_changes(effects=effects), frame=frame
-            )
-            kappa_std = refined.std_of("rolling.yaw_scale") / np.sqrt(stride)
-            if kappa_std < YAW_SCALE_PINNED and refined.params.bench.tilt_rad <= np.pi / 2:
-                result, model = refined, (angle, free)
+            freed = result.params.with_changes(effects=effects)
+            joint = self._joint(radius_m, True, (angle, free))
+            # σ_κ from the information at this point (one Jacobian, no iterations):
+            # the free scale is fitted only where the data pin it.
+            lead_tc = lead.time_s - 0.5 * (frame[0] + frame[1])
+            bound = cramer_rao_bound(freed, lead_tc, result.noise, joint.layout_for(lead, frame))
+            if bound.std_of("rolling.yaw_scale") / np.sqrt(stride) < YAW_SCALE_PINNED:
+                refined = joint.fit(lead, initial=freed, frame=frame)
+                if refined.params.bench.tilt_rad <= np.pi / 2:
+                    result, model = refined, (angle, free)
         initial = result.params
         if self.fit_cross_axis:  # the axle axis's gain from the turns, not from a leak
             axes = CrossAxis()
