@@ -303,7 +303,7 @@ class _CamberTerms:
         return self.rho, self.r, self.P, self.Pd, self.w, self.s, self.c, self.sg, self.cg
 
     def by_rho(self) -> np.ndarray:
-        _, _, P, Pd, w, s, c, sg, cg = self._vars()
+        _, _, P, _, w, s, c, sg, cg = self._vars()
         oz, ozd = P * sg - w, self._oz_dot()
         return self._stack(-ozd * s - oz * P * sg * c, ozd * c - oz * P * sg * s, oz * P * cg)
 
