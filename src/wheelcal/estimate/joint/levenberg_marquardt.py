@@ -102,6 +102,7 @@ def levenberg_marquardt(
     converged = False
     iteration = 0
     size = layout.size  # the normal equations may carry extra columns after these
+    evaluate = gradient_fn or (lambda trial: normal_fn(trial, jacobian_on_trial))  # at a trial
     for iteration in range(1, max_iterations + 1):
         a_s, g_s, scale, decrease = _scaled(normal, size)
         if decrease < tol:
@@ -126,39 +127,12 @@ def levenberg_marquardt(
             if decrease < tol:
                 converged, message = True, "step below tolerance (in units of the parameter σ)"
                 break
-        cost = normal.cost
-        accepted = False
-        identity = np.eye(a_s.shape[0])
-        while lam <= 1e12:
-            try:
-                step_s = -np.linalg.solve(a_s + lam * identity, g_s)
-            except np.linalg.LinAlgError:
-                lam *= 10.0
-                continue
-            step = step_s / scale
-            try:
-                trial = layout.unpack(layout.pack(params) + step, params)
-                if gradient_fn is not None:
-                    trial_normal = gradient_fn(trial)
-                else:
-                    trial_normal = normal_fn(trial, jacobian_on_trial)
-                cost_trial = trial_normal.cost
-            except (ValueError, FloatingPointError):
-                cost_trial = np.inf
-            predicted = -(2 * step_s @ g_s + step_s @ a_s @ step_s)
-            actual = cost - cost_trial
-            if np.isfinite(cost_trial) and actual > 0:
-                rho = actual / predicted if predicted > 0 else 0.0
-                lam = lam * max(1 / 3, 1 - (2 * rho - 1) ** 3) if rho > 0 else lam * 2
-                lam = max(lam, 1e-12)
-                params = trial
-                accepted = True
-                break
-            lam *= 10.0
-        if not accepted:
+        accepted = _damped_step(evaluate, layout, params, a_s, g_s, scale, normal.cost, lam)
+        if accepted is None:
             converged = decrease < 1e3 * tol
             message = "no further decrease possible" + ("" if converged else " (stalled)")
             break
+        params, trial_normal, lam = accepted
         if gradient_fn is not None:
             normal = NormalEquations(
                 trial_normal.cost, normal.hessian, trial_normal.gradient, trial_normal.entries
@@ -167,6 +141,45 @@ def levenberg_marquardt(
         else:
             normal = trial_normal if jacobian_on_trial else normal_fn(params, True)
     return LMOutcome(params, normal, iteration, converged, message)
+
+
+def _damped_step(
+    evaluate: Callable[[CalibrationParams], NormalEquations],
+    layout: ParameterLayout,
+    params: CalibrationParams,
+    a_s: np.ndarray,
+    g_s: np.ndarray,
+    scale: np.ndarray,
+    cost: float,
+    lam: float,
+) -> tuple[CalibrationParams, NormalEquations, float] | None:
+    """The damped step that lowers the cost: its end, ``evaluate`` there, and the next λ.
+
+    λ (relative to the scaled diagonal) grows tenfold until a step lowers the
+    cost; None when none does up to λ = 1e12.
+    """
+    identity = np.eye(a_s.shape[0])
+    while lam <= 1e12:
+        try:
+            step_s = -np.linalg.solve(a_s + lam * identity, g_s)
+        except np.linalg.LinAlgError:
+            lam *= 10.0
+            continue
+        step = step_s / scale
+        try:
+            trial = layout.unpack(layout.pack(params) + step, params)
+            trial_normal = evaluate(trial)
+            cost_trial = trial_normal.cost
+        except (ValueError, FloatingPointError):
+            cost_trial = np.inf
+        predicted = -(2 * step_s @ g_s + step_s @ a_s @ step_s)
+        actual = cost - cost_trial
+        if np.isfinite(cost_trial) and actual > 0:
+            rho = actual / predicted if predicted > 0 else 0.0
+            lam = lam * max(1 / 3, 1 - (2 * rho - 1) ** 3) if rho > 0 else lam * 2
+            return trial, trial_normal, max(lam, 1e-12)
+        lam *= 10.0
+    return None
 
 
 #: The cost must fall by this fraction of the predicted decrease, at least and at most.
