@@ -497,29 +497,32 @@ class JointFit:
         # χ² at the result: the cost the iterations ended on (the twin's own if chosen).
         chi2 = out.cost if end.normal is out.normal else end.normal.cost
         return CalibrationResult(
-            params=end.params,
+            # The window's samples and facts.
             layout=w.layout,
-            names=end.names,
-            values=end.values,
-            covariance=end.covariance,
             time_s=w.recording.time_s,
-            residual_mps2=end.residual,
             centre_s=float(w.centre),
             epoch_unix_ns=w.recording.epoch_unix_ns,
-            noise=stage2.noise,
-            converged=out.converged,
-            iterations=out.iterations,
-            warnings=self._warnings(w, out, end.twin, ident),
-            systematic=budget,
-            twin=end.twin,
-            identifiability=ident,
             info=w.info,
             source=w.recording.source,
             topic=w.recording.topic,
             notes=tuple(notes) + w.recording.notes,
+            # Stage 2: the noise models, how the iterations ended, χ² (N entries).
+            noise=stage2.noise,
             gyro_noise=stage2.gyro_noise,
+            converged=out.converged,
+            iterations=out.iterations,
             chi2=float(chi2),
             entries=int(end.normal.entries),
+            # Stage 3: at the chosen twin.
+            params=end.params,
+            twin=end.twin,
+            names=end.names,
+            values=end.values,
+            covariance=end.covariance,
+            residual_mps2=end.residual,
+            systematic=budget,
+            identifiability=ident,
+            warnings=self._warnings(w, out, end.twin, ident),
         )
 
     def _noise_model(self, residual: np.ndarray) -> NoiseModel:
