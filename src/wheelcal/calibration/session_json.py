@@ -17,6 +17,7 @@ import numpy as np
 from wheelcal import __version__
 from wheelcal.calibration.allan_json import rests_allan
 from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint.systematic import SystematicBudget
 from wheelcal.estimate.residual_profile import residual_by_wheel_angle
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.json_text import dumps_indented
@@ -59,17 +60,81 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
     report) gives each added effect its evidence and lists what the screen could not
     test; ``fit.warnings`` are the fit's and then the gates'.
     """
-    result, assessment, diagnosis = session.result, session.assessment, session.diagnosis
-    params = result.params
+    result, assessment = session.result, session.assessment
     undetermined = set(assessment.undetermined_names)
     std = dict(zip(result.names, result.std, strict=True))
     values = dict(zip(result.names, result.values, strict=True))
     for name in undetermined:  # never a usable-looking number
         std[name] = values[name] = float("nan")
-    budget = result.systematic
-    sys_std = dict(zip(budget.names, budget.total_std, strict=True))
+    return {
+        "format": FORMAT,
+        "wheelcal_version": __version__,
+        "geometry": session.geometry,
+        "provenance": provenance or {},
+        "source": _source_block(session),
+        "sensor": _sensor_block(values, std, assessment),
+        "bench": _bench_block(result, std),
+        "motion": _motion_block(result, std),
+        "effects": effects_dict(result, session.diagnosis),
+        "parameters": {
+            n: {"value": _num(values[n]), "std": _num(std[n])} for n in _reported(result)
+        },
+        "fit": _fit_block(session, undetermined),
+        "systematic": _systematic_block(result.systematic),
+        **({"gyro": _clean(assessment.gyro.to_dict())} if assessment.gyro is not None else {}),
+        "correction": _correction_block(result, undetermined),
+    }
+
+
+def _source_block(session: SessionResult) -> dict:
+    """``source``: the file, topic, samples, rate and window, the session's facts and notes."""
+    result = session.result
+    return {
+        "file": result.source,
+        "topic": result.topic,
+        "samples": int(result.time_s.size),
+        "rate_hz": _rate_hz(result.time_s),
+        # sample times are whole nanoseconds: written at that precision (93.645, not
+        # 93.64500000000001 from the ns → s conversion)
+        "window_s": [round(t, 9) for t in result.window_s],
+        "window_reason": session.window.reason,
+        "sensor_id": result.info.sensor_id,
+        "mounting_id": result.info.mounting_id,
+        "notes": list(result.notes),
+    }
+
+
+def _sensor_block(values: dict, std: dict, assessment: Assessment) -> dict:
+    """``sensor``: offsets and gains with their σ, and what the recording could not determine."""
+    return {
+        "offset_mps2": [_num(values[f"offset_{a}_mps2"]) for a in AXES],
+        "gain": [_num(values[f"gain_{a}"]) for a in AXES],
+        "offset_std_mps2": [_num(std[f"offset_{a}_mps2"]) for a in AXES],
+        "gain_std": [_num(std[f"gain_{a}"]) for a in AXES],
+        "undetermined": [{"parameter": n, "reason": r} for n, r in assessment.undetermined],
+    }
+
+
+def _bench_block(result: CalibrationResult, std: dict) -> dict:
+    """``bench``: radius, tilt, spin sign and the misalignment R (matrix and Euler angles)."""
+    params = result.params
+    return {
+        "radius_m": _num(params.bench.radius_m),
+        "radius_std_m": _num(std.get("radius_m", result.info.radius_std_m)),
+        "tilt_deg": _num(params.bench.tilt_deg),
+        "tilt_std_deg": _num(std.get("tilt_deg", 0.0)),
+        "spin_sign": 1 if params.spin.omega_radps[0] >= 0 else -1,
+        "misalignment_matrix": params.bench.misalignment.matrix.tolist(),
+        "misalignment_euler_deg": _vec(params.bench.misalignment.euler_deg()),
+        "misalignment_euler_std_deg": [_num(std[f"euler_{k}_deg"]) for k in (1, 2, 3)],
+        "euler_convention": EULER_CONVENTION,
+    }
+
+
+def _motion_block(result: CalibrationResult, std: dict) -> dict:
+    """``motion``: the spin polynomial with its σ, and the wheel-angle spline when fitted."""
+    params = result.params
     spin = params.spin
-    correction, identity_axes = _correction(result, undetermined)
     spline = next((e for e in result.layout.effects if e.name == "spin_spline"), None)
     motion = {"model": f"polynomial{spin.degree}", "t0_unix_ns": int(result.t0_unix_ns)}
     if spline is not None:
@@ -84,113 +149,82 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
         motion[name.replace("_rad", "_std_rad", 1) if name == "theta0_rad" else _std_key(name)] = (
             _num(std[name])
         )
-    tilt_std = std.get("tilt_deg", 0.0)
-    bench = {
-        "radius_m": _num(params.bench.radius_m),
-        "radius_std_m": _num(std.get("radius_m", result.info.radius_std_m)),
-        "tilt_deg": _num(params.bench.tilt_deg),
-        "tilt_std_deg": _num(tilt_std),
-        "spin_sign": 1 if spin.omega_radps[0] >= 0 else -1,
-        "misalignment_matrix": params.bench.misalignment.matrix.tolist(),
-        "misalignment_euler_deg": _vec(params.bench.misalignment.euler_deg()),
-        "misalignment_euler_std_deg": [_num(std[f"euler_{k}_deg"]) for k in (1, 2, 3)],
-        "euler_convention": EULER_CONVENTION,
-    }
+    return motion
+
+
+def _fit_block(session: SessionResult, undetermined: set[str]) -> dict:
+    """``fit``: model, screen, residual, covariance, warnings, noise model, goodness, gates."""
+    result = session.result
     return {
-        "format": FORMAT,
-        "wheelcal_version": __version__,
-        "geometry": session.geometry,
-        "provenance": provenance or {},
-        "source": {
-            "file": result.source,
-            "topic": result.topic,
-            "samples": int(result.time_s.size),
-            "rate_hz": _rate_hz(result.time_s),
-            # sample times are whole nanoseconds: written at that precision (93.645, not
-            # 93.64500000000001 from the ns → s conversion)
-            "window_s": [round(t, 9) for t in result.window_s],
-            "window_reason": session.window.reason,
-            "sensor_id": result.info.sensor_id,
-            "mounting_id": result.info.mounting_id,
-            "notes": list(result.notes),
+        "model": session.model,
+        **_screen(session.diagnosis),
+        "residual_rms_mps2": _vec(result.residual_rms_mps2),
+        "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
+        "converged": bool(result.converged),
+        "iterations": int(result.iterations),
+        "covariance": _covariance(result, undetermined),
+        "covariance_names": list(_reported(result)),
+        "warnings": list(session.warnings),
+        "noise_model": result.noise.to_dict(),
+        "twin": {
+            "rejected_offset_mps2": _vec(result.twin.rejected.sensor.offset_mps2),
+            "ambiguous": bool(result.twin.ambiguous),
         },
-        "sensor": {
-            "offset_mps2": [_num(values[f"offset_{a}_mps2"]) for a in AXES],
-            "gain": [_num(values[f"gain_{a}"]) for a in AXES],
-            "offset_std_mps2": [_num(std[f"offset_{a}_mps2"]) for a in AXES],
-            "gain_std": [_num(std[f"gain_{a}"]) for a in AXES],
-            "undetermined": [{"parameter": n, "reason": r} for n, r in assessment.undetermined],
+        "poorly_determined": list(result.identifiability.poorly_determined),
+        "residual_by_wheel_angle": residual_by_wheel_angle(
+            result.params.spin.theta_at(result.centred_time_s), result.residual_mps2
+        ),
+        "goodness": {
+            "chi2": _num(result.chi2),
+            "entries": int(result.entries),
+            "free_parameters": int(result.layout.size),
+            "chi2_reduced": _num(result.chi2_reduced),
+            "aic": _num(result.aic),
+            "bic": _num(result.bic),
         },
-        "bench": bench,
-        "motion": motion,
-        "effects": effects_dict(result, diagnosis),
-        "parameters": {
-            n: {"value": _num(values[n]), "std": _num(std[n])} for n in _reported(result)
+        **_assessment(session.assessment),
+    }
+
+
+def _systematic_block(budget: SystematicBudget) -> dict:
+    """``systematic``: the budget's total σ, and each unseen source's share."""
+    sys_std = dict(zip(budget.names, budget.total_std, strict=True))
+    return {
+        "gain_std": [_num(sys_std[f"gain_{a}"]) for a in AXES],
+        "offset_std_mps2": [_num(sys_std[f"offset_{a}_mps2"]) for a in AXES],
+        "tilt_std_deg": _num(sys_std.get("tilt_deg", 0.0)),
+        "sources": {
+            s.name: {
+                "std": _num(s.std),
+                "unit": s.unit,
+                "gain_std": [_num(v) for v in _pick(s.shift_std, budget.names, "gain")],
+                "offset_std_mps2": [_num(v) for v in _pick(s.shift_std, budget.names, "offset")],
+                "tilt_std_deg": _num(
+                    dict(zip(budget.names, s.shift_std, strict=True)).get("tilt_deg", 0.0)
+                ),
+            }
+            for s in budget.sources
         },
-        "fit": {
-            "model": session.model,
-            **_screen(diagnosis),
-            "residual_rms_mps2": _vec(result.residual_rms_mps2),
-            "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
-            "converged": bool(result.converged),
-            "iterations": int(result.iterations),
-            "covariance": _covariance(result, undetermined),
-            "covariance_names": list(_reported(result)),
-            "warnings": list(session.warnings),
-            "noise_model": result.noise.to_dict(),
-            "twin": {
-                "rejected_offset_mps2": _vec(result.twin.rejected.sensor.offset_mps2),
-                "ambiguous": bool(result.twin.ambiguous),
-            },
-            "poorly_determined": list(result.identifiability.poorly_determined),
-            "residual_by_wheel_angle": residual_by_wheel_angle(
-                result.params.spin.theta_at(result.centred_time_s), result.residual_mps2
-            ),
-            "goodness": {
-                "chi2": _num(result.chi2),
-                "entries": int(result.entries),
-                "free_parameters": int(result.layout.size),
-                "chi2_reduced": _num(result.chi2_reduced),
-                "aic": _num(result.aic),
-                "bic": _num(result.bic),
-            },
-            **_assessment(assessment),
-        },
-        "systematic": {
-            "gain_std": [_num(sys_std[f"gain_{a}"]) for a in AXES],
-            "offset_std_mps2": [_num(sys_std[f"offset_{a}_mps2"]) for a in AXES],
-            "tilt_std_deg": _num(sys_std.get("tilt_deg", 0.0)),
-            "sources": {
-                s.name: {
-                    "std": _num(s.std),
-                    "unit": s.unit,
-                    "gain_std": [_num(v) for v in _pick(s.shift_std, budget.names, "gain")],
-                    "offset_std_mps2": [
-                        _num(v) for v in _pick(s.shift_std, budget.names, "offset")
-                    ],
-                    "tilt_std_deg": _num(
-                        dict(zip(budget.names, s.shift_std, strict=True)).get("tilt_deg", 0.0)
-                    ),
-                }
-                for s in budget.sources
-            },
-            "note": _SYSTEMATIC_NOTE,
-        },
-        **({"gyro": _clean(assessment.gyro.to_dict())} if assessment.gyro is not None else {}),
-        "correction": {
-            "bias_mps2": _vec(correction.bias_mps2),
-            "matrix": correction.matrix.tolist(),
-            "equation": "a = matrix @ (v - bias)",
-            **(
-                {
-                    "identity_axes": identity_axes,
-                    "note": "these axes are left unchanged (gain 1, offset 0): the recording "
-                    "cannot determine their gain or offset (see sensor.undetermined)",
-                }
-                if identity_axes
-                else {}
-            ),
-        },
+        "note": _SYSTEMATIC_NOTE,
+    }
+
+
+def _correction_block(result: CalibrationResult, undetermined: set[str]) -> dict:
+    """``correction``: a = matrix @ (v − bias), and the axes it leaves unchanged."""
+    correction, identity_axes = _correction(result, undetermined)
+    return {
+        "bias_mps2": _vec(correction.bias_mps2),
+        "matrix": correction.matrix.tolist(),
+        "equation": "a = matrix @ (v - bias)",
+        **(
+            {
+                "identity_axes": identity_axes,
+                "note": "these axes are left unchanged (gain 1, offset 0): the recording "
+                "cannot determine their gain or offset (see sensor.undetermined)",
+            }
+            if identity_axes
+            else {}
+        ),
     }
 
 

@@ -167,27 +167,47 @@ def _normal_with_spline(
         grad[:size] += gram[:size, size]
         if together and p > 0 and bounds.size:
             _add_slot_corrections(hess, grad, jw, slots, interval, bounds, noise, size)
-        cuts = np.flatnonzero(np.diff(interval[p:])) + p + 1
-        for a, b in itertools.pairwise([p, *cuts.tolist(), t.size]):
-            jg = jw[:, :, a - p : b - p]
-            if together:
-                first, sw = int(interval[a]), jg[size + 1 :]
-            else:
-                first, sw = _whitened_group(interval, slots, noise, a, b)
-            cross = sw[:, 0, :] @ jg[:, 0, :].T
-            cross += sw[:, 1, :] @ jg[:, 1, :].T
-            cross += sw[:, 2, :] @ jg[:, 2, :].T
-            rows_here = slice(size + first, size + first + sw.shape[0])
-            hess[rows_here, :size] += cross[:, :size]
-            grad[rows_here] += cross[:, size]
-            if together:
-                hess[rows_here, rows_here] += cross[:, size + 1 :]
-            else:
-                flat = sw.reshape(sw.shape[0], -1)
-                hess[rows_here, rows_here] += flat @ flat.T
+        _add_interval_blocks(hess, grad, jw, slots, interval, noise, size, together)
     keep = size + spline.size
     hess[:size, size:] = hess[size:, :size].T
     return hess[:keep, :keep], grad[:keep]
+
+
+def _add_interval_blocks(
+    hess: np.ndarray,
+    grad: np.ndarray,
+    jw: np.ndarray,
+    slots: np.ndarray,
+    interval: np.ndarray,
+    noise: NoiseModel,
+    size: int,
+    together: bool,
+) -> None:
+    """Add one chunk's spline rows of H and g, knot interval by knot interval.
+
+    ``jw`` holds the whitened base columns and residual, and — ``together`` —
+    the four slot columns whitened with them; else each interval's group of
+    functions is whitened here from ``slots`` (:func:`_whitened_group`).
+    """
+    p = noise.order
+    cuts = np.flatnonzero(np.diff(interval[p:])) + p + 1
+    for a, b in itertools.pairwise([p, *cuts.tolist(), interval.size]):
+        jg = jw[:, :, a - p : b - p]
+        if together:
+            first, sw = int(interval[a]), jg[size + 1 :]
+        else:
+            first, sw = _whitened_group(interval, slots, noise, a, b)
+        cross = sw[:, 0, :] @ jg[:, 0, :].T
+        cross += sw[:, 1, :] @ jg[:, 1, :].T
+        cross += sw[:, 2, :] @ jg[:, 2, :].T
+        rows_here = slice(size + first, size + first + sw.shape[0])
+        hess[rows_here, :size] += cross[:, :size]
+        grad[rows_here] += cross[:, size]
+        if together:
+            hess[rows_here, rows_here] += cross[:, size + 1 :]
+        else:
+            flat = sw.reshape(sw.shape[0], -1)
+            hess[rows_here, rows_here] += flat @ flat.T
 
 
 def _add_slot_corrections(

@@ -263,26 +263,7 @@ def _find_in_stretch(recording: Recording, search: WindowSearch) -> FreeSpinWind
             f"{recording.source}: {recording.duration_s:.1f} s is too short to find a free spin"
         )
 
-    # Noise: zero-phase low-pass (SOS: stable at any rate).
-    v = _lowpass(min(search.lowpass_hz, 0.4 * rate), rate).filtfilt(v)
-    # A rough phase from dv/dt: differentiation suppresses the slow part
-    # (o, r ω², g cos α …) without the seconds-long ringing a high-pass filter
-    # shows after the push's step in r ω².  It only sets the revolution windows.
-    rough, _ = rotating_phase(np.gradient(v, axis=1) * rate)
-    ramp = np.maximum.accumulate(rough)
-    max_half = int(np.pi / search.min_rate_radps * rate)
-    # The rotating part: v minus its mean over one revolution (cancels the
-    # rotation exactly, keeps the slow part out), and its phase.
-    phase, radius = rotating_phase(v - revolution_mean(v, ramp, max_half))
-    amplitude = _moving_average(radius, 2 * lag)
-
-    # |ω| and |ω̇| from phase differences over the baseline 2·lag.
-    omega = np.full(n, np.nan)
-    omega[lag:-lag] = (phase[2 * lag :] - phase[: -2 * lag]) / (2 * lag / rate)
-    omega_dot = np.full(n, np.nan)
-    omega_dot[2 * lag : -2 * lag] = (omega[3 * lag : -lag] - omega[lag : -3 * lag]) / (
-        2 * lag / rate
-    )
+    omega, omega_dot, amplitude = _rate_and_amplitude(v, rate, lag, search)
     with np.errstate(invalid="ignore"):
         steady = (omega > search.min_rate_radps) & (
             np.abs(omega_dot) < search.max_spin_accel_radps2
@@ -310,12 +291,56 @@ def _find_in_stretch(recording: Recording, search: WindowSearch) -> FreeSpinWind
             f"{recording.source}: no free spin found: the longest stretch that looks like "
             f"one lasts {max(end_s - start_s, 0):.1f} s (need {search.min_duration_s:g} s)"
         )
+    return _free_spin_window(recording, grid, omega, omega_dot, (start_s, end_s), lag)
+
+
+def _rate_and_amplitude(
+    v: np.ndarray, rate: float, lag: int, search: WindowSearch
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """|ω|, |ω̇| (NaN where the baseline 2·lag does not fit) and the rotating part's amplitude.
+
+    ``v``: the samples on the search grid, as rows (3, n).
+    """
+    n = v.shape[1]
+    # Noise: zero-phase low-pass (SOS: stable at any rate).
+    v = _lowpass(min(search.lowpass_hz, 0.4 * rate), rate).filtfilt(v)
+    # A rough phase from dv/dt: differentiation suppresses the slow part
+    # (o, r ω², g cos α …) without the seconds-long ringing a high-pass filter
+    # shows after the push's step in r ω².  It only sets the revolution windows.
+    rough, _ = rotating_phase(np.gradient(v, axis=1) * rate)
+    ramp = np.maximum.accumulate(rough)
+    max_half = int(np.pi / search.min_rate_radps * rate)
+    # The rotating part: v minus its mean over one revolution (cancels the
+    # rotation exactly, keeps the slow part out), and its phase.
+    phase, radius = rotating_phase(v - revolution_mean(v, ramp, max_half))
+    amplitude = _moving_average(radius, 2 * lag)
+
+    # |ω| and |ω̇| from phase differences over the baseline 2·lag.
+    omega = np.full(n, np.nan)
+    omega[lag:-lag] = (phase[2 * lag :] - phase[: -2 * lag]) / (2 * lag / rate)
+    omega_dot = np.full(n, np.nan)
+    omega_dot[2 * lag : -2 * lag] = (omega[3 * lag : -lag] - omega[lag : -3 * lag]) / (
+        2 * lag / rate
+    )
+    return omega, omega_dot, amplitude
+
+
+def _free_spin_window(
+    recording: Recording,
+    grid: np.ndarray,
+    omega: np.ndarray,
+    omega_dot: np.ndarray,
+    span_s: tuple[float, float],
+    lag: int,
+) -> FreeSpinWindow:
+    """The window ``span_s`` (recording times) with its rates and the reason it was chosen."""
+    start_s, end_s = span_s
     inside = (grid >= start_s) & (grid <= end_s)
     w = omega[inside]
     w_start = float(np.nanmedian(w[: 4 * lag]))
     w_end = float(np.nanmedian(w[-4 * lag :]))
     max_acc = float(np.nanmax(np.abs(omega_dot[inside])))
-    before = start_s - t0
+    before = start_s - float(recording.time_s[0])
     after = float(recording.time_s[-1]) - end_s
     reason = (
         f"free spin {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s): "

@@ -39,23 +39,23 @@ def fit_window(
     guess: InitialGuess | None = None,
     frame: tuple[float, float] | None = None,
 ) -> CalibrationResult:
-    """``fitter.fit(…)``, or :func:`fit_rolling` for a rolling wheel whose yaw is not known yet.
+    """``fitter.fit(…)``, or the passes of the module doc for a rolling wheel of unknown yaw.
 
     The joint fit of geometry ``rolling`` needs the rolling effect with its yaw
     series (demodulated from the gyro with a first fit); a refit that carries it
     is a plain joint fit.
     """
     if fitter.geometry == "rolling" and not any(e.stage == "force" for e in fitter.effects):
-        return fit_rolling(fitter, recording, initial=initial, guess=guess, frame=frame)
+        return _fit_rolling(fitter, recording, initial, guess, frame)
     return fitter.fit(recording, initial=initial, guess=guess, frame=frame)
 
 
-def fit_rolling(
-    fitter,
+def _fit_rolling(
+    fitter: JointFit,
     recording: Recording,
-    initial: CalibrationParams | None = None,
-    guess: InitialGuess | None = None,
-    frame: tuple[float, float] | None = None,
+    initial: CalibrationParams | None,
+    guess: InitialGuess | None,
+    frame: tuple[float, float] | None,
 ) -> CalibrationResult:
     """Fit ``recording`` in geometry ``rolling`` with ``fitter``'s other settings (module doc)."""
     t = recording.time_s

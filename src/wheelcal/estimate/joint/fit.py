@@ -42,10 +42,10 @@ import numpy as np
 from wheelcal.estimate.joint.columns import difference_stds
 from wheelcal.estimate.joint.decimation import thinning_stride
 from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, combined, gyro_prediction
-from wheelcal.estimate.joint.identifiability import check_identifiability
+from wheelcal.estimate.joint.identifiability import Identifiability, check_identifiability
 from wheelcal.estimate.joint.information import covariance_from_fisher
 from wheelcal.estimate.joint.initial import InitialGuess, initial_guess
-from wheelcal.estimate.joint.levenberg_marquardt import levenberg_marquardt
+from wheelcal.estimate.joint.levenberg_marquardt import LMOutcome, levenberg_marquardt
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import (
     CHUNK_SAMPLES,
@@ -62,6 +62,7 @@ from wheelcal.estimate.joint.systematic import (
     DEFAULT_CLOCK_STD_PPM,
     DEFAULT_GRAVITY_STD_MPS2,
     GIVEN_GRAVITY_STD_MPS2,
+    SystematicBudget,
     nuisance_columns,
     nuisance_extra,
     systematic_budget,
@@ -71,7 +72,7 @@ from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
 from wheelcal.model.bench import bench_force
 from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, SpinSpline
 from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
-from wheelcal.recording import Recording, RecordingError
+from wheelcal.recording import Recording, RecordingError, SessionInfo
 
 GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling", "free")
 #: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
@@ -253,21 +254,38 @@ class JointFit:
         end in recording time) keeps the time origin and the spline's knots of a
         larger window when refitting a subset of it from its ``initial``.
         """
-        return self.fit_evaluated(recording, initial, guess, frame)[0]
+        return self._fit(recording, initial, guess, frame)[0]
 
     def fit_evaluated(
-        self,
-        recording: Recording,
-        initial: CalibrationParams | None = None,
-        guess: InitialGuess | None = None,
-        frame: tuple[float, float] | None = None,
+        self, recording: Recording, guess: InitialGuess | None = None
     ) -> tuple[CalibrationResult, EvaluatedModel | None]:
-        """:meth:`fit`, and the model as its last pass evaluated it at the result.
+        """:meth:`fit` of a window from its start, and the model as its last pass evaluated it.
 
         The evaluation (:class:`~wheelcal.model.forward.EvaluatedModel`) is there
         for a window of one chunk and the paper's model (None otherwise): a check
         at the result (the motion check) forms its Jacobian from it.
         """
+        return self._fit(recording, None, guess, None)
+
+    def _fit(
+        self,
+        recording: Recording,
+        initial: CalibrationParams | None,
+        guess: InitialGuess | None,
+        frame: tuple[float, float] | None,
+    ) -> tuple[CalibrationResult, EvaluatedModel | None]:
+        """The stages of the module doc, in order; the result and the last evaluation."""
+        window = self._window(recording, frame)
+        initial, notes = self._initial(recording, initial, guess)
+        stage1 = self._stage1(window, initial)
+        stage2 = self._stage2(window, stage1.params)
+        end = self._at_twin(window, stage2)
+        result = self._result(window, stage2, end, notes)
+        last = stage2.last_residual
+        return result, last.evaluated_at(end.params) if last is not None else None
+
+    def _window(self, recording: Recording, frame: tuple[float, float] | None) -> _Window:
+        """The window's samples as the stages use them (times centred on ``frame``)."""
         if self.geometry == "rolling" and _rolling_of(self.effects) is None:
             raise ValueError(
                 "geometry 'rolling' needs the yaw from the gyro first: fit it with "
@@ -278,30 +296,38 @@ class JointFit:
         frame = frame or (float(t[0]), float(t[-1]))
         centre = 0.5 * (frame[0] + frame[1])
         tc = t - centre
-        v = recording.accel_mps2
-        gravity = info.gravity_or_standard_mps2
         layout = self.layout_for(recording, frame)
         gyro_t, gyro = gyro_samples(recording, tc, self.effects) if self.use_gyro else (None, None)
-        notes: list[str] = []
+        return _Window(recording, info, centre, tc, recording.accel_mps2, layout, gyro_t, gyro)
+
+    def _initial(
+        self, recording: Recording, initial: CalibrationParams | None, guess: InitialGuess | None
+    ) -> tuple[CalibrationParams, tuple[str, ...]]:
+        """Where the fit starts, and the start's notes."""
         if initial is None and self.effects:
             # Settle the twin on the paper's model, then free the effects from zero.
             initial = dataclasses.replace(self, effects=()).fit(recording, guess=guess).params
         if initial is None:
             guess = guess or self.start(recording)
-            initial = guess.params
-            notes += guess.notes
+            return guess.params, guess.notes
+        return initial, ()
 
-        # Stage 1: least squares on a decimated copy (it only needs to get close),
-        # per-axis weights from first differences.
-        # (never below 16 samples per turn at the fastest rate: no aliasing)
+    def _stage1(self, w: _Window, initial: CalibrationParams) -> LMOutcome:
+        """Stage 1: least squares on a decimated copy (it only needs to get close).
+
+        Per-axis weights from first differences; never below 16 samples per turn
+        at the fastest rate (no aliasing).  Then, without a gyro, the ladder of
+        decimations toward all samples (a long, fast recording).
+        """
+        tc, v, layout, gyro = w.tc, w.v, w.layout, w.gyro
         omega_max = float(np.max(np.abs(initial.spin.omega_at(tc[[0, tc.size // 2, -1]]))))
-        stride = thinning_stride(t.size, _STAGE1_SAMPLES, recording.rate_hz, omega_max)
+        stride = thinning_stride(tc.size, _STAGE1_SAMPLES, w.recording.rate_hz, omega_max)
         std0 = np.maximum(difference_stds(v) / np.sqrt(2), 1e-6)
         white0 = NoiseModel.white(std0)
         gyro1 = None
         if gyro is not None:
             gyro_std0 = np.maximum(np.std(np.diff(gyro, axis=0), axis=0) / np.sqrt(2), 1e-9)
-            gyro1 = (gyro_t[::stride], gyro[::stride], NoiseModel.white(gyro_std0))
+            gyro1 = (w.gyro_t[::stride], gyro[::stride], NoiseModel.white(gyro_std0))
         out = levenberg_marquardt(
             _residual_fn(tc[::stride], v[::stride], layout, white0, gyro=gyro1),
             initial,
@@ -321,26 +347,39 @@ class JointFit:
             else _gradient_fn(tc[::stride], v[::stride], layout, white0),
         )
         if gyro is None:  # a ladder of decimations toward all samples (a long, fast recording)
-            for target in _ladder(t.size):
-                finer = thinning_stride(t.size, target, recording.rate_hz, omega_max)
-                if finer >= stride:
-                    continue
-                stride = finer
-                out = levenberg_marquardt(
-                    _residual_fn(tc[::stride], v[::stride], layout, white0),
-                    out.params,
-                    layout,
-                    self.max_iterations,
-                    tol=1e-2,
-                    initial_damping=1e-9,  # warm start: Gauss–Newton steps
-                    jacobian_on_trial=True,
-                    final_step_tol=_STAGE1_FINAL_STEP_TOL,
-                    gradient_fn=_gradient_fn(tc[::stride], v[::stride], layout, white0),
-                )
-        # Stage 2: noise model from the full residual, whitened refit on all samples.
-        # The accumulations carry the sensitivities to the fixed quantities as
-        # extra columns, so the last one also gives the systematic budget.
-        start = out.params
+            out = self._ladder_stages(w, out, stride, omega_max, white0)
+        return out
+
+    def _ladder_stages(
+        self, w: _Window, out: LMOutcome, stride: int, omega_max: float, white0: NoiseModel
+    ) -> LMOutcome:
+        """Stages on N/100, N/10 … of the N samples after stage 1 (:func:`_ladder`)."""
+        tc, v, layout = w.tc, w.v, w.layout
+        for target in _ladder(tc.size):
+            finer = thinning_stride(tc.size, target, w.recording.rate_hz, omega_max)
+            if finer >= stride:
+                continue
+            stride = finer
+            out = levenberg_marquardt(
+                _residual_fn(tc[::stride], v[::stride], layout, white0),
+                out.params,
+                layout,
+                self.max_iterations,
+                tol=1e-2,
+                initial_damping=1e-9,  # warm start: Gauss–Newton steps
+                jacobian_on_trial=True,
+                final_step_tol=_STAGE1_FINAL_STEP_TOL,
+                gradient_fn=_gradient_fn(tc[::stride], v[::stride], layout, white0),
+            )
+        return out
+
+    def _stage2(self, w: _Window, start: CalibrationParams) -> _Stage2:
+        """Stage 2: noise model from the full residual, whitened refit on all samples.
+
+        The accumulations carry the sensitivities to the fixed quantities as
+        extra columns, so the last one also gives the systematic budget.
+        """
+        tc, v, layout, gyro = w.tc, w.v, w.layout, w.gyro
         if not self.effects:
             # The canonical twin: the twins' offsets differ by far more than σ, so the
             # decimated fit already tells them apart, and the end point is then
@@ -356,8 +395,8 @@ class JointFit:
             noise = self._noise_model(residual_of(start, tc, v, layout))
         gyro2 = gyro_noise = None
         if gyro is not None:
-            gyro_noise = self._noise_model(gyro - gyro_prediction(start, gyro_t, layout))
-            gyro2 = (gyro_t, gyro, gyro_noise)
+            gyro_noise = self._noise_model(gyro - gyro_prediction(start, w.gyro_t, layout))
+            gyro2 = (w.gyro_t, gyro, gyro_noise)
         normal_fn = _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2)
         last_residual = _LastResidual(normal_fn, tc, v, layout, noise) if gyro is None else None
         out = levenberg_marquardt(
@@ -376,52 +415,68 @@ class JointFit:
             gradient_fn=last_residual.gradient if last_residual is not None else None,
             normal0=normal0,
         )
-        iterations = out.iterations
-        converged = out.converged
-        # Stage 3: canonical twin; the Fisher information and the cross terms
-        # with the quantities held fixed (systematic budget) at the optimum.
+        return _Stage2(out, noise, gyro2, gyro_noise, last_residual)
+
+    def _at_twin(self, w: _Window, stage2: _Stage2) -> _AtTwin:
+        """Stage 3: the canonical twin, and the Fisher information there.
+
+        The normal equations carry the cross terms with the quantities held
+        fixed (for the systematic budget).
+        """
+        out = stage2.out
         if self.effects:  # the twin was chosen on the base model (see `effects`)
             twin = TwinChoice(out.params, twin_of(out.params), ambiguous=False)
         else:
             twin = choose_twin(out.params)
         params = twin.chosen
-        nuisances = nuisance_columns(layout)
+        tc, v, layout = w.tc, w.v, w.layout
         normal = out.normal
         if not _same_point(params, out.params):  # the other twin: new Jacobian
-            normal = _residual_fn(tc, v, layout, noise, nuisances, gyro=gyro2)(params, True)
+            nuisances = nuisance_columns(layout)
+            normal = _residual_fn(tc, v, layout, stage2.noise, nuisances, gyro=stage2.gyro)(
+                params, True
+            )
         size = layout.size
         cov_x = covariance_from_fisher(normal.hessian[:size, :size])
         names, values, g = report_transform(params, layout)
         cov = transform_covariance(g, cov_x)
-        std = np.sqrt(np.diag(cov))
-        residual = last_residual.at(params) if last_residual is not None else None
+        last = stage2.last_residual
+        residual = last.at(params) if last is not None else None
         if residual is None:
             residual = residual_of(params, tc, v, layout)
+        return _AtTwin(twin, normal, names, values, g, cov, residual)
 
+    def _budget(self, w: _Window, end: _AtTwin) -> SystematicBudget:
+        """The systematic budget at the result (the quantities held fixed)."""
         gravity_std = self.gravity_std_mps2
         if gravity_std is None:
             gravity_std = (
-                DEFAULT_GRAVITY_STD_MPS2 if info.gravity_mps2 is None else GIVEN_GRAVITY_STD_MPS2
+                DEFAULT_GRAVITY_STD_MPS2 if w.info.gravity_mps2 is None else GIVEN_GRAVITY_STD_MPS2
             )
-        budget = systematic_budget(
-            params,
-            layout,
-            normal.hessian,
-            nuisances,
-            g,
-            names,
-            radius_std_m=info.radius_std_m,
+        return systematic_budget(
+            end.params,
+            w.layout,
+            end.normal.hessian,
+            nuisance_columns(w.layout),
+            end.jacobian,
+            end.names,
+            radius_std_m=w.info.radius_std_m,
             gravity_std_mps2=gravity_std,
             clock_std_ppm=self.clock_std_ppm,
             tilt_std_deg=self.tilt_std_deg,
         )
-        ident = check_identifiability(params, tc, names, std)
+
+    def _warnings(
+        self, w: _Window, out: LMOutcome, twin: TwinChoice, ident: Identifiability
+    ) -> tuple[str, ...]:
+        """The fit's warnings: identifiability, convergence, twin, geometry."""
         warnings = list(ident.warnings)
-        if not converged:
+        if not out.converged:
             warnings.append(f"the fit did not converge ({out.message})")
         if twin.warning and self.geometry != "vertical":
             warnings.append(twin.warning)
-        if self.geometry != "radius" and info.gravity_mps2 is None:
+        if self.geometry != "radius" and w.info.gravity_mps2 is None:
+            gravity = w.info.gravity_or_standard_mps2
             warnings.append(
                 f"{self.geometry} mode without local gravity: the gains scale with the assumed "
                 f"g ({gravity:.5f} m/s²) one for one — give gravity_mps2 for gains better "
@@ -432,39 +487,93 @@ class JointFit:
                 "vertical wheel: the wheel axis has no upward side, so R is reported for the "
                 "positive spin direction (gains and offsets are unaffected)"
             )
-        result = CalibrationResult(
-            params=params,
-            layout=layout,
-            names=names,
-            values=values,
-            covariance=cov,
-            time_s=t,
-            residual_mps2=residual,
-            centre_s=float(centre),
-            epoch_unix_ns=recording.epoch_unix_ns,
-            noise=noise,
-            converged=converged,
-            iterations=iterations,
-            warnings=tuple(warnings),
-            systematic=budget,
-            twin=twin,
-            identifiability=ident,
-            info=info,
-            source=recording.source,
-            topic=recording.topic,
-            notes=tuple(notes) + recording.notes,
-            gyro_noise=gyro_noise,
-        )
-        evaluated = last_residual.evaluated_at(params) if last_residual is not None else None
+        return tuple(warnings)
+
+    def _result(
+        self, w: _Window, stage2: _Stage2, end: _AtTwin, notes: tuple[str, ...]
+    ) -> CalibrationResult:
+        """The frozen result at the chosen twin."""
+        out = stage2.out
+        budget = self._budget(w, end)
+        ident = check_identifiability(end.params, w.tc, end.names, np.sqrt(np.diag(end.covariance)))
         # χ² at the result: the cost the iterations ended on (the twin's own if chosen).
-        chi2 = out.cost if normal is out.normal else normal.cost
-        result = dataclasses.replace(result, chi2=float(chi2), entries=int(normal.entries))
-        return result, evaluated
+        chi2 = out.cost if end.normal is out.normal else end.normal.cost
+        return CalibrationResult(
+            # The window's samples and facts.
+            layout=w.layout,
+            time_s=w.recording.time_s,
+            centre_s=float(w.centre),
+            epoch_unix_ns=w.recording.epoch_unix_ns,
+            info=w.info,
+            source=w.recording.source,
+            topic=w.recording.topic,
+            notes=tuple(notes) + w.recording.notes,
+            # Stage 2: the noise models, how the iterations ended, χ² (N entries).
+            noise=stage2.noise,
+            gyro_noise=stage2.gyro_noise,
+            converged=out.converged,
+            iterations=out.iterations,
+            chi2=float(chi2),
+            entries=int(end.normal.entries),
+            # Stage 3: at the chosen twin.
+            params=end.params,
+            twin=end.twin,
+            names=end.names,
+            values=end.values,
+            covariance=end.covariance,
+            residual_mps2=end.residual,
+            systematic=budget,
+            identifiability=ident,
+            warnings=self._warnings(w, out, end.twin, ident),
+        )
 
     def _noise_model(self, residual: np.ndarray) -> NoiseModel:
         if self.coloured_noise:
             return NoiseModel.estimate(residual, self.max_ar_order)
         return NoiseModel.white(np.std(residual, axis=0))
+
+
+@dataclass(frozen=True, eq=False)
+class _Window:
+    """A window's samples as the fit's stages use them."""
+
+    recording: Recording
+    info: SessionInfo
+    centre: float  # the frame's middle, recording time
+    tc: np.ndarray  # sample times − centre
+    v: np.ndarray  # accelerometer samples (N, 3)
+    layout: ParameterLayout
+    gyro_t: np.ndarray | None  # centred times of the usable gyro rows
+    gyro: np.ndarray | None  # those rows (the rolling yaw taken out)
+
+
+@dataclass(frozen=True, eq=False)
+class _Stage2:
+    """Where stage 2 ended, and the noise models it whitened with."""
+
+    out: LMOutcome
+    noise: NoiseModel
+    gyro: tuple | None  # (times, samples, noise model) of the gyro stream
+    gyro_noise: NoiseModel | None
+    last_residual: _LastResidual | None
+
+
+@dataclass(frozen=True, eq=False)
+class _AtTwin:
+    """Stage 3: the chosen twin and what the result reports there."""
+
+    twin: TwinChoice
+    normal: NormalEquations  # at the chosen twin (nuisance columns last)
+    names: tuple[str, ...]
+    values: np.ndarray
+    jacobian: np.ndarray  # ∂(reported)/∂(optimiser vector)
+    covariance: np.ndarray  # of the reported values
+    residual: np.ndarray  # data − model (N, 3)
+
+    @property
+    def params(self) -> CalibrationParams:
+        """The chosen twin's parameters."""
+        return self.twin.chosen
 
 
 class _LastResidual:

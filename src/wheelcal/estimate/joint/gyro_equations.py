@@ -94,8 +94,6 @@ def accumulate_gyro(
     grad = np.zeros(layout.size) if jacobian else None
     gyro_name = f"effect:{effect.name}"
     values = params.effect(effect.name, effect.size)
-    w = values[:3]
-    gx, gy = (values[6:9], values[9:12]) if effect.g_sensitivity else (None, None)
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         lo = max(0, start - p)
@@ -111,41 +109,7 @@ def accumulate_gyro(
             cost += float(np.sum(rw * rw))
             entries += rw.size
             continue
-        # Only the rows the gyro depends on (not R, the gains, the offsets …): a
-        # compact Jacobian, its Gram added to those rows of H.
-        fed, rows = _fed_blocks(here, effect, force is not None)
-        jac = np.zeros((rows.size, 3, t.size))
-        row = 0
-        for name in ("spin", *(n for n in fed if n.startswith("effect:") and n != gyro_name)):
-            target = fed[name]
-            size = target.stop - target.start
-            d_omega = kin.d_omega[row : row + size]  # (size, N)
-            jac[target] = d_omega[:, None, :] * w[None, :, None]
-            if force is not None:  # G_X ∂a_X/∂p + G_Y ∂a_Y/∂p (eq. 1)
-                d_theta = kin.d_theta[row : row + size]
-                dax = d_theta * (-force.g_sin_tilt * force.sin_theta)
-                dax += d_omega * (2 * at.bench.radius_m * kin.omega_radps)
-                day = d_theta * (force.g_sin_tilt * force.cos_theta)
-                day += at.bench.radius_m * kin.d_omega_dot[row : row + size]
-                jac[target] += dax[:, None, :] * gx[None, :, None]
-                jac[target] += day[:, None, :] * gy[None, :, None]
-            row += size
-        if force is not None:
-            if "tilt" in fed:  # ∂a/∂α = g cosα (cosϑ, sinϑ, ·)
-                tilt = fed["tilt"].start
-                jac[tilt] += np.outer(gx, force.g_cos_tilt * force.cos_theta)
-                jac[tilt] += np.outer(gy, force.g_cos_tilt * force.sin_theta)
-            if "radius" in fed:  # ∂a/∂r = (ω², ω̇, 0)
-                radius = fed["radius"].start
-                jac[radius] += np.outer(gx, kin.omega_radps**2)
-                jac[radius] += np.outer(gy, kin.omega_dot_radps2)
-        gyro_block = fed[gyro_name]
-        for i in range(3):
-            jac[gyro_block.start + i, i] = kin.omega_radps
-            jac[gyro_block.start + 3 + i, i] = 1.0
-            if force is not None:
-                jac[gyro_block.start + 6 + i, i] = accel[:, 0]
-                jac[gyro_block.start + 9 + i, i] = accel[:, 1]
+        jac, rows = _gyro_jacobian(here, at, effect, kin, force, values)
         rw, jw = noise.whiten(residual, jac)
         jt = jw.reshape(jw.shape[0], -1)
         r_flat = rw.reshape(-1)
@@ -161,6 +125,59 @@ def accumulate_gyro(
             hess[g_rows, g_rows] += weight
             grad[g_rows] += prior_grad
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
+
+
+def _gyro_jacobian(
+    layout: ParameterLayout,
+    params: CalibrationParams,
+    effect,
+    kin,
+    force: BenchForce | None,
+    values: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """∂(gyro prediction)/∂p over the rows the gyro depends on, (rows, 3, N), and those rows.
+
+    Only the rows the gyro depends on (not R, the gains, the offsets …): a
+    compact Jacobian, its Gram added to those rows of H.  ``force`` is the
+    bench's specific force when the reading senses it (G), else None.
+    """
+    w = values[:3]
+    gx, gy = (values[6:9], values[9:12]) if force is not None else (None, None)
+    gyro_name = f"effect:{effect.name}"
+    fed, rows = _fed_blocks(layout, effect, force is not None)
+    jac = np.zeros((rows.size, 3, kin.omega_radps.size))
+    row = 0
+    for name in ("spin", *(n for n in fed if n.startswith("effect:") and n != gyro_name)):
+        target = fed[name]
+        size = target.stop - target.start
+        d_omega = kin.d_omega[row : row + size]  # (size, N)
+        jac[target] = d_omega[:, None, :] * w[None, :, None]
+        if force is not None:  # G_X ∂a_X/∂p + G_Y ∂a_Y/∂p (eq. 1)
+            d_theta = kin.d_theta[row : row + size]
+            dax = d_theta * (-force.g_sin_tilt * force.sin_theta)
+            dax += d_omega * (2 * params.bench.radius_m * kin.omega_radps)
+            day = d_theta * (force.g_sin_tilt * force.cos_theta)
+            day += params.bench.radius_m * kin.d_omega_dot[row : row + size]
+            jac[target] += dax[:, None, :] * gx[None, :, None]
+            jac[target] += day[:, None, :] * gy[None, :, None]
+        row += size
+    if force is not None:
+        if "tilt" in fed:  # ∂a/∂α = g cosα (cosϑ, sinϑ, ·)
+            tilt = fed["tilt"].start
+            jac[tilt] += np.outer(gx, force.g_cos_tilt * force.cos_theta)
+            jac[tilt] += np.outer(gy, force.g_cos_tilt * force.sin_theta)
+        if "radius" in fed:  # ∂a/∂r = (ω², ω̇, 0)
+            radius = fed["radius"].start
+            jac[radius] += np.outer(gx, kin.omega_radps**2)
+            jac[radius] += np.outer(gy, kin.omega_dot_radps2)
+    gyro_block = fed[gyro_name]
+    for i in range(3):
+        jac[gyro_block.start + i, i] = kin.omega_radps
+        jac[gyro_block.start + 3 + i, i] = 1.0
+        if force is not None:
+            jac[gyro_block.start + 6 + i, i] = force.accel_mps2[:, 0]
+            jac[gyro_block.start + 9 + i, i] = force.accel_mps2[:, 1]
+    return jac, rows
 
 
 def combined(a: NormalEquations, b: NormalEquations, a_free: int | None = None) -> NormalEquations:

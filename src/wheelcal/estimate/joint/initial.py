@@ -80,11 +80,71 @@ def initial_guess(
     """
     if (radius_m is None) == (tilt_rad is None):
         raise ValueError("give exactly one of radius_m and tilt_rad")
-    # A few thousand samples pin the starting point down; more only cost time.  The
-    # thinning keeps ≥ 16 samples per turn at twice the dominant turn rate, so a long
-    # recording is never aliased (estimate/joint/decimation.py).
+    t, v, stride, turn_hz_all = _thinned(t_s, accel_mps2, spline, fastest_radps)
+    measured = None if omega_radps is None else np.asarray(omega_radps, dtype=float)[::stride]
+    half = max(np.abs(t).max(), 1e-9)
+    tau = t / half
+    # One Legendre basis on τ ∈ [−1, 1] for the trend of step 1 and the phase of step 2.
+    legendre = np.polynomial.legendre.legvander(tau, max(_TREND_DEGREE, spin_degree + 1))
+    legendre_gram = legendre.T @ legendre
+    notes: list[str] = []
+
+    u = _plane_coordinates(v, t, legendre, legendre_gram, spline, measured, turn_hz_all)  # 1.
+    phase, omega_measured = _phase(u, t, measured)  # 2.
+    spin = _spin_of_phase(phase, half, legendre, legendre_gram, spin_degree)
+    theta = spin.theta_at(t)
+    omega_t = spin.omega_at(t)
+    spline_coef = None
+    if spline is not None:  # the rest of the phase, on the spline basis
+        b, d1, _ = cubic_bspline_basis(t, spline.start_s, spline.spacing_s, spline.size)
+        spline_coef, *_ = np.linalg.lstsq(b.T, phase - theta, rcond=None)
+        theta = theta + spline_coef @ b
+        omega_t = omega_t + spline_coef @ d1
+    if omega_radps is not None:
+        omega_t = omega_measured
+
+    rot = _rotating_terms(t, v, theta, omega_t)  # 3. and 4.
+    if not rot.resolved:
+        notes.append("spin-down too small to locate the radial axis from the data")
+    spin = SpinParams(theta0_rad=spin.theta0_rad - rot.shift, omega_radps=spin.omega_radps)
+
+    # 5. Gains up to the common scale G = g sinα, then the scale.
+    scaled_gain = _scaled_gains(rot.gw_x, rot.gw_y)  # = G·γᵢ
+    if scaled_gain is None:
+        notes.append("gain ratios not resolvable from the rotating signal; started from unit gains")
+        amp = 0.5 * (np.linalg.norm(rot.gw_x) + np.linalg.norm(rot.gw_y))
+        scaled_gain = np.full(3, amp)
+    bench, sensor, implied_radius = _bench_and_sensor(
+        rot, scaled_gain, gravity_mps2, radius_m, tilt_rad
+    )
+    params = CalibrationParams(
+        spin=spin,
+        bench=bench,
+        sensor=sensor,
+        gravity_mps2=gravity_mps2,
+        effects={} if spline_coef is None else {spline.name: spline_coef},
+    )
+    return InitialGuess(
+        params=params,
+        spin_down_resolved=rot.resolved,
+        notes=tuple(notes),
+        implied_radius_m=implied_radius,
+    )
+
+
+def _thinned(
+    t_s: np.ndarray, accel_mps2: np.ndarray, spline, fastest_radps: float | None
+) -> tuple[np.ndarray, np.ndarray, int, float | None]:
+    """The samples thinned to a few thousand, the stride, and the turn rate when measured.
+
+    A few thousand samples pin the starting point down; more only cost time.  The
+    thinning keeps ≥ 16 samples per turn at twice the dominant turn rate, so a long
+    recording is never aliased (estimate/joint/decimation.py).  The dominant turn
+    rate of all samples (Hz) is returned when it was measured (always with a spline).
+    """
     t_all = np.asarray(t_s, dtype=float)
     v_all = np.asarray(accel_mps2, dtype=float)
+    turn_hz_all = None
     if spline is None and t_all.size < 2 * _MAX_SAMPLES:
         stride = 1  # too few samples to thin: the turn rate would not change that
     else:
@@ -95,32 +155,46 @@ def initial_guess(
             turn_hz_all = _dominant_frequency(_plane_signal(v_all), rate_all)
             omega_max = 2 * 2 * np.pi * turn_hz_all
         stride = thinning_stride(t_all.size, _MAX_SAMPLES, rate_all, omega_max)
-    t = t_all[::stride]
-    v = v_all[::stride]
-    half = max(np.abs(t).max(), 1e-9)
-    tau = t / half
-    # One Legendre basis on τ ∈ [−1, 1] for the trend of step 1 and the phase of step 2.
-    legendre = np.polynomial.legendre.legvander(tau, max(_TREND_DEGREE, spin_degree + 1))
-    legendre_gram = legendre.T @ legendre
-    notes: list[str] = []
+    return t_all[::stride], v_all[::stride], stride, turn_hz_all
 
-    # 1. Wheel plane: principal directions of the centred signal.  For a free spin
-    #    the slow part (r ω², offsets) is a smooth trend; for any other motion (the
-    #    spline case: pushes, a motor's steps) it jumps, and only the mean over one
-    #    revolution removes it whatever ω(t) does.
-    #    The signal is kept as rows (axis, sample): numpy is slow on (N, 3) columns.
+
+def _plane_coordinates(
+    v: np.ndarray,
+    t: np.ndarray,
+    legendre: np.ndarray,
+    legendre_gram: np.ndarray,
+    spline,
+    measured: np.ndarray | None,
+    turn_hz_all: float | None,
+) -> np.ndarray:
+    """Step 1, the wheel plane: the signal's coordinates in it (2, n), its slow part removed.
+
+    The plane holds the principal directions of the centred signal.  For a free
+    spin the slow part (r ω², offsets) is a smooth trend; for any other motion
+    (the spline case: pushes, a motor's steps) it jumps, and only the mean over
+    one revolution removes it whatever ω(t) does.  The signal is kept as rows
+    (axis, sample): numpy is slow on (N, 3) columns.
+    """
     if spline is None:
         vc = centred_rows(v, column_means(v))
     else:
-        measured = None if omega_radps is None else np.asarray(omega_radps, float)[::stride]
         vc = _rotating_part(v, t, 2 * np.pi * turn_hz_all, measured)
     _, vecs = np.linalg.eigh(row_gram(vc))
     u = vecs[:, 1:].T @ vc  # (2, n): the plane's coordinates
     if spline is None:
         trend = _legendre_fit(legendre, legendre_gram, _TREND_DEGREE, u.T)
         u = u - trend.T @ legendre[:, : _TREND_DEGREE + 1].T
+    return u
 
-    # 2. Phase: smooth over ~1/8 turn, make the ellipse a circle, unwrap.
+
+def _phase(
+    u: np.ndarray, t: np.ndarray, measured: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Step 2, the phase ϑ'(t): smooth over ~1/8 turn, make the ellipse a circle, unwrap.
+
+    With a ``measured`` rate the phase follows its integral
+    (:func:`_phase_from_rate`), which also returns the rate rescaled to ω.
+    """
     rate_hz = 1.0 / np.median(np.diff(t))
     turn_hz = _dominant_frequency(u, rate_hz)
     width = max(1, int(rate_hz / max(turn_hz, 1e-3) / 8))
@@ -129,30 +203,31 @@ def initial_guess(
         u = np.vstack([np.convolve(u[k], kernel, mode="same") for k in range(2)])
     evals, evecs = np.linalg.eigh(row_gram(u) / u.shape[1])
     circle = (evecs.T @ u) / np.sqrt(np.maximum(evals, 1e-30))[:, None]  # (2, n)
-    if omega_radps is None:
-        phase = np.unwrap(np.arctan2(circle[1], circle[0]))
-    else:
-        measured = np.asarray(omega_radps, dtype=float)[::stride]
-        phase, omega_measured = _phase_from_rate(t, circle.T, measured)
-    # The polynomial in τ through Legendre coefficients: the same least-squares
-    # polynomial as polyfit's, from a well-conditioned basis (normal equations suffice).
-    phase_legendre = _legendre_fit(legendre, legendre_gram, spin_degree + 1, phase)
-    phase_coef_tau = np.polynomial.legendre.leg2poly(phase_legendre)
-    phase_coef = phase_coef_tau / half ** np.arange(spin_degree + 2)
-    omega = np.arange(1, spin_degree + 2) * phase_coef[1:]  # ω_k = (k+1)·c_{k+1}
-    spin = SpinParams(theta0_rad=phase_coef[0], omega_radps=omega)
-    theta = spin.theta_at(t)
-    omega_t = spin.omega_at(t)
-    spline_coef = None
-    if spline is not None:  # the rest of the phase, on the spline basis
-        b, d1, _ = cubic_bspline_basis(t, spline.start_s, spline.spacing_s, spline.size)
-        spline_coef, *_ = np.linalg.lstsq(b.T, phase - theta, rcond=None)
-        theta = theta + spline_coef @ b
-        omega_t = omega_t + spline_coef @ d1
+    if measured is None:
+        return np.unwrap(np.arctan2(circle[1], circle[0])), None
+    return _phase_from_rate(t, circle.T, measured)
 
-    if omega_radps is not None:
-        omega_t = omega_measured
-    # 3. Linear regression on [1, ω², cosϑ', sinϑ'] (r ω̇ is left to the fit).
+
+@dataclass(frozen=True, eq=False)
+class _RotatingTerms:
+    """Steps 3 and 4: the regression's terms, the phase constant, W e_X and W e_Y scaled by G."""
+
+    c0: np.ndarray  # o + g cosα W e_Z
+    c1: np.ndarray  # r W e_X (the centripetal term)
+    gw_x: np.ndarray  # G W e_X
+    gw_y: np.ndarray  # G W e_Y
+    shift: float  # ϑ = ϑ' − shift
+    resolved: bool  # whether c₁ was measurable
+
+
+def _rotating_terms(
+    t: np.ndarray, v: np.ndarray, theta: np.ndarray, omega_t: np.ndarray
+) -> _RotatingTerms:
+    """Steps 3 and 4: the regression on [1, ω², cosϑ', sinϑ'], then the phase constant.
+
+    r ω̇ is left to the fit.  The phase constant comes from the direction of the
+    centripetal term (X points along it).
+    """
     design = np.column_stack([np.ones_like(t), omega_t**2, np.cos(theta), np.sin(theta)])
     coef, xtx_inv = _regression(design, v)
     resid = v - design @ coef
@@ -161,27 +236,75 @@ def initial_guess(
     se_c1 = np.inf if xtx_inv is None else np.sqrt(xtx_inv[1, 1] * s2.mean())
     c0, c1, c_cos, c_sin = coef
     resolved = bool(np.linalg.norm(c1) > _RELIABLE_T_STAT * se_c1 * np.sqrt(3))
-
-    # 4. Phase constant from the direction of the centripetal term.
     shift = np.arctan2(c_sin @ c1, c_cos @ c1) if resolved else 0.0
-    if not resolved:
-        notes.append("spin-down too small to locate the radial axis from the data")
     gw_x = c_cos * np.cos(shift) + c_sin * np.sin(shift)
     gw_y = -c_cos * np.sin(shift) + c_sin * np.cos(shift)
-    spin = SpinParams(theta0_rad=spin.theta0_rad - shift, omega_radps=spin.omega_radps)
+    return _RotatingTerms(c0, c1, gw_x, gw_y, shift, resolved)
 
-    # 5. Gains up to the common scale G = g sinα, then the scale.
-    scaled_gain = _scaled_gains(gw_x, gw_y)  # = G·γᵢ
-    if scaled_gain is None:
-        notes.append("gain ratios not resolvable from the rotating signal; started from unit gains")
-        amp = 0.5 * (np.linalg.norm(gw_x) + np.linalg.norm(gw_y))
-        scaled_gain = np.full(3, amp)
+
+def _spin_of_phase(
+    phase: np.ndarray, half: float, legendre: np.ndarray, gram: np.ndarray, spin_degree: int
+) -> SpinParams:
+    """The spin polynomial of eq. (2) fitted to the unwrapped phase at τ = t / ``half``.
+
+    The polynomial in τ through Legendre coefficients: the same least-squares
+    polynomial as polyfit's, from a well-conditioned basis (normal equations suffice).
+    """
+    phase_legendre = _legendre_fit(legendre, gram, spin_degree + 1, phase)
+    phase_coef_tau = np.polynomial.legendre.leg2poly(phase_legendre)
+    phase_coef = phase_coef_tau / half ** np.arange(spin_degree + 2)
+    omega = np.arange(1, spin_degree + 2) * phase_coef[1:]  # ω_k = (k+1)·c_{k+1}
+    return SpinParams(theta0_rad=phase_coef[0], omega_radps=omega)
+
+
+def _bench_and_sensor(
+    rot: _RotatingTerms,
+    scaled_gain: np.ndarray,
+    gravity_mps2: float,
+    radius_m: float | None,
+    tilt_rad: float | None,
+) -> tuple[BenchParams, SensorParams, float | None]:
+    """Steps 5 (the scale, tilt, gains, a radius) and 6 (rotation, offset); the implied radius."""
+    g_sin, implied_radius = _common_scale(rot, scaled_gain, gravity_mps2, radius_m, tilt_rad)
+    sin_tilt = float(np.clip(g_sin / gravity_mps2, 1e-3, 1.0))
+    tilt = float(np.arcsin(sin_tilt)) if tilt_rad is None else float(tilt_rad)
+    gain = scaled_gain / g_sin
+    radius = radius_m
+    if radius is None:
+        w_x = rot.gw_x / g_sin
+        radius = float(abs(rot.c1 @ w_x) / (w_x @ w_x)) if rot.resolved else 0.3
+        if not radius > 0:
+            radius = 0.3
+    # 6. Rotation and offset.
+    r_x = rot.gw_x / scaled_gain
+    r_y = rot.gw_y / scaled_gain
+    rotation = Rotation.nearest(np.column_stack([r_x, r_y, np.cross(r_x, r_y)]))
+    offset = rot.c0 - gravity_mps2 * np.cos(tilt) * gain * rotation.matrix[:, 2]
+    return (
+        BenchParams(tilt_rad=tilt, radius_m=radius, misalignment=rotation),
+        SensorParams(offset_mps2=offset, gain=np.clip(gain, 0.2, 5.0)),
+        implied_radius,
+    )
+
+
+def _common_scale(
+    rot: _RotatingTerms,
+    scaled_gain: np.ndarray,
+    gravity_mps2: float,
+    radius_m: float | None,
+    tilt_rad: float | None,
+) -> tuple[float, float | None]:
+    """Step 5's scale G = g sinα, and the radius for which the gains would average 1.
+
+    From the known tilt (tilt / vertical modes), from |c₁| = r|We_X| (radius
+    mode), or — when the wheel hardly slowed — from gains averaging 1.
+    """
     implied_radius = None
     if tilt_rad is not None:
         g_sin = gravity_mps2 * np.sin(tilt_rad)
-    elif resolved:
+    elif rot.resolved:
         # c₁ = r Γ Rₓ and gw_x = G Γ Rₓ, so G = r (gw_x·c₁)/|c₁|².
-        g_per_r = (gw_x @ c1) / (c1 @ c1)
+        g_per_r = (rot.gw_x @ rot.c1) / (rot.c1 @ rot.c1)
         g_sin = radius_m * g_per_r
         if g_per_r > 0:  # gains averaging 1 means G = their (scaled) geometric mean
             implied_radius = float(np.exp(np.mean(np.log(scaled_gain))) / g_per_r)
@@ -189,34 +312,7 @@ def initial_guess(
             g_sin = float(np.exp(np.mean(np.log(scaled_gain))))
     else:
         g_sin = float(np.exp(np.mean(np.log(scaled_gain))))  # gains average 1
-    sin_tilt = float(np.clip(g_sin / gravity_mps2, 1e-3, 1.0))
-    tilt = float(np.arcsin(sin_tilt)) if tilt_rad is None else float(tilt_rad)
-    gain = scaled_gain / g_sin
-    radius = radius_m
-    if radius is None:
-        w_x = gw_x / g_sin
-        radius = float(abs(c1 @ w_x) / (w_x @ w_x)) if resolved else 0.3
-        if not radius > 0:
-            radius = 0.3
-
-    # 6. Rotation and offset.
-    r_x = gw_x / scaled_gain
-    r_y = gw_y / scaled_gain
-    rot = Rotation.nearest(np.column_stack([r_x, r_y, np.cross(r_x, r_y)]))
-    offset = c0 - gravity_mps2 * np.cos(tilt) * gain * rot.matrix[:, 2]
-    params = CalibrationParams(
-        spin=spin,
-        bench=BenchParams(tilt_rad=tilt, radius_m=radius, misalignment=rot),
-        sensor=SensorParams(offset_mps2=offset, gain=np.clip(gain, 0.2, 5.0)),
-        gravity_mps2=gravity_mps2,
-        effects={} if spline_coef is None else {spline.name: spline_coef},
-    )
-    return InitialGuess(
-        params=params,
-        spin_down_resolved=resolved,
-        notes=tuple(notes),
-        implied_radius_m=implied_radius,
-    )
+    return g_sin, implied_radius
 
 
 def _regression(design: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -102,63 +103,37 @@ def levenberg_marquardt(
     converged = False
     iteration = 0
     size = layout.size  # the normal equations may carry extra columns after these
+    evaluate = gradient_fn or (lambda trial: normal_fn(trial, jacobian_on_trial))  # at a trial
     for iteration in range(1, max_iterations + 1):
-        a_s, g_s, scale, decrease = _scaled(normal, size)
-        if decrease < tol:
+        scaled = _scaled(normal, size)
+        if scaled.decrease < tol:
             converged, message = True, "step below tolerance (in units of the parameter σ)"
             iteration -= 1
             break
-        if final_step_tol is not None and decrease < final_step_tol:
-            last = _final_step(normal_fn, layout, params, a_s, g_s, scale, normal.cost)
+        if final_step_tol is not None and scaled.decrease < final_step_tol:
+            last = _final_step(normal_fn, layout, params, scaled, normal.cost)
             if last is not None:
                 return LMOutcome(
                     last[0],
                     normal,
                     iteration,
                     True,
-                    f"last step ({np.sqrt(decrease):.2g} σ) confirmed by the cost",
+                    f"last step ({np.sqrt(scaled.decrease):.2g} σ) confirmed by the cost",
                     final_step=True,
                     end_cost=last[1],
                 )
         if not fresh:  # an earlier point's Hessian only serves the tests above
             normal, fresh = normal_fn(params, True), True
-            a_s, g_s, scale, decrease = _scaled(normal, size)
-            if decrease < tol:
+            scaled = _scaled(normal, size)
+            if scaled.decrease < tol:
                 converged, message = True, "step below tolerance (in units of the parameter σ)"
                 break
-        cost = normal.cost
-        accepted = False
-        identity = np.eye(a_s.shape[0])
-        while lam <= 1e12:
-            try:
-                step_s = -np.linalg.solve(a_s + lam * identity, g_s)
-            except np.linalg.LinAlgError:
-                lam *= 10.0
-                continue
-            step = step_s / scale
-            try:
-                trial = layout.unpack(layout.pack(params) + step, params)
-                if gradient_fn is not None:
-                    trial_normal = gradient_fn(trial)
-                else:
-                    trial_normal = normal_fn(trial, jacobian_on_trial)
-                cost_trial = trial_normal.cost
-            except (ValueError, FloatingPointError):
-                cost_trial = np.inf
-            predicted = -(2 * step_s @ g_s + step_s @ a_s @ step_s)
-            actual = cost - cost_trial
-            if np.isfinite(cost_trial) and actual > 0:
-                rho = actual / predicted if predicted > 0 else 0.0
-                lam = lam * max(1 / 3, 1 - (2 * rho - 1) ** 3) if rho > 0 else lam * 2
-                lam = max(lam, 1e-12)
-                params = trial
-                accepted = True
-                break
-            lam *= 10.0
-        if not accepted:
-            converged = decrease < 1e3 * tol
+        accepted = _damped_step(evaluate, layout, params, scaled, normal.cost, lam)
+        if accepted is None:
+            converged = scaled.decrease < 1e3 * tol
             message = "no further decrease possible" + ("" if converged else " (stalled)")
             break
+        params, trial_normal, lam = accepted
         if gradient_fn is not None:
             normal = NormalEquations(
                 trial_normal.cost, normal.hessian, trial_normal.gradient, trial_normal.entries
@@ -169,6 +144,44 @@ def levenberg_marquardt(
     return LMOutcome(params, normal, iteration, converged, message)
 
 
+def _damped_step(
+    evaluate: Callable[[CalibrationParams], NormalEquations],
+    layout: ParameterLayout,
+    params: CalibrationParams,
+    scaled: _ScaledNormal,
+    cost: float,
+    lam: float,
+) -> tuple[CalibrationParams, NormalEquations, float] | None:
+    """The damped step that lowers the cost: its end, ``evaluate`` there, and the next λ.
+
+    λ (relative to the scaled diagonal) grows tenfold until a step lowers the
+    cost; None when none does up to λ = 1e12.
+    """
+    a_s, g_s, scale, _ = scaled
+    identity = np.eye(a_s.shape[0])
+    while lam <= 1e12:
+        try:
+            step_s = -np.linalg.solve(a_s + lam * identity, g_s)
+        except np.linalg.LinAlgError:
+            lam *= 10.0
+            continue
+        step = step_s / scale
+        try:
+            trial = layout.unpack(layout.pack(params) + step, params)
+            trial_normal = evaluate(trial)
+            cost_trial = trial_normal.cost
+        except (ValueError, FloatingPointError):
+            cost_trial = np.inf
+        predicted = -(2 * step_s @ g_s + step_s @ a_s @ step_s)
+        actual = cost - cost_trial
+        if np.isfinite(cost_trial) and actual > 0:
+            rho = actual / predicted if predicted > 0 else 0.0
+            lam = lam * max(1 / 3, 1 - (2 * rho - 1) ** 3) if rho > 0 else lam * 2
+            return trial, trial_normal, max(lam, 1e-12)
+        lam *= 10.0
+    return None
+
+
 #: The cost must fall by this fraction of the predicted decrease, at least and at most.
 FINAL_STEP_RATIO = (0.9, 1.1)
 
@@ -177,15 +190,14 @@ def _final_step(
     normal_fn: NormalFn,
     layout: ParameterLayout,
     params: CalibrationParams,
-    a_s: np.ndarray,
-    g_s: np.ndarray,
-    scale: np.ndarray,
+    scaled: _ScaledNormal,
     cost: float,
 ) -> tuple[CalibrationParams, float] | None:
     """The Gauss–Newton step's end and its cost, when the cost confirms it; else None.
 
     One cost-only pass.
     """
+    a_s, g_s, scale, _ = scaled
     if not np.all(np.diag(a_s) > 0):  # a parameter no sample depends on: iterate as usual
         return None
     w, v = np.linalg.eigh(a_s)
@@ -220,13 +232,22 @@ EXACT_NULL_EIGEN_FRACTION = 1e-12
 UNDETERMINED_EIGEN_FRACTION = 1e-8
 
 
-def _scaled(normal: NormalEquations, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+class _ScaledNormal(NamedTuple):
+    """H and g of the free parameters scaled to unit diagonal, the scale, and gᵀH⁻¹g."""
+
+    a_s: np.ndarray
+    g_s: np.ndarray
+    scale: np.ndarray
+    decrease: float
+
+
+def _scaled(normal: NormalEquations, size: int) -> _ScaledNormal:
     """H and g of the free parameters scaled to unit diagonal, the scale, and gᵀH⁻¹g."""
     a, g = normal.hessian[:size, :size], normal.gradient[:size]
     scale = np.sqrt(np.maximum(np.diag(a), 1e-300))
     a_s = a / np.outer(scale, scale)
     g_s = g / scale
-    return a_s, g_s, scale, _gauss_newton_decrease(a_s, g_s)
+    return _ScaledNormal(a_s, g_s, scale, _gauss_newton_decrease(a_s, g_s))
 
 
 def _gauss_newton_decrease(a_s: np.ndarray, g_s: np.ndarray) -> float:

@@ -31,6 +31,10 @@ import numpy as np
 
 from wheelcal.estimate.joint.twins import choose_twin
 from wheelcal.estimate.paper.steps import (
+    Geometry,
+    Motion,
+    Offset,
+    Realignment,
     fit_geometry,
     fit_motion,
     fit_offset,
@@ -118,7 +122,6 @@ class PaperEstimator:
         t = recording.time_s - 0.5 * (recording.time_s[0] + recording.time_s[-1])
         v = recording.accel_mps2
         seconds: dict[str, float] = {}
-        warnings: list[str] = []
 
         clock = time.perf_counter()
         step_a = realign(v, self.max_evaluations)
@@ -158,6 +161,29 @@ class PaperEstimator:
         )
         seconds["D"] = time.perf_counter() - clock
 
+        warnings = self._warnings(step_a, raw_motion, geometry, offset)
+        twin = choose_twin(params)
+        if twin.warning is not None:
+            warnings.append(twin.warning)
+        return PaperEstimate(
+            params=twin.chosen,
+            realignment=signs.realignment,
+            amplitude_mps2=signs.motion.amplitude_mps2,
+            function_evaluations=(
+                step_a.evaluations
+                + raw_motion.evaluations
+                + geometry.evaluations
+                + offset.evaluations
+            ),
+            step_seconds=seconds,
+            warnings=tuple(warnings),
+        )
+
+    def _warnings(
+        self, step_a: Realignment, raw_motion: Motion, geometry: Geometry, offset: Offset
+    ) -> list[str]:
+        """Searches stopped by the budget, an unsatisfied eq. (30), a small tilt."""
+        warnings = []
         for step, converged in (
             ("A", step_a.converged),
             ("B", raw_motion.converged),
@@ -180,19 +206,4 @@ class PaperEstimator:
                 f"tilt {np.rad2deg(geometry.tilt_rad):.2f}° is small: the sinusoid that "
                 "carries ϑ(t) is weak and every estimate is poorly determined"
             )
-        twin = choose_twin(params)
-        if twin.warning is not None:
-            warnings.append(twin.warning)
-        return PaperEstimate(
-            params=twin.chosen,
-            realignment=signs.realignment,
-            amplitude_mps2=signs.motion.amplitude_mps2,
-            function_evaluations=(
-                step_a.evaluations
-                + raw_motion.evaluations
-                + geometry.evaluations
-                + offset.evaluations
-            ),
-            step_seconds=seconds,
-            warnings=tuple(warnings),
-        )
+        return warnings
