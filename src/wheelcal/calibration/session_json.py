@@ -73,7 +73,7 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
         "provenance": provenance or {},
         "source": _source_block(session),
         "sensor": _sensor_block(values, std, assessment),
-        "bench": _bench_block(result, std),
+        "bench": _bench_block(session, std),
         "motion": _motion_block(result, std),
         "effects": effects_dict(result, session.diagnosis),
         "parameters": {
@@ -115,12 +115,17 @@ def _sensor_block(values: dict, std: dict, assessment: Assessment) -> dict:
     }
 
 
-def _bench_block(result: CalibrationResult, std: dict) -> dict:
-    """``bench``: radius, tilt, spin sign and the misalignment R (matrix and Euler angles)."""
+def _bench_block(session: SessionResult, std: dict) -> dict:
+    """``bench``: geometry (given or detected, why), radius (given or fitted), tilt, spin, R."""
+    result = session.result
     params = result.params
     return {
+        "geometry": session.geometry,
+        "geometry_source": session.geometry_source,
+        "geometry_reason": session.geometry_reason,
         "radius_m": _num(params.bench.radius_m),
         "radius_std_m": _num(std.get("radius_m", result.info.radius_std_m)),
+        "radius_source": "fitted" if "radius_m" in result.names else "given",
         "tilt_deg": _num(params.bench.tilt_deg),
         "tilt_std_deg": _num(std.get("tilt_deg", 0.0)),
         "spin_sign": 1 if params.spin.omega_radps[0] >= 0 else -1,

@@ -11,6 +11,9 @@ from wheelcal.cli.options import positive_float
 #: ROS 2 files carry the temperature on its own topic at 1/20 of the sample rate.
 TEMPERATURE_STRIDE = 20
 
+#: Presets drawn by the field simulator (:mod:`wheelcal.simulate.field`).
+FIELD_PRESETS = ("car", "robot", "wheelchair", "stand")
+
 
 def register(sub) -> None:
     """Add the ``simulate`` parser."""
@@ -23,7 +26,13 @@ def register(sub) -> None:
         ),
     )
     p.add_argument("out", metavar="OUT.mcap")
-    p.add_argument("--preset", default="table2", help="table1 or table2 (default)")
+    p.add_argument(
+        "--preset",
+        default="table2",
+        help="table1 or table2 (default): the paper's bench; car, robot, wheelchair or stand: a "
+        "wheel in the field with a gyroscope, no radius stored (the field simulator; "
+        "--seed applies, the other options do not)",
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed (noise and hand spin)")
     p.add_argument("--noise", type=float, help="noise std in m/s² (default: the preset's)")
     p.add_argument("--bandwidth-hz", type=positive_float, help="low-pass-filtered noise corner")
@@ -78,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.simulate.session import simulate_session
 
     rng = np.random.default_rng(args.seed)
+    if args.preset in FIELD_PRESETS:
+        return _run_field(args, rng)
     try:
         scenario = preset(args.preset, rng=rng)
     except ValueError as exc:
@@ -165,4 +176,56 @@ def gyro_truth(scenario) -> dict:
         "noise_density_dps_rthz": spec.noise_density_dps_rthz,
         "noise_std_radps": spec.noise_std_radps(scenario.rate_hz),
         "full_scale_dps": spec.full_scale_dps,
+    }
+
+
+def _run_field(args: argparse.Namespace, rng) -> int:
+    """A wheel in the field (``--preset car|robot|wheelchair|stand``) and its truth."""
+    import dataclasses
+
+    from wheelcal.io import write_recording
+    from wheelcal.io.atomic import atomic_write_text
+    from wheelcal.simulate import (
+        car_drive,
+        robot_drive,
+        simulate_field,
+        stand_spin,
+        wheelchair_coast,
+    )
+
+    make = {"car": car_drive, "robot": robot_drive, "wheelchair": wheelchair_coast}
+    make["stand"] = stand_spin
+    sim = simulate_field(make[args.preset](rng), rng)
+    info = sim.recording.info.merged(sensor_id=args.sensor_id, mounting_id=args.mounting_id)
+    recording = dataclasses.replace(sim.recording, info=info, source=args.out)
+    write_recording(recording, args.out, encoding=args.format, batch_size=args.batch)
+    if args.truth:
+        text = json.dumps(field_truth_dict(sim.truth), indent=2) + "\n"
+        atomic_write_text(args.truth, text)
+    w0, w1 = sim.truth.window_s
+    print(
+        f"wrote {args.out}: {recording.samples} samples at {recording.rate_hz:.0f} Hz, "
+        f"a {args.preset} wheel ({sim.truth.geometry}), motion {w0:.2f}–{w1:.2f} s, with gyro"
+    )
+    return 0
+
+
+def field_truth_dict(truth) -> dict:
+    """A field simulation's truth in contract names (for checking a calibration)."""
+    return {
+        "format": "wheelcal.truth/1",
+        "kind": truth.kind,
+        "geometry": truth.geometry,
+        "window_s": list(truth.window_s),
+        "sensor": {
+            "offset_mps2": truth.sensor.offset_mps2.tolist(),
+            "gain": truth.sensor.gain.tolist(),
+        },
+        "bench": {
+            "radius_m": truth.radius_m,
+            "tilt_deg": truth.tilt_deg,
+            "camber_deg": truth.camber_deg,
+            "rolling_radius_m": truth.rolling_radius_m,
+            "misalignment_euler_deg": truth.bench.misalignment.euler_deg().tolist(),
+        },
     }

@@ -23,11 +23,16 @@ def session_summary(outcome: SessionOutcome) -> str:
     sys = dict(zip(r.systematic.names, r.systematic.total_std, strict=True))
     w0, w1 = r.window_s
     omega = r.params.spin.omega_at(r.centred_time_s[[0, -1]])
+    spin = f"ω {omega[0]:+.2f} → {omega[1]:+.2f} rad/s"
+    gyro = session.window.recording.gyro_radps
+    if session.model == "field" and gyro is not None:
+        spin = f"ω from the gyroscope, up to {np.max(np.linalg.norm(gyro, axis=1)):.1f} rad/s"
     lines = [
         f"{outcome.source}  topic {r.topic or '-'}",
-        f"  window {w0:.2f}–{w1:.2f} s, {r.time_s.size} samples, "
-        f"ω {omega[0]:+.2f} → {omega[1]:+.2f} rad/s" + (f"  [{reason}]" if reason else ""),
+        f"  window {w0:.2f}–{w1:.2f} s, {r.time_s.size} samples, {spin}"
+        + (f"  [{reason}]" if reason else ""),
     ]
+    lines.append("  " + geometry_line(session))
     undetermined = set(session.undetermined)
 
     def show(name: str, digits: int) -> str:
@@ -75,9 +80,20 @@ def session_summary(outcome: SessionOutcome) -> str:
     return "\n".join(lines)
 
 
+def geometry_line(session) -> str:
+    """One line: the geometry fitted, whether it was given or read from the data, and why."""
+    line = f"geometry {session.geometry} ({session.geometry_source})"
+    return line + (f": {session.geometry_reason}" if session.geometry_reason else "")
+
+
 def model_line(outcome: SessionOutcome) -> str:
     """One line: what the closed loop added (each with χ² and p), or that nothing was needed."""
     d = outcome.session.diagnosis
+    if outcome.session.model == "field":
+        return (
+            "model: the field fit — the wheel's angle from the gyroscope, the hub's travel and "
+            "the carrier's turns where it rolls (rolling model, camber from the turns)"
+        )
     if d is None:
         return "model: the paper's (--model paper: no screen for effects it lacks)"
     tested = sum(t.identifiable for t in d.final_tests)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 
 from wheelcal.estimate.field.fit import YAW_RMS_RADPS, FieldFit
+from wheelcal.estimate.field.gyro_axle import gyro_axle
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.field import calibrate_field, is_vertical_axle, yaw_rms_radps
 from wheelcal.session.result import SessionResult
@@ -61,18 +62,34 @@ def calibrate_auto(recording: Recording, options) -> SessionResult:
             why = f"the bench's free spin was refused ({exc.gate}: {exc.reason})"
             return _field(recording, options, why)
         return _detected(session, "bench", "a fixed axle: the carrier does not turn")
-    session, field = calibrate_field(
-        recording, options.gates, FieldFit(), why="no radius given: the geometry from the data"
-    )
+    try:
+        session, field = calibrate_field(
+            recording, options.gates, FieldFit(), why="no radius given: the geometry from the data"
+        )
+    except (CalibrationRefused, RecordingError) as exc:
+        # The field fit could not read a rolling wheel: a wheel on a fixed axle.
+        gate = exc.gate if isinstance(exc, CalibrationRefused) else "error"
+        why = f"not a rolling wheel (the field fit does not calibrate it: {gate})"
+        return _fixed_axle(recording, options, None, why)
     if field.geometry.kind == "rolling":
         return session
-    if is_vertical_axle(recording, field.axle.axis):
+    return _fixed_axle(recording, options, field.axle.axis, field.geometry.reason)
+
+
+def _fixed_axle(recording: Recording, options, axis, why: str) -> SessionResult:
+    """No radius, a fixed axle: a vertical wheel fits its radius; a tilted one needs it."""
+    if axis is None:
+        drive = recording.gyro_radps
+        axle = gyro_axle(recording.time_s, drive) if drive is not None else None
+        axis = None if axle is None else axle.axis
+    if axis is not None and is_vertical_axle(recording, axis):
         stand = dataclasses.replace(options, geometry="vertical")
-        why = f"{field.geometry.reason}; the axle is horizontal: a vertical wheel on a stand"
+        why = f"{why}; the axle is horizontal: a vertical wheel on a stand"
         return _detected(stand.session_fit().run(recording), "vertical", why)
     raise RecordingError(
-        f"{recording.source}: {field.geometry.reason}, tilted: the radius (the sensor's "
-        "distance from the axle) is needed to scale the gains — give --radius"
+        f"{recording.source}: no radius given, and the wheel turns on a tilted fixed axle "
+        f"({why}): the radius (the sensor's distance from the axle, measured) is needed to "
+        "scale the gains — give --radius"
     )
 
 

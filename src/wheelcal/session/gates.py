@@ -341,7 +341,7 @@ def noise_warnings(
     if vibration >= harmonic:
         cause = (
             f"most of it is broadband ({vibration:.3g} m/s² between the wheel harmonics): the "
-            "bench vibrates while the wheel turns (bearings, a loose mount); the σ include it"
+            "wheel vibrates as it turns (bearings, a loose mount, the road); the σ include it"
         )
     else:
         cause = (
