@@ -44,6 +44,11 @@ class Identifiability:
         return not self.poorly_determined
 
 
+#: Below this rms ω (rad/s) the spin polynomial does not carry the spin (a field fit's
+#: wheel angle comes from the gyroscope): its ω² variation says nothing.
+SPINNING_RADPS = 0.1
+
+
 def check_identifiability(
     params: CalibrationParams,
     t_s: np.ndarray,
@@ -71,8 +76,8 @@ def check_identifiability(
             )
     omega_sq = params.spin.omega_at(np.asarray(t_s)) ** 2
     variation = float(np.ptp(omega_sq) / max(np.mean(omega_sq), 1e-12))
-    # (ω = 0 throughout: the spin is not the polynomial's but the gyro's — a field fit)
-    if np.any(omega_sq > 0) and variation < MIN_OMEGA_SQUARED_VARIATION:
+    # (ω ≈ 0 throughout: the spin is not the polynomial's but the gyro's — a field fit)
+    if np.mean(omega_sq) > SPINNING_RADPS**2 and variation < MIN_OMEGA_SQUARED_VARIATION:
         warnings.append(
             f"the wheel hardly slowed (ω² varied by {100 * variation:.1f} % over the window): "
             "r·ω² can pass for an offset along the radial axis — record a longer spin-down"

@@ -1,0 +1,217 @@
+"""Wheels in the field through the default path: ``wheelcal.calibrate`` with no radius.
+
+The simulator (:mod:`wheelcal.simulate.field`) draws car, robot and wheelchair
+drives with turns, stops, road vibration and camber; each is calibrated with
+default options (``--geometry auto``), so the geometry, the sensor's radius and
+the camber come from the data.  Every reported parameter must lie within
+``Z_MAX`` σ_CRLB of the truth, the bound taken **at the truth** (the truth's
+sensor and bench in the final model, the fit's noise model: a fit's own σ could
+be inflated to pass anything), or be reported null.
+
+CI runs one drive of each kind; ``-m slow`` runs the study of the issue
+(``STUDY_DRIVES`` per kind): ≥ 95 % calibrated, geometry right in ≥ 99 %, the
+reported σ against the observed spread of (value − truth).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+import pytest
+
+import wheelcal
+from wheelcal.estimate.joint.crlb import cramer_rao_bound
+from wheelcal.model import BenchParams
+from wheelcal.recording import CalibrationRefused, RecordingError
+from wheelcal.simulate import (
+    bench_spin,
+    car_drive,
+    robot_drive,
+    simulate_field,
+    stand_spin,
+    wheelchair_coast,
+)
+
+DRIVES = {"car": car_drive, "robot": robot_drive, "wheelchair": wheelchair_coast}
+SENSOR = ("gain_x", "gain_y", "gain_z", "offset_x_mps2", "offset_y_mps2", "offset_z_mps2")
+#: The parameters checked against the truth (the rolling radius ρ is not the sensor's).
+CHECKED = (*SENSOR, "radius_m", "tilt_deg")
+Z_MAX = 5.0
+STUDY_DRIVES = int(os.environ.get("WHEELCAL_FIELD_STUDY_DRIVES", "100"))
+
+
+def _truth_value(truth, name: str) -> float:
+    if name.startswith("gain_"):
+        return float(truth.sensor.gain["xyz".index(name[-1])])
+    if name.startswith("offset_"):
+        return float(truth.sensor.offset_mps2["xyz".index(name[7])])
+    return {"radius_m": truth.radius_m, "tilt_deg": truth.tilt_deg}[name]
+
+
+def _crlb_at_truth(calibration, truth) -> dict[str, float]:
+    """σ_CRLB of each reported parameter with the truth's sensor, radius and tilt."""
+    r = calibration.result
+    fitted = r.params.bench
+    bench = BenchParams(truth.bench.tilt_rad, truth.radius_m, fitted.misalignment)
+    at_truth = r.params.with_changes(sensor=truth.sensor, bench=bench)
+    bound = cramer_rao_bound(at_truth, r.centred_time_s, r.noise, r.layout)
+    return dict(zip(bound.names, bound.std, strict=True))
+
+
+@dataclasses.dataclass(frozen=True)
+class Drive:
+    kind: str
+    seed: int
+    geometry: str
+    refused: str | None
+    z_crlb: dict  # name → (value − truth) / σ_CRLB at the truth
+    z_reported: dict  # name → (value − truth) / reported σ
+    nulls: tuple
+
+
+def _calibrate(kind: str, seed: int) -> Drive:
+    rng = np.random.default_rng(seed)
+    sim = simulate_field(DRIVES[kind](rng), rng)
+    assert sim.recording.info.radius_m is None  # a logger stores no radius
+    try:
+        cal = wheelcal.calibrate(sim.recording)
+    except (CalibrationRefused, RecordingError) as exc:
+        return Drive(kind, seed, "", str(exc), {}, {}, ())
+    r = cal.result
+    crlb = _crlb_at_truth(cal, sim.truth)
+    nulls = tuple(n for n, _ in cal.undetermined)
+    z_crlb, z_rep = {}, {}
+    for name in CHECKED:
+        if name in nulls or name not in r.names:
+            continue
+        error = r.value_of(name) - _truth_value(sim.truth, name)
+        z_crlb[name] = error / crlb[name]
+        z_rep[name] = error / r.std_of(name)
+    return Drive(kind, seed, cal.session.geometry, None, z_crlb, z_rep, nulls)
+
+
+@pytest.mark.parametrize("kind", sorted(DRIVES))
+def test_a_drive_calibrates_with_default_options_and_no_radius(kind):
+    drive = _calibrate(kind, seed=11)
+    assert drive.refused is None, drive.refused
+    assert drive.geometry == "rolling"
+    worst = max(drive.z_crlb.items(), key=lambda kv: abs(kv[1]))
+    assert abs(worst[1]) <= Z_MAX, (kind, worst, drive.z_crlb)
+    # the radius and the tilt are always reported; what is null is a sensor parameter
+    assert {"radius_m", "tilt_deg"} <= set(drive.z_crlb)
+    assert set(drive.nulls) <= set(SENSOR)
+
+
+def test_the_session_says_where_its_geometry_came_from():
+    rng = np.random.default_rng(5)
+    sim = simulate_field(car_drive(rng), rng)
+    cal = wheelcal.calibrate(sim.recording)
+    session = cal.session
+    assert (session.geometry, session.geometry_source, session.model) == (
+        "rolling",
+        "detected",
+        "field",
+    )
+    assert "carrier turning" in session.geometry_reason
+    document = cal.to_dict()
+    assert document["bench"]["geometry"] == "rolling"
+    assert document["bench"]["geometry_source"] == "detected"
+    assert document["bench"]["radius_source"] == "fitted"
+    assert document["bench"]["radius_std_m"] > 0
+    assert document["fit"]["model"] == "field"
+
+
+def _without_radius(sim):
+    rec = sim.recording
+    return dataclasses.replace(rec, info=dataclasses.replace(rec.info, radius_m=None))
+
+
+def test_a_vertical_wheel_on_a_stand_fits_its_radius():
+    rng = np.random.default_rng(1)
+    sim = simulate_field(stand_spin(rng), rng)
+    cal = wheelcal.calibrate(_without_radius(sim))
+    assert cal.session.geometry == "vertical"
+    assert cal.session.geometry_source == "detected"
+    r = cal.result
+    error = r.value_of("radius_m") - sim.truth.radius_m
+    assert abs(error) <= Z_MAX * _crlb_at_truth(cal, sim.truth)["radius_m"]
+
+
+def test_a_tilted_fixed_axle_without_radius_asks_for_it_by_name():
+    rng = np.random.default_rng(1)
+    sim = simulate_field(bench_spin(rng), rng)
+    with pytest.raises(RecordingError, match="radius .* is needed.*--radius"):
+        wheelcal.calibrate(_without_radius(sim))
+
+
+def test_a_bench_spin_with_its_radius_stays_the_bench_fit():
+    rng = np.random.default_rng(2)
+    sim = simulate_field(bench_spin(rng, include_radius=True), rng)
+    cal = wheelcal.calibrate(sim.recording)
+    assert (cal.session.geometry, cal.session.geometry_source) == ("bench", "detected")
+    assert cal.session.model != "field"
+
+
+# --- the study (slow) -----------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def study():
+    from concurrent.futures import ProcessPoolExecutor
+
+    jobs = [(kind, 1000 + seed) for kind in sorted(DRIVES) for seed in range(STUDY_DRIVES)]
+    with ProcessPoolExecutor(max_workers=os.cpu_count()) as pool:
+        drives = list(pool.map(_calibrate, *zip(*jobs, strict=True), chunksize=4))
+    for kind in sorted(DRIVES):
+        _print_study(kind, [d for d in drives if d.kind == kind])
+    return drives
+
+
+def _print_study(kind: str, drives: list[Drive]) -> None:
+    done = [d for d in drives if d.refused is None]
+    print(f"\n{kind}: {len(done)}/{len(drives)} calibrated, ", end="")
+    print(f"rolling {sum(d.geometry == 'rolling' for d in done)}")
+    for name in CHECKED:
+        z = np.array([d.z_reported[name] for d in done if name in d.z_reported])
+        zc = np.array([d.z_crlb[name] for d in done if name in d.z_crlb])
+        if z.size:
+            print(
+                f"  {name:14s} n {z.size:3d}  spread/σ {np.std(z):.2f}  "
+                f"spread/σ_CRLB {np.std(zc):.2f}  max|z_CRLB| {np.max(np.abs(zc)):.1f}"
+            )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", sorted(DRIVES))
+def test_study_calibrates_and_detects_nearly_every_drive(study, kind):
+    drives = [d for d in study if d.kind == kind]
+    done = [d for d in drives if d.refused is None]
+    assert len(done) >= 0.95 * len(drives), [d.refused for d in drives if d.refused]
+    assert sum(d.geometry == "rolling" for d in done) >= 0.99 * len(done)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", sorted(DRIVES))
+def test_study_every_parameter_within_5_sigma_crlb_of_the_truth(study, kind):
+    bad = [
+        (d.seed, name, round(z, 1))
+        for d in study
+        if d.kind == kind
+        for name, z in d.z_crlb.items()
+        if abs(z) > Z_MAX
+    ]
+    assert not bad, bad
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", sorted(DRIVES))
+def test_study_reported_sigma_matches_the_spread(study, kind):
+    done = [d for d in study if d.kind == kind and d.refused is None]
+    for name in SENSOR:
+        z = np.array([d.z_reported[name] for d in done if name in d.z_reported])
+        if z.size < 20:
+            continue
+        ratio = 1.0 / np.std(z)  # reported σ / observed spread
+        assert 0.8 <= ratio <= 1.25, (kind, name, ratio)
