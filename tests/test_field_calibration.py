@@ -142,7 +142,7 @@ def test_a_vertical_wheel_on_a_stand_fits_its_radius():
 def test_a_tilted_fixed_axle_without_radius_asks_for_it_by_name():
     rng = np.random.default_rng(1)
     sim = simulate_field(bench_spin(rng), rng)
-    with pytest.raises(RecordingError, match="radius .* is needed.*--radius"):
+    with pytest.raises(RecordingError, match=r"radius .* is needed.*--radius"):
         wheelcal.calibrate(_without_radius(sim))
 
 
@@ -159,10 +159,13 @@ def test_a_bench_spin_with_its_radius_stays_the_bench_fit():
 
 @pytest.fixture(scope="module")
 def study():
+    import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     jobs = [(kind, 1000 + seed) for kind in sorted(DRIVES) for seed in range(STUDY_DRIVES)]
-    with ProcessPoolExecutor(max_workers=os.cpu_count()) as pool:
+    workers = int(os.environ.get("WHEELCAL_FIELD_STUDY_WORKERS", os.cpu_count() or 1))
+    fork = multiprocessing.get_context("fork")  # the test module needs no import by name
+    with ProcessPoolExecutor(max_workers=workers, mp_context=fork) as pool:
         drives = list(pool.map(_calibrate, *zip(*jobs, strict=True), chunksize=4))
     for kind in sorted(DRIVES):
         _print_study(kind, [d for d in drives if d.kind == kind])

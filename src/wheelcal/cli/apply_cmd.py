@@ -5,17 +5,17 @@ from __future__ import annotations
 import argparse
 import os
 
+#: The command's one-line help and its --help description.
+HELP = "write a copy of a recording with a calibrated accelerometer topic added"
+DESCRIPTION = (
+    "Copy IN.mcap to OUT.mcap keeping every channel, and add <topic>/calibrated with "
+    "a = matrix @ (v - bias) per sample; the calibration is stored as metadata."
+)
+
 
 def register(sub) -> None:
     """Add the ``apply`` parser."""
-    p = sub.add_parser(
-        "apply",
-        help="write a copy of a recording with a calibrated accelerometer topic added",
-        description=(
-            "Copy IN.mcap to OUT.mcap keeping every channel, and add <topic>/calibrated with "
-            "a = matrix @ (v - bias) per sample; the calibration is stored as metadata."
-        ),
-    )
+    p = sub.add_parser("apply", help=HELP, description=DESCRIPTION)
     p.add_argument("calibration", metavar="CAL.json")
     p.add_argument("source", metavar="IN.mcap")
     p.add_argument("destination", metavar="OUT.mcap")

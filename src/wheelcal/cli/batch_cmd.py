@@ -4,21 +4,21 @@ from __future__ import annotations
 
 import argparse
 
+#: The command's one-line help and its --help description.
+HELP = "run a pipeline file: calibrate many recordings in parallel, write the report"
+DESCRIPTION = (
+    "Run the sessions of a pipeline file (see pipelines/) in parallel and write "
+    "<output>/<stem>.calibration.json per session, one pooled "
+    "<output>/sensors/<sensor_id>.calibration.json per sensor (export and apply take it), "
+    "report.json, report.md, sessions.csv, overview.png and, with Rerun on, .rrd "
+    "recordings. Up-to-date sessions are skipped. "
+    "Exit status 1 if any session failed (the others still run)."
+)
+
 
 def register(sub) -> None:
     """Add the ``batch`` parser."""
-    p = sub.add_parser(
-        "batch",
-        help="run a pipeline file: calibrate many recordings in parallel, write the report",
-        description=(
-            "Run the sessions of a pipeline file (see pipelines/) in parallel and write "
-            "<output>/<stem>.calibration.json per session, one pooled "
-            "<output>/sensors/<sensor_id>.calibration.json per sensor (export and apply take it), "
-            "report.json, report.md, sessions.csv, overview.png and, with Rerun on, .rrd "
-            "recordings. Up-to-date sessions are skipped. "
-            "Exit status 1 if any session failed (the others still run)."
-        ),
-    )
+    p = sub.add_parser("batch", help=HELP, description=DESCRIPTION)
     p.add_argument("pipeline", metavar="PIPELINE.toml")
     p.add_argument("--workers", type=int, help="override the pipeline's number of local workers")
     p.add_argument("--out", metavar="DIR", help="override the pipeline's output folder")

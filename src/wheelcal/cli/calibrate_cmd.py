@@ -8,18 +8,18 @@ import sys
 from wheelcal.cli.errors import SessionsFailed
 from wheelcal.cli.options import add_session_arguments, output_folder, session_options
 
+#: The command's one-line help and its --help description.
+HELP = "calibrate recordings (MCAP) → <stem>.calibration.json"
+DESCRIPTION = (
+    "Calibrate each recording: find the free spin, fit offsets, gains, tilt, "
+    "misalignment and spin jointly, and write <out>/<stem>.calibration.json "
+    "(format wheelcal.calibration/1). A failing file is reported and the others go on."
+)
+
 
 def register(sub) -> None:
     """Add the ``calibrate`` parser."""
-    p = sub.add_parser(
-        "calibrate",
-        help="calibrate recordings (MCAP) → <stem>.calibration.json",
-        description=(
-            "Calibrate each recording: find the free spin, fit offsets, gains, tilt, "
-            "misalignment and spin jointly, and write <out>/<stem>.calibration.json "
-            "(format wheelcal.calibration/1). A failing file is reported and the others go on."
-        ),
-    )
+    p = sub.add_parser("calibrate", help=HELP, description=DESCRIPTION)
     p.add_argument("files", nargs="+", metavar="FILE.mcap")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--rrd", action="store_true", help="also write a Rerun recording per session")

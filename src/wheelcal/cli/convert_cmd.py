@@ -4,27 +4,27 @@ from __future__ import annotations
 
 import argparse
 
+#: The command's one-line help and its --help description.
+HELP = "convert a CSV log (time, acceleration, optional gyro) into a contract MCAP"
+DESCRIPTION = (
+    "Read a CSV with a time column, three acceleration columns and optionally three "
+    "gyro columns and a temperature column, and write an MCAP that `wheelcal calibrate` "
+    "reads, with the session facts as wheelcal.session metadata. Columns are "
+    "recognised by name (t/time/timestamp/SampleTimeFine, ax/acc_x/Acc_X/accel_x, "
+    "gx/gyr_x/Gyr_X/gyro_x, temp/temperature; any case) unless given, an Excel "
+    "'sep=,' line and a trailing empty column are skipped, a wrapping 32-bit counter is "
+    "unwrapped, and the time unit is inferred when not given (refused when the "
+    "sampling rate it implies is implausible); Arduino's millis/micros are ms/µs. The "
+    "acceleration unit comes from the header when it states one (phyphox: "
+    "'Acceleration x (m/s^2)'), else it must be given; raw counts need "
+    "--counts-per-g. Decimal commas (9,81) are read in ;-separated files. An existing "
+    "OUT.mcap is never replaced unless --force."
+)
+
 
 def register(sub) -> None:
     """Add the ``convert`` parser."""
-    p = sub.add_parser(
-        "convert",
-        help="convert a CSV log (time, acceleration, optional gyro) into a contract MCAP",
-        description=(
-            "Read a CSV with a time column, three acceleration columns and optionally three "
-            "gyro columns and a temperature column, and write an MCAP that `wheelcal calibrate` "
-            "reads, with the session facts as wheelcal.session metadata. Columns are "
-            "recognised by name (t/time/timestamp/SampleTimeFine, ax/acc_x/Acc_X/accel_x, "
-            "gx/gyr_x/Gyr_X/gyro_x, temp/temperature; any case) unless given, an Excel "
-            "'sep=,' line and a trailing empty column are skipped, a wrapping 32-bit counter is "
-            "unwrapped, and the time unit is inferred when not given (refused when the "
-            "sampling rate it implies is implausible); Arduino's millis/micros are ms/µs. The "
-            "acceleration unit comes from the header when it states one (phyphox: "
-            "'Acceleration x (m/s^2)'), else it must be given; raw counts need "
-            "--counts-per-g. Decimal commas (9,81) are read in ;-separated files. An existing "
-            "OUT.mcap is never replaced unless --force."
-        ),
-    )
+    p = sub.add_parser("convert", help=HELP, description=DESCRIPTION)
     p.add_argument("source", metavar="IN.csv")
     p.add_argument("destination", metavar="OUT.mcap")
     p.add_argument(

@@ -8,21 +8,21 @@ import sys
 from wheelcal.cli.errors import SessionsFailed
 from wheelcal.cli.options import add_session_arguments, output_folder, session_options
 
+#: The command's one-line help and its --help description.
+HELP = "calibrate, showing the closed loop's steps before and after"
+DESCRIPTION = (
+    "The same calibration as `wheelcal calibrate` (which runs the closed loop too), "
+    "shown step by step: score tests of candidate effects (spin-down beyond the cubic, "
+    "wheel imbalance, sensor nonlinearity, offset warm-up and drift, gain drift, "
+    "cross-axis coupling) on the residual; the most significant added and everything "
+    "refitted, until none is significant. Writes <stem>.diagnosis.json (the steps, "
+    "before and after) and the same <stem>.calibration.json as calibrate."
+)
+
 
 def register(sub) -> None:
     """Add the ``diagnose`` parser."""
-    p = sub.add_parser(
-        "diagnose",
-        help="calibrate, showing the closed loop's steps before and after",
-        description=(
-            "The same calibration as `wheelcal calibrate` (which runs the closed loop too), "
-            "shown step by step: score tests of candidate effects (spin-down beyond the cubic, "
-            "wheel imbalance, sensor nonlinearity, offset warm-up and drift, gain drift, "
-            "cross-axis coupling) on the residual; the most significant added and everything "
-            "refitted, until none is significant. Writes <stem>.diagnosis.json (the steps, "
-            "before and after) and the same <stem>.calibration.json as calibrate."
-        ),
-    )
+    p = sub.add_parser("diagnose", help=HELP, description=DESCRIPTION)
     p.add_argument("files", nargs="+", metavar="FILE.mcap")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--rrd", action="store_true", help="Rerun recording with residuals before/after")

@@ -7,20 +7,20 @@ import os
 import sys
 from pathlib import Path
 
+#: The command's one-line help and its --help description.
+HELP = "export a calibration as Kalibr imu.yaml, an imu_calib file or a C header"
+DESCRIPTION = (
+    "Print (or write with --out) the bias and 3x3 correction of a calibration: "
+    "yaml = Kalibr's imu.yaml keys (accelerometer_noise_density and "
+    "accelerometer_random_walk from the rests' Allan deviation, update_rate, rostopic) "
+    "with wheelcal's imu0 block; imu_calib = the ROS imu_calib package's SM and bias; "
+    "c = a C header."
+)
+
 
 def register(sub) -> None:
     """Add the ``export`` parser."""
-    p = sub.add_parser(
-        "export",
-        help="export a calibration as Kalibr imu.yaml, an imu_calib file or a C header",
-        description=(
-            "Print (or write with --out) the bias and 3x3 correction of a calibration: "
-            "yaml = Kalibr's imu.yaml keys (accelerometer_noise_density and "
-            "accelerometer_random_walk from the rests' Allan deviation, update_rate, rostopic) "
-            "with wheelcal's imu0 block; imu_calib = the ROS imu_calib package's SM and bias; "
-            "c = a C header."
-        ),
-    )
+    p = sub.add_parser("export", help=HELP, description=DESCRIPTION)
     p.add_argument("calibration", metavar="CAL.json")
     p.add_argument("--format", choices=("yaml", "imu_calib", "c"), required=True)
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")

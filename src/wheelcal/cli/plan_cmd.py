@@ -9,20 +9,20 @@ from wheelcal.cli.convert_cmd import radius_metres
 from wheelcal.cli.errors import UsageError
 from wheelcal.cli.options import positive_float
 
+#: The command's one-line help and its --help description.
+HELP = "predicted precision of a planned setup (and the best sensor mounting)"
+DESCRIPTION = (
+    "Predict the σ every parameter will have (Cramér–Rao bound: the joint fit attains "
+    "it, and reports it on real data), the systematic budget of the geometry mode, "
+    "the warnings calibrate would print, and — with --mounting any — the mounting and "
+    "tilt that minimise the worst offset σ.  Defaults: the paper's bench (r = 0.28 m "
+    "± 1 mm, tilt 45°, 90 s at 200 Hz, MPU-9250 noise 0.08 m/s²)."
+)
+
 
 def register(sub) -> None:
     """Add the ``plan`` parser."""
-    p = sub.add_parser(
-        "plan",
-        help="predicted precision of a planned setup (and the best sensor mounting)",
-        description=(
-            "Predict the σ every parameter will have (Cramér–Rao bound: the joint fit attains "
-            "it, and reports it on real data), the systematic budget of the geometry mode, "
-            "the warnings calibrate would print, and — with --mounting any — the mounting and "
-            "tilt that minimise the worst offset σ.  Defaults: the paper's bench (r = 0.28 m "
-            "± 1 mm, tilt 45°, 90 s at 200 Hz, MPU-9250 noise 0.08 m/s²)."
-        ),
-    )
+    p = sub.add_parser("plan", help=HELP, description=DESCRIPTION)
     _bench_arguments(p.add_argument_group("bench"))
     _recording_arguments(p.add_argument_group("recording"))
     _systematic_arguments(p.add_argument_group("systematic inputs"))

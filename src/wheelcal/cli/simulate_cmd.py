@@ -15,16 +15,17 @@ TEMPERATURE_STRIDE = 20
 FIELD_PRESETS = ("car", "robot", "wheelchair", "stand")
 
 
+#: The command's one-line help and its --help description.
+HELP = "write a simulated recording (MCAP) with known truth"
+DESCRIPTION = (
+    "Simulate a hand-spun wheel session (rest, push, free spin, brake, rest) and write "
+    "it as a contract MCAP with the wheelcal.session metadata."
+)
+
+
 def register(sub) -> None:
     """Add the ``simulate`` parser."""
-    p = sub.add_parser(
-        "simulate",
-        help="write a simulated recording (MCAP) with known truth",
-        description=(
-            "Simulate a hand-spun wheel session (rest, push, free spin, brake, rest) and write "
-            "it as a contract MCAP with the wheelcal.session metadata."
-        ),
-    )
+    p = sub.add_parser("simulate", help=HELP, description=DESCRIPTION)
     p.add_argument("out", metavar="OUT.mcap")
     p.add_argument(
         "--preset",
