@@ -73,9 +73,9 @@ class Shot:
     tab: int | None = None
 
 
-def wheelcal(*args: str) -> None:
-    """Run the ``wheelcal`` command of this interpreter (exit status checked)."""
-    subprocess.run([sys.executable, "-m", "wheelcal.cli.main", *args], check=True, cwd=ROOT)
+def wheelcal(*args: str, cwd: Path = ROOT) -> None:
+    """Run the ``wheelcal`` command of this interpreter in ``cwd`` (exit status checked)."""
+    subprocess.run([sys.executable, "-m", "wheelcal.cli.main", *args], check=True, cwd=cwd)
 
 
 def imbalance_recording(path: Path) -> None:
@@ -106,7 +106,8 @@ def make_files(out: Path) -> dict[str, Path]:
     mcap = out / "imbalance.mcap"
     if not mcap.exists():
         imbalance_recording(mcap)
-    wheelcal("diagnose", str(mcap), "--out", str(out), "--rrd")
+    # run where the file is: the views name it as a user would see it, not by this machine's path
+    wheelcal("diagnose", mcap.name, "--out", ".", "--rrd", cwd=out.resolve())
     return {
         "session": pipeline_out / "session001.rrd",
         "batch": pipeline_out / "batch.rrd",
