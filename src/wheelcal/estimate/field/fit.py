@@ -49,6 +49,12 @@ from wheelcal.recording import Recording, RecordingError
 TRAVEL_Z = 5.0
 #: The yaw (rms, rad/s) above which the carrier turns: a rolling wheel's turns.
 YAW_RMS_RADPS = 0.01
+#: The final fit's AR noise model reaches back at least this long (s).  A road's
+#: vibration is a band (5–60 Hz) above a white floor; an AR model too short to
+#: shape its lower edge spreads its power down to the wheel's turn rate (< 1 Hz at a
+#: wheelchair's pace), where the signal is: 10 lags at 400 Hz made the σ 2–4× too
+#: large; 0.2 s of memory resolves a few Hz.
+AR_MEMORY_S = 0.2
 #: The passes that lead the way run on about this many samples.
 LEAD_SAMPLES = 4000
 #: Gauss–Newton steps of the passes that lead the way (a fixed axle, the hub's travel).
@@ -87,8 +93,9 @@ class FieldFit:
 
     Parameters
     ----------
-    coloured_noise, max_ar_order:
-        The noise model of each pass (:class:`~wheelcal.estimate.joint.fit.JointFit`).
+    coloured_noise, max_ar_order, ar_memory_s:
+        The noise model of each pass (:class:`~wheelcal.estimate.joint.fit.JointFit`);
+        the final fit's order at least ``ar_memory_s`` × the sample rate.
     travel_z, yaw_rms_radps:
         What makes a rolling wheel: the hub's travel at ρ / σ_ρ above ``travel_z``,
         or a yaw above ``yaw_rms_radps``.
@@ -96,6 +103,8 @@ class FieldFit:
 
     coloured_noise: bool = True
     max_ar_order: int = 10
+    #: The final fit's noise model reaches back this long (its AR order ≥ this × rate).
+    ar_memory_s: float = AR_MEMORY_S
     travel_z: float = TRAVEL_Z
     yaw_rms_radps: float = YAW_RMS_RADPS
     fit_yaw_scale: bool = True
@@ -166,12 +175,18 @@ class FieldFit:
         return FieldResult(final, geometry, axle)
 
     # -- the passes -----------------------------------------------------------------------------
-    def _joint(self, radius_m, tilt_free: bool, effects: tuple) -> JointFit:
+    def _joint(
+        self, radius_m, tilt_free: bool, effects: tuple, rate_hz: float | None = None
+    ) -> JointFit:
         """A pass's joint fit.
 
         r given: α free (the paper's geometry); else r free, and α too once the turns
-        measure it (``tilt_free``).
+        measure it (``tilt_free``).  With ``rate_hz`` (the final fit) the noise model's
+        order reaches back ``ar_memory_s`` at least.
         """
+        order = self.max_ar_order
+        if rate_hz is not None:
+            order = max(order, int(np.ceil(self.ar_memory_s * rate_hz)))
         if radius_m is not None:
             geometry = "radius"
         else:
@@ -180,7 +195,7 @@ class FieldFit:
             spin_degree=0,
             geometry=geometry,
             coloured_noise=self.coloured_noise,
-            max_ar_order=self.max_ar_order,
+            max_ar_order=order,
             effects=effects,
             # Passes 1–2 only lead the way (a cambered wheel held vertical cannot fit):
             # a few steps give the wheel angle and R for the yaw, and ρ's size.
@@ -267,7 +282,8 @@ class FieldFit:
             model = (*model, axes)
             initial = initial.with_changes(effects={**initial.effects, axes.name: [0.0] * 3})
         if stride > 1 or self.fit_cross_axis:
-            result = self._joint(radius_m, True, model).fit(window, initial=initial)
+            rate_hz = 1.0 / float(np.median(np.diff(window.time_s)))
+            result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=initial)
         return robust_result(result, window.accel_mps2) if self.robust_sigma else result
 
 
