@@ -119,6 +119,11 @@ class Rolling(Effect):
         ``radius_m``): the yaw rate taken as given (from a calibrated gyro).
     yaw_offset_free:
         With ``yaw_scale_free``: fit ε too (default); ``False`` holds ε = 0.
+    yaw_scale_prior_std:
+        With ``yaw_scale_free``: a Gaussian prior κ ~ N(1, this²) (``None``: none).  A
+        gyro's scale across its axle is known only to its sensor class's tolerance, and
+        on a vertical wheel κ multiplies every force of the turns along the axle, as
+        that axis's gain does: without the prior the two are one.
     yaw_across_axle:
         The series is y = ψ̇ cos γ = ψ̇ sin α, the yaw rate's share across the axle (what
         a gyro's rotating components show), so ψ̇ = κ y / sin α + ε with the fitted
@@ -139,6 +144,7 @@ class Rolling(Effect):
         yaw_scale_free: bool = True,
         yaw_across_axle: bool = False,
         yaw_offset_free: bool = True,
+        yaw_scale_prior_std: float | None = None,
     ) -> None:
         t = np.asarray(time_s, dtype=float)
         rate = np.asarray(yaw_rate_radps, dtype=float)
@@ -159,10 +165,25 @@ class Rolling(Effect):
         self.yaw_scale_free = bool(yaw_scale_free)
         self.yaw_across_axle = bool(yaw_across_axle)
         self.yaw_offset_free = bool(yaw_offset_free) and self.yaw_scale_free
+        if yaw_scale_prior_std is not None and not (
+            np.isfinite(yaw_scale_prior_std) and yaw_scale_prior_std > 0
+        ):
+            raise ValueError("yaw_scale_prior_std must be a positive number or None")
+        self.yaw_scale_prior_std = yaw_scale_prior_std if self.yaw_scale_free else None
         if not self.yaw_scale_free:
             self.param_names = ("radius_m",)
         elif not self.yaw_offset_free:
             self.param_names = ("radius_m", "yaw_scale")
+
+    def prior_std_values(self) -> np.ndarray | None:
+        """σ of the priors (∞: none): κ's, if given, or None."""
+        if self.yaw_scale_prior_std is None:
+            return None
+        return np.array([np.inf, self.yaw_scale_prior_std, np.inf][: self.size])
+
+    def prior_mean_values(self) -> np.ndarray:
+        """The priors' means: κ = 1 (the gyro's nominal scale across its axle)."""
+        return np.array([0.0, 1.0, 0.0][: self.size])
 
     @property
     def ties_tilt(self) -> bool:

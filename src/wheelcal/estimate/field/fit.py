@@ -15,9 +15,12 @@ and the accelerometer's model is eq. (1) plus the rolling wheel's forces
    shows ρ many σ from zero;
 3. **the turns**: the yaw rate demodulated from the gyro across the axle with
    the wheel angle of pass 2 (:func:`~wheelcal.estimate.field.gyro_axle.yaw_across`),
-   taken as measured (the gyro's own scale, no free yaw scale); the tilt α is
-   fitted too: on a cambered wheel the turns turn gravity's phase by ψ̇ sin γ,
-   which measures γ = 90° − α, and with it r (both are free only then).
+   first taken as measured, then with its scale κ free under a prior N(1, σ_κ²)
+   (the gyro's axes across the axle are as good as the sensor's tolerance; on a
+   vertical wheel κ and the axle axis's gain are one, and the prior's σ is what
+   that gain is known to); the tilt α is fitted too: on a cambered wheel the
+   turns turn gravity's phase by ψ̇ sin γ, which measures γ = 90° − α, and with
+   it r (both are free only then).
 
 The answer's geometry (:class:`FieldGeometry`) says which it was — a rolling
 wheel (vertical or cambered, with γ) or a fixed axle — and why.
@@ -33,7 +36,6 @@ import numpy as np
 from wheelcal.estimate.field.gyro_axle import GyroAxle, gyro_axle, smoothed_accel, yaw_across
 from wheelcal.estimate.field.robust import robust_result
 from wheelcal.estimate.field.start import field_start
-from wheelcal.estimate.joint.crlb import cramer_rao_bound
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model import CalibrationParams, Rotation, SpinParams
@@ -47,14 +49,22 @@ from wheelcal.recording import Recording, RecordingError
 TRAVEL_Z = 5.0
 #: The yaw (rms, rad/s) above which the carrier turns: a rolling wheel's turns.
 YAW_RMS_RADPS = 0.01
+#: The final fit's AR noise model reaches back at least this long (s).  A road's
+#: vibration is a band (5–60 Hz) above a white floor; an AR model too short to
+#: shape its lower edge spreads its power down to the wheel's turn rate (< 1 Hz at a
+#: wheelchair's pace), where the signal is: 10 lags at 400 Hz made the σ 2–4× too
+#: large; 0.2 s of memory resolves a few Hz.
+AR_MEMORY_S = 0.2
 #: The passes that lead the way run on about this many samples.
 LEAD_SAMPLES = 4000
 #: Gauss–Newton steps of the passes that lead the way (a fixed axle, the hub's travel).
 LEAD_ITERATIONS = 12
 #: Gains outside this range after the leading passes are restarted at 1.
 PLAUSIBLE_GAIN = (0.7, 1.4)
-#: The yaw's scale across the axle is fitted where the data give it to this σ.
-YAW_SCALE_PINNED = 0.01
+#: σ of the prior on the yaw's scale κ: the gyro's axes across the axle against their
+#: nominal scale (a MEMS gyro's sensitivity tolerance, ~1–3 % per axis, halved by the
+#: two axes' mean).
+YAW_SCALE_PRIOR_STD = 0.01
 
 
 @dataclass(frozen=True)
@@ -83,8 +93,9 @@ class FieldFit:
 
     Parameters
     ----------
-    coloured_noise, max_ar_order:
-        The noise model of each pass (:class:`~wheelcal.estimate.joint.fit.JointFit`).
+    coloured_noise, max_ar_order, ar_memory_s:
+        The noise model of each pass (:class:`~wheelcal.estimate.joint.fit.JointFit`);
+        the final fit's order at least ``ar_memory_s`` × the sample rate.
     travel_z, yaw_rms_radps:
         What makes a rolling wheel: the hub's travel at ρ / σ_ρ above ``travel_z``,
         or a yaw above ``yaw_rms_radps``.
@@ -92,9 +103,13 @@ class FieldFit:
 
     coloured_noise: bool = True
     max_ar_order: int = 10
+    #: The final fit's noise model reaches back this long (its AR order ≥ this × rate).
+    ar_memory_s: float = AR_MEMORY_S
     travel_z: float = TRAVEL_Z
     yaw_rms_radps: float = YAW_RMS_RADPS
     fit_yaw_scale: bool = True
+    #: σ of κ's prior around 1 (``YAW_SCALE_PRIOR_STD``; a factory-calibrated gyro: less).
+    yaw_scale_prior_std: float = YAW_SCALE_PRIOR_STD
     fit_yaw_offset: bool = False
     fit_cross: bool = True
     fit_g_sensitivity: bool = True
@@ -160,12 +175,18 @@ class FieldFit:
         return FieldResult(final, geometry, axle)
 
     # -- the passes -----------------------------------------------------------------------------
-    def _joint(self, radius_m, tilt_free: bool, effects: tuple) -> JointFit:
+    def _joint(
+        self, radius_m, tilt_free: bool, effects: tuple, rate_hz: float | None = None
+    ) -> JointFit:
         """A pass's joint fit.
 
         r given: α free (the paper's geometry); else r free, and α too once the turns
-        measure it (``tilt_free``).
+        measure it (``tilt_free``).  With ``rate_hz`` (the final fit) the noise model's
+        order reaches back ``ar_memory_s`` at least.
         """
+        order = self.max_ar_order
+        if rate_hz is not None:
+            order = max(order, int(np.ceil(self.ar_memory_s * rate_hz)))
         if radius_m is not None:
             geometry = "radius"
         else:
@@ -174,7 +195,7 @@ class FieldFit:
             spin_degree=0,
             geometry=geometry,
             coloured_noise=self.coloured_noise,
-            max_ar_order=self.max_ar_order,
+            max_ar_order=order,
             effects=effects,
             # Passes 1–2 only lead the way (a cambered wheel held vertical cannot fit):
             # a few steps give the wheel angle and R for the yaw, and ρ's size.
@@ -197,11 +218,12 @@ class FieldFit:
     ) -> CalibrationResult:
         """Pass 3: the yaw across the axle, the tilt free (module docstring).
 
-        The yaw is first taken as the gyro measures it (its scale across the axle as
-        along it); then its scale κ is fitted too, and kept only where the data pin it
-        (σ_κ below ``YAW_SCALE_PINNED``: a robot turning hard) — elsewhere κ trades
-        with the camber and the gains.  Both on the thinned samples (``lead``); the
-        chosen model is then fitted to every sample.
+        The yaw is first taken as the gyro's axes across the axle read it (their
+        nominal scale); then its scale κ is fitted too, under its prior
+        (``yaw_scale_prior_std``): a robot on a hub sensor turns the axle axis's
+        forces by κ × its gain alone, and κ taken as exact left that gain biased by
+        the gyro's 1–2 % scale errors at ten times its σ.  Both on the thinned
+        samples (``lead``); the chosen model is then fitted to every sample.
         """
         params = _plausible_gains(travelled.params)
         theta = wheel_kinematics(params, tc, travelled.layout.effects).theta_rad
@@ -215,7 +237,9 @@ class FieldFit:
             return GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel)
 
         angle = angle_of(axle)
-        held = Rolling(tc, scale * y, scale * y_dot, yaw_scale_free=False, yaw_across_axle=True)
+        # The yaw as the gyro's axes across the axle read it: their scale is their own
+        # (nominal ± the sensor's tolerance), not the axle's s.
+        held = Rolling(tc, y, y_dot, yaw_scale_free=False, yaw_across_axle=True)
         effects = {
             angle.name: [scale] + [0.0] * (angle.size - 1),
             held.name: [float(params.effect(held.name, 1)[0])],
@@ -233,32 +257,33 @@ class FieldFit:
             twin = _turned(result.params, angle.name)
             result = self._joint(radius_m, True, model).fit(lead, initial=twin, frame=frame)
         if self.fit_yaw_scale:
+            # κ free under its prior: where the data do not pin it (a vertical wheel's
+            # turns scale the axle axis's forces by κ × its gain), the gain's σ carries
+            # the gyro's tolerance instead of a κ = 1 taken as exact.
             free = Rolling(
                 tc,
-                scale * y,
-                scale * y_dot,
+                y,
+                y_dot,
                 yaw_across_axle=True,
                 yaw_offset_free=self.fit_yaw_offset,
+                yaw_scale_prior_std=self.yaw_scale_prior_std,
             )
             rho = float(result.params.effect(held.name, 1)[0])
             effects = {**result.params.effects, free.name: [rho, 1.0, 0.0][: free.size]}
             freed = result.params.with_changes(effects=effects)
-            joint = self._joint(radius_m, True, (angle, free))
-            # σ_κ from the information at this point (one Jacobian, no iterations):
-            # the free scale is fitted only where the data pin it.
-            lead_tc = lead.time_s - 0.5 * (frame[0] + frame[1])
-            bound = cramer_rao_bound(freed, lead_tc, result.noise, joint.layout_for(lead, frame))
-            if bound.std_of("rolling.yaw_scale") / np.sqrt(stride) < YAW_SCALE_PINNED:
-                refined = joint.fit(lead, initial=freed, frame=frame)
-                if refined.params.bench.tilt_rad <= np.pi / 2:
-                    result, model = refined, (angle, free)
+            refined = self._joint(radius_m, True, (angle, free)).fit(
+                lead, initial=freed, frame=frame
+            )
+            if refined.params.bench.tilt_rad <= np.pi / 2:
+                result, model = refined, (angle, free)
         initial = result.params
         if self.fit_cross_axis:  # the axle axis's gain from the turns, not from a leak
             axes = CrossAxis()
             model = (*model, axes)
             initial = initial.with_changes(effects={**initial.effects, axes.name: [0.0] * 3})
         if stride > 1 or self.fit_cross_axis:
-            result = self._joint(radius_m, True, model).fit(window, initial=initial)
+            rate_hz = 1.0 / float(np.median(np.diff(window.time_s)))
+            result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=initial)
         return robust_result(result, window.accel_mps2) if self.robust_sigma else result
 
 

@@ -107,11 +107,12 @@ def local_view(
 def effect_priors(
     params: CalibrationParams, layout: ParameterLayout
 ) -> tuple[float, np.ndarray, np.ndarray] | None:
-    """The effects' Gaussian priors (zero mean): cost Σ x²/σ², gradient x/σ², information 1/σ².
+    """The effects' Gaussian priors: cost Σ (x − μ)²/σ², gradient (x − μ)/σ², information 1/σ².
 
     An effect with ``prior_std_values()`` (σ per parameter, ∞ for none) — e.g. a
     gyro's sensitivity to acceleration of its sensor class — adds them once per
     stream, as pseudo-observations; gradient and information are over the layout.
+    The mean μ is zero unless the effect has ``prior_mean_values()`` (a scale's 1).
     """
     found = False
     cost, grad, info = 0.0, np.zeros(layout.size), np.zeros(layout.size)
@@ -122,6 +123,9 @@ def effect_priors(
         found = True
         block = layout.blocks[f"effect:{effect.name}"]
         x = np.asarray(params.effect(effect.name, effect.size), dtype=float)
+        mean = getattr(effect, "prior_mean_values", lambda: None)()
+        if mean is not None:
+            x = x - np.asarray(mean, dtype=float)
         weight = 1.0 / np.asarray(std, dtype=float) ** 2
         cost += float(np.sum(weight * x * x))
         grad[block] += weight * x
