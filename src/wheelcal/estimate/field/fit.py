@@ -110,7 +110,10 @@ class FieldFit:
     fit_yaw_scale: bool = True
     #: σ of κ's prior around 1 (``YAW_SCALE_PRIOR_STD``; a factory-calibrated gyro: less).
     yaw_scale_prior_std: float = YAW_SCALE_PRIOR_STD
-    fit_yaw_offset: bool = False
+    #: ε in ψ̇ = κ ψ̇_gyro + ε: the gyro's sensitivity to gravity, which turns with the
+    #: wheel as the vertical does, reads as a steady yaw (0.1 °/s/g: 0.0017 rad/s) that
+    #: biased a robot's offsets by 5–6 σ through ρ ω ψ̇ when held at zero.
+    fit_yaw_offset: bool = True
     fit_cross: bool = True
     fit_g_sensitivity: bool = True
     #: Each σ the larger of the model's and the sandwich's (:mod:`~wheelcal.estimate.field.robust`).
@@ -281,9 +284,13 @@ class FieldFit:
             axes = CrossAxis()
             model = (*model, axes)
             initial = initial.with_changes(effects={**initial.effects, axes.name: [0.0] * 3})
+        rate_hz = 1.0 / float(np.median(np.diff(window.time_s)))
         if stride > 1 or self.fit_cross_axis:
-            rate_hz = 1.0 / float(np.median(np.diff(window.time_s)))
             result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=initial)
+        if radius_m is None and result.params.bench.radius_m < 0:
+            # r came out negative: the same forces with ϑ advanced by π; reported r > 0
+            twin = _half_turned(result.params)
+            result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=twin)
         return robust_result(result, window.accel_mps2) if self.robust_sigma else result
 
 
@@ -317,3 +324,20 @@ def _turned(params: CalibrationParams, angle_name: str) -> CalibrationParams:
     angle[1:] = -angle[1:]  # the axle's response across it, seen from its other end
     effects[angle_name] = angle
     return params.with_changes(bench=bench, spin=spin, effects=effects)
+
+
+def _half_turned(params: CalibrationParams) -> CalibrationParams:
+    """ϑ advanced by π: r → −r, R → R·diag(−1, −1, 1), ϑ₀ → ϑ₀ + π (the same forces).
+
+    Gravity's and the hub's in-plane components turn sign with ϑ + π, and so do the
+    sensor's own centripetal and tangential forces with −r; R's turn about Z restores
+    both in the sensor's frame.
+    """
+    bench = params.bench
+    bench = dataclasses.replace(
+        bench,
+        radius_m=-bench.radius_m,
+        misalignment=Rotation.composed(bench.misalignment.matrix @ np.diag([-1.0, -1.0, 1.0])),
+    )
+    spin = SpinParams(params.spin.theta0_rad + np.pi, params.spin.omega_radps)
+    return params.with_changes(bench=bench, spin=spin)
