@@ -781,7 +781,7 @@ def session_rrd(
             label="data − model",
         )
         if allan:
-            rrd.add_view("spatial_2d", "/allan", "rests: Allan deviation (log10 τ, log10 σ)")
+            rrd.add_view("spatial_2d", "/allan", "rests: Allan deviation (σ up, τ right; log-log)")
         yield rrd
         shown_s = (first_s - TIME_MARGIN_S, last_s + TIME_MARGIN_S)
         send_session_blueprint(stream, rrd.layout(), (start_s, end_s), shown_s)
@@ -790,7 +790,8 @@ def session_rrd(
 def allan_chunks(noise) -> list[Chunk]:
     """``/allan``: the rests' overlapping Allan deviation, log10 σ against log10 τ, per axis.
 
-    A log-log plot drawn as 2-D line strips (x = log10 τ/s, y = log10 σ/(m/s²)),
+    A log-log plot drawn as 2-D line strips (x = log10 τ/s, y = −log10 σ/(m/s²):
+    a 2-D view's y axis points down, so larger σ is drawn higher, as on paper),
     the white-noise density marked at τ = 1 s and the bias instability's
     minimum, and the read-outs as text (``/allan/readouts``).  ``noise`` is the
     gates' noise floor (``Assessment.noise``); nothing when the recording has no rests.
@@ -801,15 +802,16 @@ def allan_chunks(noise) -> list[Chunk]:
     if block is None:
         return []
     tau = np.log10(np.asarray(block["tau_s"]))
-    adev = np.log10(np.asarray(block["adev_mps2"]))
-    density = np.log10(np.asarray(block["white_noise_density_mps2_rthz"]))
+    # −log10: the 2-D view's y axis points down (the curve falls to the right, as on paper)
+    adev = -np.log10(np.asarray(block["adev_mps2"]))
+    density = -np.log10(np.asarray(block["white_noise_density_mps2_rthz"]))
     bias = np.asarray(block["bias_instability_mps2"]) * 0.664  # back to σ_min on the curve
     bias_tau = np.log10(np.asarray(block["bias_instability_tau_s"]))
     chunks = []
     for k, axis in enumerate(AXES):
         strip = rr.LineStrips2D([np.column_stack([tau, adev[:, k]])], colors=[AXIS_COLORS[k]])
         marks = rr.Points2D(
-            [[0.0, density[k]], [bias_tau[k], np.log10(bias[k])]],
+            [[0.0, density[k]], [bias_tau[k], -np.log10(bias[k])]],
             colors=[AXIS_COLORS[k]] * 2,
             radii=[0.02, 0.02],
             labels=[f"N_{axis}", f"B_{axis}"],
@@ -817,7 +819,7 @@ def allan_chunks(noise) -> list[Chunk]:
         chunks.append(static_chunk(f"allan/{axis}", row_columns(strip)))
         chunks.append(static_chunk(f"allan/{axis}/readouts", row_columns(marks)))
     lines = [
-        f"Allan deviation of {block['rests_s']:.3g} s of rests (x: log10 τ/s, y: log10 σ/(m/s²))",
+        f"Allan deviation of {block['rests_s']:.3g} s of rests (x: log10 τ/s, up: log10 σ/(m/s²))",
         "",
         "| axis | N (m/s²/√Hz) | B (m/s²) | K (m/s³/√Hz) |",
         "|---|---:|---:|---:|",
