@@ -210,7 +210,8 @@ def _calibration_tab(layout: Layout) -> rrb.Vertical:
         rrb.TimeSeriesView(origin="/spin", name="ω(t): model and measured (rad/s)", axis_x=_LINKED),
         *[extra.view() for extra in layout.extra_views],
     ]
-    shares = [3.2, 1.6, *[1.6] * len(layout.extra_views)]
+    # The calibration text keeps room for its parameter table whatever views join it.
+    shares = [4.4, 1.6, *[1.2] * len(layout.extra_views)]
     return rrb.Vertical(
         rrb.Horizontal(per_axis, rrb.Vertical(*right, row_shares=shares), column_shares=[3, 1.15]),
         rrb.StateTimelineView(origin="/window", name="free-spin window", time_view=_LINKED),
