@@ -105,6 +105,18 @@ class Effect(ABC):
         """Starting values for this effect from a fitted ``other`` of the same family."""
         return np.asarray(other_values, dtype=float)
 
+    def prior_std_values(self) -> np.ndarray | None:
+        """σ of Gaussian priors per parameter (∞: none), or None: no prior at all.
+
+        The fit adds them as pseudo-observations (e.g. a gyro's sensitivity to
+        acceleration, known to its sensor class).
+        """
+        return None
+
+    def prior_mean_values(self) -> np.ndarray:
+        """The priors' means (zero unless an effect says otherwise: a scale's 1)."""
+        return np.zeros(self.size)
+
     def label(self) -> str:
         """Name plus settings, e.g. ``offset_warmup(tau_s=25)``."""
         s = self.settings()

@@ -54,10 +54,6 @@ from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 G_PRIOR_RADPS_PER_MPS2 = np.deg2rad(G_SENSITIVITY_PRIOR_DPS_PER_G) / STANDARD_GRAVITY_MPS2
 
 
-#: Chunks of times whose interpolated series an effect keeps.
-_CACHED_CHUNKS = 8
-
-
 def _integral(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
     """∫ rate dt by the trapezoid rule, zero at t = 0 (the window's centre)."""
     out = np.empty_like(rate)
@@ -134,7 +130,6 @@ class GyroAngle(_SpinEffect):
                 self.terms.append((name, self._series(row), float(g_prior_std)))
         self.param_names = ("scale", *(name for name, _, _ in self.terms))
         self._stacked: np.ndarray | None = None
-        self._cache: dict = {}
 
     def _series(self, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return _integral(self.time_s, rate), rate, np.gradient(rate, self.time_s)
@@ -159,13 +154,8 @@ class GyroAngle(_SpinEffect):
     def _rows_at(self, t: np.ndarray) -> np.ndarray:
         """Every series at times ``t`` (linear interpolation), (3 + 3 + 3·terms, N).
 
-        A fit evaluates the same chunks of times again and again: the last few
-        are kept.
+        One search of the grid serves every series (they share ``time_s``).
         """
-        key = (t.size, float(t[0]), float(t[-1]), float(t[t.size // 2]))
-        cached = self._cache.get(key)
-        if cached is not None:
-            return cached
         if self._stacked is None:
             series = [self.angle, self.rate, self.rate_dot, self.yaw_angle, self.yaw, self.yaw_dot]
             series += [x for _, triple, _ in self.terms for x in triple]
@@ -174,11 +164,7 @@ class GyroAngle(_SpinEffect):
         right = np.clip(np.searchsorted(grid, t), 1, grid.size - 1)
         left = right - 1
         weight = np.clip((t - grid[left]) / (grid[right] - grid[left]), 0.0, 1.0)
-        rows = self._stacked[:, left] * (1.0 - weight) + self._stacked[:, right] * weight
-        if len(self._cache) >= _CACHED_CHUNKS:
-            self._cache.pop(next(iter(self._cache)))
-        self._cache[key] = rows
-        return rows
+        return self._stacked[:, left] * (1.0 - weight) + self._stacked[:, right] * weight
 
     def spin_delta(self, values, t_s, kin, jacobian, tilt_rad: float = np.pi / 2):
         """Δϑ, Δω, Δω̇ at centred times ``t_s`` and tilt α (module docstring)."""

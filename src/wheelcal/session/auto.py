@@ -78,9 +78,8 @@ def calibrate_auto(recording: Recording, options) -> SessionResult:
 
 def _fixed_axle(recording: Recording, options, axis, why: str) -> SessionResult:
     """No radius, a fixed axle: a vertical wheel fits its radius; a tilted one needs it."""
-    if axis is None:
-        drive = recording.gyro_radps
-        axle = gyro_axle(recording.time_s, drive) if drive is not None else None
+    if axis is None and recording.gyro_radps is not None:
+        axle = gyro_axle(recording.time_s, recording.gyro_radps)
         axis = None if axle is None else axle.axis
     if axis is not None and is_vertical_axle(recording, axis):
         stand = dataclasses.replace(options, geometry="vertical")

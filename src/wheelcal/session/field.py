@@ -50,12 +50,11 @@ def calibrate_field(
     rests = find_rests(recording, span)
     assessment = assess(field.result, rests, gates)
     reason = "; ".join(x for x in (why, field.geometry.reason) if x)
-    choice = WindowChoice(drive, window.found, window.reason)
     session = SessionResult(
         source=recording.source,
         result=field.result,
         assessment=assessment,
-        window=choice,
+        window=window,
         rests=rests,
         diagnosis=None,
         recording=recording,

@@ -109,23 +109,21 @@ def effect_priors(
 ) -> tuple[float, np.ndarray, np.ndarray] | None:
     """The effects' Gaussian priors: cost Σ (x − μ)²/σ², gradient (x − μ)/σ², information 1/σ².
 
-    An effect with ``prior_std_values()`` (σ per parameter, ∞ for none) — e.g. a
-    gyro's sensitivity to acceleration of its sensor class — adds them once per
-    stream, as pseudo-observations; gradient and information are over the layout.
-    The mean μ is zero unless the effect has ``prior_mean_values()`` (a scale's 1).
+    An effect whose ``prior_std_values()`` is not None (σ per parameter, ∞ for none)
+    — e.g. a gyro's sensitivity to acceleration of its sensor class — adds them once
+    per stream, as pseudo-observations around ``prior_mean_values()``; gradient and
+    information are over the layout.
     """
     found = False
     cost, grad, info = 0.0, np.zeros(layout.size), np.zeros(layout.size)
     for effect in layout.effects:
-        std = getattr(effect, "prior_std_values", lambda: None)()
+        std = effect.prior_std_values()
         if std is None:
             continue
         found = True
         block = layout.blocks[f"effect:{effect.name}"]
         x = np.asarray(params.effect(effect.name, effect.size), dtype=float)
-        mean = getattr(effect, "prior_mean_values", lambda: None)()
-        if mean is not None:
-            x = x - np.asarray(mean, dtype=float)
+        x = x - effect.prior_mean_values()
         weight = 1.0 / np.asarray(std, dtype=float) ** 2
         cost += float(np.sum(weight * x * x))
         grad[block] += weight * x
