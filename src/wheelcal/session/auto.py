@@ -69,7 +69,7 @@ def calibrate_auto(recording: Recording, options) -> SessionResult:
     except (CalibrationRefused, RecordingError) as exc:
         # The field fit could not read a rolling wheel: a wheel on a fixed axle.
         gate = exc.gate if isinstance(exc, CalibrationRefused) else "error"
-        why = f"not a rolling wheel (the field fit does not calibrate it: {gate})"
+        why = f"the field fit refused it as a rolling wheel: {gate}"
         return _fixed_axle(recording, options, None, why)
     if field.geometry.kind == "rolling":
         return session
@@ -86,9 +86,9 @@ def _fixed_axle(recording: Recording, options, axis, why: str) -> SessionResult:
         why = f"{why}; the axle is horizontal: a vertical wheel on a stand"
         return _detected(stand.session_fit().run(recording), "vertical", why)
     raise RecordingError(
-        f"{recording.source}: no radius given, and the wheel turns on a tilted fixed axle "
-        f"({why}): the radius (the sensor's distance from the axle, measured) is needed to "
-        "scale the gains — give --radius"
+        f"{recording.source}: no radius given: the wheel turns on a tilted fixed axle ({why}), "
+        "and the radius (the sensor's distance from the axle, measured) is needed to scale "
+        "the gains — give --radius"
     )
 
 
