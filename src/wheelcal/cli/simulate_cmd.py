@@ -18,8 +18,9 @@ FIELD_PRESETS = ("car", "robot", "wheelchair", "stand")
 #: The command's one-line help and its --help description.
 HELP = "write a simulated recording (MCAP) with known truth"
 DESCRIPTION = (
-    "Simulate a hand-spun wheel session (rest, push, free spin, brake, rest) and write "
-    "it as a contract MCAP with the wheelcal.session metadata."
+    "Simulate a hand-spun wheel session (rest, push, free spin, brake, rest) — or, with "
+    "--preset car|robot|wheelchair|stand, a wheel in the field — and write it as a contract "
+    "MCAP with the wheelcal.session metadata."
 )
 
 
@@ -194,9 +195,9 @@ def _run_field(args: argparse.Namespace, rng) -> int:
         wheelchair_coast,
     )
 
-    make = {"car": car_drive, "robot": robot_drive, "wheelchair": wheelchair_coast}
-    make["stand"] = stand_spin
-    sim = simulate_field(make[args.preset](rng), rng)
+    profiles = (car_drive, robot_drive, wheelchair_coast, stand_spin)
+    make = dict(zip(FIELD_PRESETS, profiles, strict=True))[args.preset]
+    sim = simulate_field(make(rng), rng)
     info = sim.recording.info.merged(sensor_id=args.sensor_id, mounting_id=args.mounting_id)
     recording = dataclasses.replace(sim.recording, info=info, source=args.out)
     write_recording(recording, args.out, encoding=args.format, batch_size=args.batch)
