@@ -16,6 +16,7 @@ reported σ against the observed spread of (value − truth).
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 
 import numpy as np
@@ -102,6 +103,44 @@ def test_a_drive_calibrates_with_default_options_and_no_radius(kind):
     # the radius and the tilt are always reported; what is null is a sensor parameter
     assert {"radius_m", "tilt_deg"} <= set(drive.z_crlb)
     assert set(drive.nulls) <= set(SENSOR)
+
+
+def test_a_robot_whose_gyro_reads_gravity_as_a_steady_yaw():
+    """Regression: with the yaw's steady offset ε held at zero, this drive's r was 7.5 σ off."""
+    drive = _calibrate("robot", seed=308)
+    assert drive.refused is None, drive.refused
+    worst = max(drive.z_crlb.items(), key=lambda kv: abs(kv[1]))
+    assert abs(worst[1]) <= Z_MAX, worst
+
+
+def test_a_negative_radius_has_a_twin_with_the_same_forces():
+    """r → −r with ϑ + π and R·diag(−1, −1, 1): the model predicts the same samples."""
+    from wheelcal.estimate.field.fit import _half_turned
+    from wheelcal.model import evaluate
+    from wheelcal.simulate import table1
+
+    params = table1().truth
+    t = np.linspace(-40.0, 40.0, 4001)
+    twin = _half_turned(params)
+    assert twin.bench.radius_m == -params.bench.radius_m
+    np.testing.assert_allclose(
+        evaluate(twin, t).predicted_mps2, evaluate(params, t).predicted_mps2, atol=1e-9
+    )
+
+
+def test_calibrate_prints_and_writes_the_detected_geometry(tmp_path, capsys):
+    from wheelcal.cli.main import main
+
+    drive, out = tmp_path / "drive.mcap", tmp_path / "cal"
+    assert main(["simulate", str(drive), "--preset", "car", "--seed", "5"]) == 0
+    assert main(["calibrate", str(drive), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "geometry rolling (detected): the gyroscope shows the wheel's carrier turning" in (
+        printed
+    )
+    assert "model: the field fit" in printed
+    bench = json.loads((out / "drive.calibration.json").read_text())["bench"]
+    assert (bench["geometry"], bench["radius_source"]) == ("rolling", "fitted")
 
 
 def test_the_session_says_where_its_geometry_came_from():
