@@ -113,6 +113,15 @@ def test_a_robot_whose_gyro_reads_gravity_as_a_steady_yaw():
     assert abs(worst[1]) <= Z_MAX, worst
 
 
+def test_a_robot_whose_gyro_has_a_bias_across_the_axle():
+    """Regression: the bias (0.026 rad/s) leaned the gyro's axle by 0.15° and read as a yaw
+    turning with the wheel; offset_y came out 7 σ off."""
+    drive = _calibrate("robot", seed=1061)
+    assert drive.refused is None, drive.refused
+    worst = max(drive.z_crlb.items(), key=lambda kv: abs(kv[1]))
+    assert abs(worst[1]) <= Z_MAX, worst
+
+
 def test_a_negative_radius_has_a_twin_with_the_same_forces():
     """r → −r with ϑ + π and R·diag(−1, −1, 1): the model predicts the same samples."""
     from wheelcal.estimate.field.fit import _half_turned
