@@ -21,7 +21,8 @@ def _drive(rng: np.random.Generator, axis: np.ndarray, bias: np.ndarray):
     e2 = np.cross(axis, e1)
     up = np.outer(np.cos(theta), e1) + np.outer(np.sin(theta), e2)  # turns with the wheel
     yaw = 0.3 * np.sin(2 * np.pi * t / 9.0) * (omega > 1.0)
-    gyro = np.outer(omega, axis) + yaw[:, None] * up + bias + 0.003 * rng.standard_normal((t.size, 3))
+    noise = 0.003 * rng.standard_normal((t.size, 3))
+    gyro = np.outer(omega, axis) + yaw[:, None] * up + bias + noise
     return t, gyro
 
 
