@@ -22,10 +22,12 @@ On a vertical wheel (α = 90°) cot α = 0: the yaw does not enter; on a cambere
 one the wheel turns on its carrier by ψ̇ sin γ in a turn, and the accelerometer
 sees that turn of gravity's phase — which is what measures the camber.
 
-The gyro's noise, integrated, walks the angle by σ_ω √(T/f_s) (≈ 2 mrad over
-two minutes of a consumer gyro), far below what the accelerometer can resolve
-against road vibration: the angle is taken as measured, and its three
-parameters (ϑ₀, ω₀, s) are fitted.
+The gyro's noise, integrated, walks the angle by q √T (≈ 2 mrad over two
+minutes of a consumer gyro).  The angle is taken as measured and its three
+parameters (ϑ₀, ω₀, s) are fitted; the walk is below what the accelerometer
+resolves on a car, but on a robot's wheel it moves the camber and the axle
+axis's offset by 1–2 σ, so the field fit adds its propagated covariance to the
+reported σ (:mod:`wheelcal.estimate.field.robust`).
 
 **The gyro's response across its axle.**  A gyro's axes differ in scale by
 1–2 %, so its reading along the axle also sees a rate across it: the yaw, as

@@ -33,7 +33,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.field.gyro_axle import GyroAxle, gyro_axle, smoothed_accel, yaw_across
+from wheelcal.estimate.field.gyro_axle import (
+    GyroAxle,
+    gyro_axle,
+    rate_noise_density,
+    smoothed_accel,
+    yaw_across,
+)
 from wheelcal.estimate.field.robust import robust_result
 from wheelcal.estimate.field.start import field_start
 from wheelcal.estimate.joint.fit import JointFit
@@ -291,7 +297,9 @@ class FieldFit:
             # r came out negative: the same forces with ϑ advanced by π; reported r > 0
             twin = _half_turned(result.params)
             result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=twin)
-        return robust_result(result, window.accel_mps2) if self.robust_sigma else result
+        if not self.robust_sigma:
+            return result
+        return robust_result(result, window.accel_mps2, rate_noise_density(tc, axle.rate_radps))
 
 
 def _plausible_gains(params: CalibrationParams) -> CalibrationParams:
