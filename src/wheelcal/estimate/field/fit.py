@@ -37,6 +37,7 @@ from wheelcal.estimate.field.gyro_axle import (
     GyroAxle,
     gyro_axle,
     rate_noise_density,
+    refined_axle,
     smoothed_accel,
     yaw_across,
 )
@@ -122,7 +123,7 @@ class FieldFit:
     fit_yaw_offset: bool = True
     fit_cross: bool = True
     fit_g_sensitivity: bool = True
-    #: Each σ the larger of the model's and the sandwich's (:mod:`~wheelcal.estimate.field.robust`).
+    #: σ from the sandwich and the gyro's angle walk (:mod:`~wheelcal.estimate.field.robust`).
     robust_sigma: bool = True
     #: The final fit lets the sensor's axes be non-orthogonal (:class:`CrossAxis`).
     fit_cross_axis: bool = True
@@ -236,7 +237,9 @@ class FieldFit:
         """
         params = _plausible_gains(travelled.params)
         theta = wheel_kinematics(params, tc, travelled.layout.effects).theta_rad
-        y, y_dot = yaw_across(tc, window.gyro_radps, axle, theta, params.bench.misalignment.matrix)
+        rotation = params.bench.misalignment.matrix
+        axle = refined_axle(window.gyro_radps, axle, theta, rotation)
+        y, y_dot = yaw_across(tc, window.gyro_radps, axle, theta, rotation)
         scale = float(params.effect("gyro_angle", 1)[0])
         cross = np.vstack([y * np.cos(theta), y * np.sin(theta)]) if self.fit_cross else None
         accel = smoothed_accel(tc, window.accel_mps2) if self.fit_g_sensitivity else None
