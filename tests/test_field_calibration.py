@@ -122,6 +122,24 @@ def test_a_robot_whose_gyro_has_a_bias_across_the_axle():
     assert abs(worst[1]) <= Z_MAX, worst
 
 
+def test_a_car_that_rolls_in_its_turns_is_refused_by_name():
+    """A camber that follows the turns (body roll, 0.8°/(m/s²)) is out of scope: the fit
+    put it into offset_x (15 σ off) and the camber (16 σ) with no other gate firing."""
+    rng = np.random.default_rng(3)
+    scenario = dataclasses.replace(car_drive(rng), body_roll_deg_per_mps2=0.8)
+    sim = simulate_field(scenario, rng)
+    with pytest.raises(CalibrationRefused) as refused:
+        wheelcal.calibrate(sim.recording)
+    assert refused.value.gate == "lean"
+    assert "camber changes by" in str(refused.value) and "--max-lean-change-deg" in str(
+        refused.value
+    )
+    # the same drive without the roll is calibrated (and its lean is read as small)
+    rng = np.random.default_rng(3)
+    cal = wheelcal.calibrate(simulate_field(car_drive(rng), rng).recording)
+    assert cal.session.geometry == "rolling"
+
+
 def test_a_negative_radius_has_a_twin_with_the_same_forces():
     """r → −r with ϑ + π and R·diag(−1, −1, 1): the model predicts the same samples."""
     from wheelcal.estimate.field.fit import _half_turned

@@ -107,6 +107,8 @@ GATE_FLAGS = {
     "unexplained_ratio": "warn when the residual exceeds this × the noise floor (default 1.5)",
     "max_harmonic_ratio": "refuse when the residual at the wheel harmonics exceeds this × "
     "the noise floor (default 5)",
+    "max_lean_change_deg": "refuse a drive whose wheel camber changes by more than this, ° "
+    "(default 1)",
 }
 
 

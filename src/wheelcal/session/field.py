@@ -14,7 +14,7 @@ import numpy as np
 
 from wheelcal.estimate.field.fit import FieldFit, FieldResult
 from wheelcal.estimate.rests import find_rests
-from wheelcal.recording import Recording, RecordingError
+from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.fit import assess
 from wheelcal.session.gates import Gates
 from wheelcal.session.result import SessionResult, WindowChoice
@@ -46,6 +46,7 @@ def calibrate_field(
     window = window or field_window(recording)
     drive = window.recording
     field = (fit or FieldFit()).fit(drive)
+    _refuse_a_lean(recording.source, field, gates)
     span = (float(drive.time_s[0]), float(drive.time_s[-1]))
     rests = find_rests(recording, span)
     assessment = assess(field.result, rests, gates)
@@ -64,6 +65,22 @@ def calibrate_field(
         geometry_reason=reason,
     )
     return session, field
+
+
+def _refuse_a_lean(source: str, field: FieldResult, gates: Gates) -> None:
+    """A camber that changes during the drive is out of scope: refused by name ("lean")."""
+    lean = field.geometry.lean_change_deg
+    if field.geometry.kind == "rolling" and lean > gates.max_lean_change_deg:
+        raise CalibrationRefused(
+            source,
+            "lean",
+            f"the wheel's camber changes by {lean:.1f}° during the drive (the gyro reads the "
+            "wheel rolling about the direction of travel: a vehicle's body roll or lean); the "
+            "model has one camber, and a lean that follows the turns would hide in the gains, "
+            "offsets and camber",
+            "calibrate from straight runs or a vehicle that does not lean, or on a bench; "
+            f"--max-lean-change-deg (now {gates.max_lean_change_deg:g}) sets the limit",
+        )
 
 
 def yaw_rms_radps(recording: Recording) -> float:

@@ -70,6 +70,9 @@ class Gates:
     max_window_s: float = 300.0
     min_window_s: float = 20.0
     max_harmonic_ratio: float = 5.0
+    #: A wheel in the field: how far its camber may change during the drive (°), from
+    #: the gyro's roll about the direction of travel (the model has one camber).
+    max_lean_change_deg: float = 1.0
     # warn
     gain_tolerance: float = 0.05
     offset_tolerance_g: float = 0.1
@@ -93,6 +96,7 @@ class Gates:
             "max_window_s",
             "min_window_s",
             "max_harmonic_ratio",
+            "max_lean_change_deg",
         ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):

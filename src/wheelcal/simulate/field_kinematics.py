@@ -92,12 +92,22 @@ from wheelcal.simulate.field_wheel import WheelGeometry
 UP = np.array([0.0, 0.0, 1.0])
 
 
-def bench_axes(theta_rad: np.ndarray, heading_rad: np.ndarray, wheel: WheelGeometry) -> np.ndarray:
-    """A = [X Y Z] (N, 3, 3): the bench axes as world vectors (columns)."""
+def bench_axes(
+    theta_rad: np.ndarray,
+    heading_rad: np.ndarray,
+    wheel: WheelGeometry,
+    camber_rad: np.ndarray | None = None,
+) -> np.ndarray:
+    """A = [X Y Z] (N, 3, 3): the bench axes as world vectors (columns).
+
+    ``camber_rad``: γ per sample (a wheel that leans, :class:`Lean`); default the wheel's.
+    """
     theta = np.asarray(theta_rad, dtype=float)[:, None]
     heading = np.asarray(heading_rad, dtype=float)
     forward, left = _forward_left(heading)
     gamma, side = wheel.camber_rad, wheel.side
+    if camber_rad is not None:
+        gamma = np.asarray(camber_rad, dtype=float)[:, None]
     axle = side * np.cos(gamma) * left + np.sin(gamma) * UP
     up_in_plane = np.cos(gamma) * UP - side * np.sin(gamma) * left
     across = side * forward  # w = Z × u
@@ -151,18 +161,44 @@ class WheelKinematics:
         return _to_bench(self.axes, world)
 
 
-def wheel_kinematics(state: MotionState, wheel: WheelGeometry) -> WheelKinematics:
-    """Evaluate the module docstring's world-frame formulas at the states' samples."""
-    axes = bench_axes(state.theta_rad, state.heading_rad, wheel)
+@dataclass(frozen=True, eq=False)
+class Lean:
+    """A camber that changes during the drive: γ(t), γ̇, γ̈ per sample (rad, rad/s, rad/s²).
+
+    The carrier rolls about the direction of travel through the hub (a car's body
+    roll, a bicycle's lean), at γ̇ σ f (dZ/dγ = u, and σ f × Z = u); the hub's path
+    is unchanged.  Out of the estimator's scope: it refuses such a drive by name.
+    """
+
+    camber_rad: np.ndarray
+    rate_radps: np.ndarray
+    accel_radps2: np.ndarray
+
+
+def wheel_kinematics(
+    state: MotionState, wheel: WheelGeometry, lean: Lean | None = None
+) -> WheelKinematics:
+    """Evaluate the module docstring's world-frame formulas at the states' samples.
+
+    With ``lean`` the carrier turns at Ω_c = ψ̇ e_z + γ̇ σ f, so Ω = Ω_c − ω Z,
+    Ż = Ω_c × Z and Ω̇ = ψ̈ e_z + γ̈ σ f + γ̇ σ ψ̇ l − ω̇ Z − ω Ż (ḟ = ψ̇ l).
+    """
+    camber = None if lean is None else lean.camber_rad
+    axes = bench_axes(state.theta_rad, state.heading_rad, wheel, camber)
     axle = axes[:, :, 2]
     yaw_rate = state.yaw_rate_radps[:, None]
     omega = state.omega_radps[:, None]
-    rate = yaw_rate * UP - omega * axle  # Ω = ψ̇ e_z − ω Z
-    axle_dot = yaw_rate * np.cross(UP, axle)  # Ż = ψ̇ e_z × Z
-    rate_dot = (
-        state.yaw_accel_radps2[:, None] * UP - state.omega_dot_radps2[:, None] * axle
-    ) - omega * axle_dot
     forward, left = _forward_left(state.heading_rad)
+    carrier = yaw_rate * UP  # Ω_c
+    carrier_dot = state.yaw_accel_radps2[:, None] * UP
+    if lean is not None:
+        travel = wheel.side * forward  # σ f
+        carrier = carrier + lean.rate_radps[:, None] * travel
+        carrier_dot = carrier_dot + lean.accel_radps2[:, None] * travel
+        carrier_dot = carrier_dot + (lean.rate_radps[:, None] * yaw_rate) * wheel.side * left
+    rate = carrier - omega * axle  # Ω = Ω_c − ω Z
+    axle_dot = np.cross(carrier, axle)  # Ż = Ω_c × Z
+    rate_dot = carrier_dot - state.omega_dot_radps2[:, None] * axle - omega * axle_dot
     speed = state.speed_mps[:, None]
     hub_velocity = speed * forward
     hub_accel = state.speed_dot_mps2[:, None] * forward + speed * yaw_rate * left

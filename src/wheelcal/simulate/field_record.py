@@ -19,6 +19,7 @@ Random draws, in order: accelerometer noise, vibration, gyro noise, glitches.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,7 +34,7 @@ from wheelcal.model import (
 )
 from wheelcal.model.kinematics import Kinematics
 from wheelcal.recording import Recording, SessionInfo
-from wheelcal.simulate.field_kinematics import wheel_kinematics
+from wheelcal.simulate.field_kinematics import Lean, wheel_kinematics
 from wheelcal.simulate.field_motion import AxleSpin, MotionState, VehiclePath
 from wheelcal.simulate.field_wheel import WheelGeometry
 from wheelcal.simulate.gyro import GyroSpec
@@ -81,6 +82,9 @@ class FieldScenario:
     sensor_id: str = ""
     free_spin: SpinParams | None = None
     epoch_unix_ns: int = 1_700_000_000_000_000_000
+    #: A rolling wheel's camber changes by this much per m/s² of lateral acceleration
+    #: v ψ̇ (a car's body roll; :class:`~wheelcal.simulate.field_kinematics.Lean`).
+    body_roll_deg_per_mps2: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.duration_s > 0 and self.rate_hz > 0):
@@ -96,6 +100,8 @@ class FieldScenario:
             raise ValueError("vibration that follows the hands needs a fixed axle's spin")
         if self.include_radius and not self.wheel.radius_m > 0:
             raise ValueError("include_radius needs a sensor off the axle (radius_m > 0)")
+        if self.body_roll_deg_per_mps2 and not rolling:
+            raise ValueError("body roll needs a rolling wheel")
 
     @property
     def geometry(self) -> str:
@@ -265,12 +271,34 @@ def _window(scenario: FieldScenario, t: np.ndarray, speed: np.ndarray) -> tuple[
     return float(t[moving[0]]), float(t[moving[-1]])
 
 
+def _leaning(
+    state: MotionState, wheel: WheelGeometry, roll_rad_per_mps2: float, t: np.ndarray
+) -> tuple[MotionState, Lean]:
+    """γ(t) = γ₀ + k v ψ̇, and the wheel's ω = ψ̇ sin γ(t) − σ v/ρ with it (ϑ integrated)."""
+    v, v_dot = state.speed_mps, state.speed_dot_mps2
+    yaw, yaw_dot = state.yaw_rate_radps, state.yaw_accel_radps2
+    gamma = wheel.camber_rad + roll_rad_per_mps2 * v * yaw
+    gamma_dot = roll_rad_per_mps2 * (v_dot * yaw + v * yaw_dot)
+    extra = (np.sin(gamma) - np.sin(wheel.camber_rad)) * yaw
+    turned = np.concatenate([[0.0], np.cumsum(0.5 * (extra[1:] + extra[:-1]) * np.diff(t))])
+    state = dataclasses.replace(
+        state,
+        theta_rad=state.theta_rad + turned - np.interp(0.0, t, turned),
+        omega_radps=state.omega_radps + extra,
+        omega_dot_radps2=state.omega_dot_radps2 + np.gradient(extra, t),
+    )
+    return state, Lean(gamma, gamma_dot, np.gradient(gamma_dot, t))
+
+
 def simulate_field(scenario: FieldScenario, rng: np.random.Generator) -> FieldSimulation:
     """Record ``scenario`` (module docstring); ``rng`` is the only source of randomness."""
     t = scenario.times_s()
     wheel = scenario.wheel
     state = scenario.motion.state(t, wheel)
-    kin = wheel_kinematics(state, wheel)
+    lean = None
+    if scenario.body_roll_deg_per_mps2:
+        state, lean = _leaning(state, wheel, np.deg2rad(scenario.body_roll_deg_per_mps2), t)
+    kin = wheel_kinematics(state, wheel, lean)
     force = kin.specific_force_bench(scenario.gravity_mps2)
     rot = scenario.mounting.matrix
     gain, offset = scenario.sensor.gain, scenario.sensor.offset_mps2

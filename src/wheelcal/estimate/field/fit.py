@@ -36,6 +36,7 @@ import numpy as np
 from wheelcal.estimate.field.gyro_axle import (
     GyroAxle,
     gyro_axle,
+    lean_change_rad,
     rate_noise_density,
     refined_axle,
     smoothed_accel,
@@ -83,6 +84,8 @@ class FieldGeometry:
     reason: str
     travel_z: float  # ρ / σ_ρ of pass 2
     yaw_rms_radps: float
+    #: How far the camber changed during the drive, from the gyro (2–98 % range, °).
+    lean_change_deg: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,6 +172,7 @@ class FieldFit:
             )
             return FieldResult(first, geometry, axle)
         final = self._turns(window, lead, tc, axle, second, radius, stride)
+        axle, lean_rad = _lean(window, tc, axle, final)
         camber = 90.0 - float(np.rad2deg(final.params.bench.tilt_rad))
         why = []
         if z > self.travel_z:
@@ -178,9 +182,12 @@ class FieldFit:
         geometry = FieldGeometry(
             "rolling",
             camber,
-            "a rolling wheel: " + " and ".join(why) + f"; camber {camber:.2f}° from the data",
+            "a rolling wheel: "
+            + " and ".join(why)
+            + f"; camber {camber:.2f}° from the data, changing by {np.rad2deg(lean_rad):.2f}°",
             float(z),
             axle.yaw_rms_radps,
+            float(np.rad2deg(lean_rad)),
         )
         return FieldResult(final, geometry, axle)
 
@@ -303,6 +310,16 @@ class FieldFit:
         if not self.robust_sigma:
             return result
         return robust_result(result, window.accel_mps2, rate_noise_density(tc, axle.rate_radps))
+
+
+def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tuple:
+    """The axle refined at the final fit's ϑ and R, and how far the camber changed (rad)."""
+    params = final.params
+    theta = wheel_kinematics(params, tc, final.layout.effects).theta_rad
+    rotation = params.bench.misalignment.matrix
+    axle = refined_axle(window.gyro_radps, axle, theta, rotation)
+    yaw, _ = yaw_across(tc, window.gyro_radps, axle, theta, rotation)
+    return axle, lean_change_rad(tc, window.gyro_radps, axle, theta, rotation, yaw)
 
 
 def _plausible_gains(params: CalibrationParams) -> CalibrationParams:

@@ -199,3 +199,43 @@ def yaw_across(
     size = np.sqrt(np.maximum(_lowpass(power, rate_hz, YAW_BAND_HZ) - noise, 0.0))
     y = np.sign(signed) * size
     return y, np.gradient(_lowpass(y, rate_hz, YAW_BAND_HZ), t)
+
+
+def lean_change_rad(
+    time_s: np.ndarray,
+    gyro_radps: np.ndarray,
+    axle: GyroAxle,
+    theta_rad: np.ndarray,
+    rotation: np.ndarray,
+    yaw_radps: np.ndarray,
+) -> float:
+    """How far the wheel's camber changes during the drive (2–98 % range, rad), from the gyro.
+
+    A carrier that leans (a car's body roll, a bicycle) turns the wheel about the
+    direction of travel, which the gyro reads across the axle and ⊥ the yaw's
+    direction: along R (−sin ϑ, cos ϑ, 0) (:func:`refined_axle`).  Its integral, low-passed,
+    is the lean — less what the gyro's own errors put there: a constant and a
+    drift (bias and noise), the heading ∫y (its axes' misalignment about the axle),
+    and ∫y sin 2ϑ, ∫y cos 2ϑ (the scale difference of its axes across the axle, which
+    a robot turning on the spot does not average out).
+    """
+    t = np.asarray(time_s, dtype=float)
+    gyro = np.asarray(gyro_radps, dtype=float)
+    rate_hz = 1.0 / float(np.median(np.diff(t)))
+    side = _side(theta_rad, rotation)
+    lean_rate = _lowpass(np.sum(axle.across(gyro) * side, axis=1), rate_hz, 1.0)
+    dt = np.gradient(t)
+    lean = np.cumsum(lean_rate * dt)
+    twice = 2.0 * np.asarray(theta_rad, dtype=float)
+    design = np.column_stack(
+        [
+            np.ones_like(t),
+            t - t.mean(),
+            np.cumsum(yaw_radps * dt),
+            np.cumsum(yaw_radps * np.sin(twice) * dt),
+            np.cumsum(yaw_radps * np.cos(twice) * dt),
+        ]
+    )
+    coef, *_ = np.linalg.lstsq(design, lean, rcond=None)
+    low, high = np.percentile(lean - design @ coef, [2.0, 98.0])
+    return float(high - low)
