@@ -388,8 +388,13 @@ def _normal_by_quadrature(
         output = evaluated.output_at(params, t) if evaluated is not None else None
         if output is None:
             output = evaluate(params, t, layout)
-        _, u = whitened_back(output.predicted_mps2 - recording.accel_mps2[lo:stop], noise)
-        base, adjoint = reverse_pass(params, t, layout, u, output)
+            u, base, adjoint = _reverse(
+                params, t, layout, noise, recording.accel_mps2[lo:stop], output
+            )
+        else:
+            u, base, adjoint = _reverse_at(
+                evaluated, params, t, layout, noise, recording.accel_mps2
+            )
         grad[:size] += base
         table = lean_columns(candidates, params, output, t)
         force = output.force
@@ -421,6 +426,24 @@ def _normal_by_quadrature(
         extra = _from_kept(candidates, layout, tc, *kept)
     hess = quadrature_hessian(params, tc, layout, noise, rows, extra)
     return hess, grad
+
+
+def _reverse(params, t_s, layout, noise, accel_mps2, output):
+    """The residual whitened back (u = Wᵀ W r), the fit's parameters' sums Jᵀu, ϑ's rows."""
+    _, u = whitened_back(output.predicted_mps2 - accel_mps2, noise)
+    return u, *reverse_pass(params, t_s, layout, u, output)
+
+
+def _reverse_at(evaluated: EvaluatedModel, params, t_s, layout, noise, accel_mps2):
+    """:func:`_reverse` over the whole window, from the fit's own gradient pass if it took one.
+
+    The joint fit's last gradient pass at its result (its noise model, these samples)
+    computed the very same sums (:class:`~wheelcal.model.forward.ReverseAt`).
+    """
+    kept = evaluated.reverse_for(noise, accel_mps2)
+    if kept is None:
+        return _reverse(params, t_s, layout, noise, accel_mps2, evaluated.output)
+    return kept.weights, kept.gradient, kept.adjoint
 
 
 def _from_kept(candidates, layout, tc: np.ndarray, table: list, spin_rows: list):

@@ -32,7 +32,7 @@ from wheelcal.estimate.joint.fisher_quadrature import (
 )
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
-from wheelcal.model.forward import jacobian_transpose_times
+from wheelcal.model.forward import ReverseAt, reverse_pass
 
 #: Samples per chunk: ~12 MB of Jacobian for 18 columns; one chunk for a typical
 #: 90 s / 200 Hz recording, bounded memory for long or fast ones.
@@ -365,6 +365,7 @@ def gradient_pass(
     chunk: int | None = None,
     residual_out: np.ndarray | None = None,
     output: ModelOutput | None = None,
+    reverse_out: list | None = None,
 ) -> NormalEquations:
     """Cost and g = J̃ᵀr̃ without H: the whitening applied to the residual, not to J.
 
@@ -378,7 +379,9 @@ def gradient_pass(
     chunk; so the chunks' sums add up to the whole.  ``residual_out`` (N, 3), when
     given, receives the residual data − model.  ``output``: the model (no Jacobian)
     at ``params`` over all of ``t_s`` when the caller has evaluated it (the paper's
-    model, one chunk).
+    model, one chunk).  ``reverse_out``, when given with ``output``, receives the pass's
+    :class:`~wheelcal.model.forward.ReverseAt` (u, the sums and the wheel angle's
+    adjoint rows: what a score test at ``params`` needs again).
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
@@ -407,7 +410,10 @@ def gradient_pass(
         cost += float(np.sum(rw * rw))
         entries += rw.size
         if reverse:
-            grad += jacobian_transpose_times(params, t_s[lo:stop], layout, u, out)
+            base, adjoint = reverse_pass(params, t_s[lo:stop], layout, u, out)
+            grad += base
+            if reverse_out is not None and output is not None:
+                reverse_out.append(ReverseAt(u, base, adjoint, (noise, accel_mps2)))
         else:
             grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
     normal = NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
