@@ -29,7 +29,7 @@ from scipy import special
 
 from wheelcal.closedloop.rest_stream import rest_normal, usable_rests
 from wheelcal.estimate.gyro.block import regress_gyro
-from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_columns
+from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_scores
 from wheelcal.estimate.joint.fisher_quadrature import quadrature_rows, stride_for
 from wheelcal.estimate.joint.fit import gyro_samples
 from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect
@@ -49,7 +49,6 @@ from wheelcal.model.forward import (
     EvaluatedModel,
     candidate_columns,
     reverse_pass,
-    spin_columns,
 )
 from wheelcal.recording import Recording
 
@@ -366,13 +365,15 @@ def _normal_by_quadrature(
 ) -> tuple[np.ndarray, np.ndarray]:
     """H over [the fit's parameters | the candidates] by quadrature, g over every sample.
 
-    H sums smooth functions of time (:mod:`~wheelcal.estimate.joint.fisher_quadrature`);
+    H sums smooth functions of time (:mod:`~wheelcal.estimate.joint.fisher_quadrature`):
+    the candidates' columns are formed at the quadrature's clusters only
+    (:func:`~wheelcal.estimate.joint.candidate_columns.candidate_extra`).
     g = J̃ᵀr̃ is a sum of noise, taken over every sample without a Jacobian: the
     residual whitened back (u = WᵀW r), the fit's parameters by the model's reverse
-    mode, a sensor candidate as Σ (its column on its axis) · u, a spin candidate
+    mode (both from the fit's own last gradient pass when it took one there:
+    :func:`_reverse_at`), a sensor candidate as Σ (its column on its axis) · u
+    (:func:`~wheelcal.estimate.joint.candidate_columns.lean_scores`), a spin candidate
     through the wheel angle's adjoint rows (:func:`~wheelcal.model.forward.spin_adjoint`).
-    For a window of one chunk the candidates' lean columns are computed once, for
-    the score, and the quadrature's clusters take theirs from them.
     """
     params, layout, noise = fit.params, fit.layout, fit.noise
     tc = recording.time_s - fit.centre_s
@@ -380,7 +381,6 @@ def _normal_by_quadrature(
     width = sum(c.size for c in candidates)
     grad = np.zeros(size + width)
     p = noise.order
-    kept = None  # (output, lean columns, spin rows) over every sample: one chunk
     for start in range(0, tc.size, CHUNK_SAMPLES):
         stop = min(tc.size, start + CHUNK_SAMPLES)
         lo = max(0, start - p)
@@ -388,29 +388,20 @@ def _normal_by_quadrature(
         output = evaluated.output_at(params, t) if evaluated is not None else None
         if output is None:
             output = evaluate(params, t, layout)
-            u, base, adjoint = _reverse(
-                params, t, layout, noise, recording.accel_mps2[lo:stop], output
-            )
-        else:
-            u, base, adjoint = _reverse_at(
-                evaluated, params, t, layout, noise, recording.accel_mps2
-            )
+            data = recording.accel_mps2[lo:stop]
+            u, base, adjoint = _reverse(params, t, layout, noise, data, output)
+        else:  # the whole window
+            data = recording.accel_mps2
+            u, base, adjoint = _reverse_at(evaluated, params, t, layout, noise, data)
         grad[:size] += base
-        table = lean_columns(candidates, params, output, t)
+        scores = lean_scores(candidates, params, output, t, u)
         force = output.force
-        spin_rows = [
-            c.own_rows(t, output.kinematics, force.sin_theta, force.cos_theta)
-            if c.stage == "spin"
-            else None
-            for c in candidates
-        ]
         row = size
-        for cand, lean, rows in zip(candidates, table, spin_rows, strict=True):
-            if lean is not None:
-                values, axes = lean
-                for k, axis in enumerate(axes):
-                    grad[row + k] += values[k] @ u[axis]
-            elif rows is not None:
+        for cand, score in zip(candidates, scores, strict=True):
+            if score is not None:
+                grad[row : row + cand.size] += score
+            elif cand.stage == "spin":
+                rows = cand.own_rows(t, output.kinematics, force.sin_theta, force.cos_theta)
                 grad[row : row + cand.size] += sum(
                     r @ a for r, a in zip(rows, adjoint, strict=True)
                 )
@@ -418,12 +409,8 @@ def _normal_by_quadrature(
                 cols = candidate_columns(params, t, layout, cand, output)
                 grad[row : row + cand.size] += cols.reshape(cand.size, -1) @ u.reshape(-1)
             row += cand.size
-        if lo == 0 and stop == tc.size:
-            kept = (table, spin_rows)
     rows = quadrature_rows(tc.size, noise.order, stride)
     extra = candidate_extra(candidates, layout)
-    if kept is not None:
-        extra = _from_kept(candidates, layout, tc, *kept)
     hess = quadrature_hessian(params, tc, layout, noise, rows, extra)
     return hess, grad
 
@@ -444,30 +431,6 @@ def _reverse_at(evaluated: EvaluatedModel, params, t_s, layout, noise, accel_mps
     if kept is None:
         return _reverse(params, t_s, layout, noise, accel_mps2, evaluated.output)
     return kept.weights, kept.gradient, kept.adjoint
-
-
-def _from_kept(candidates, layout, tc: np.ndarray, table: list, spin_rows: list):
-    """``extra`` callback taking the candidates' columns at the clusters from every sample's."""
-
-    def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
-        index = np.searchsorted(tc, t_s)  # the clusters' samples (times are increasing)
-        cols = np.zeros((extra.size, 3, t_s.size))
-        row = 0
-        for cand, lean, rows in zip(candidates, table, spin_rows, strict=True):
-            if lean is not None:
-                values, axes = lean
-                for k, axis in enumerate(axes):
-                    cols[row + k, axis] = values[k][index]
-            elif rows is not None:
-                here = tuple(r[:, index] for r in rows)
-                spin_columns(params, t_s, layout, here, output, cols[row : row + cand.size])
-            else:
-                cols[row : row + cand.size] = candidate_columns(params, t_s, layout, cand, output)
-            row += cand.size
-        return cols
-
-    extra.size = sum(c.size for c in candidates)
-    return extra
 
 
 def finish_tests(contributions: list[ScoreContribution]) -> list[ScoreTest]:

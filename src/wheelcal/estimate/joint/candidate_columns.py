@@ -43,8 +43,48 @@ def lean_columns(
 ) -> list:
     """Each candidate's lean per-axis columns (``axis_columns``), or None where it has none.
 
-    A grid of warm-ups shares its exponentials: e^{−t/τ} for the longest τ, then
-    squared down the grid where τ halves (the default grid: one exponential, not four).
+    A grid of warm-ups shares its exponentials (:func:`_warmup_decays`).
+    """
+    decays = _warmup_decays(candidates, t_s)
+    out = []
+    for cand in candidates:
+        if type(cand) is OffsetWarmup:
+            out.append((np.broadcast_to(1.0 - decays[cand.tau_s], (3, t_s.size)), (0, 1, 2)))
+        else:
+            lean = getattr(cand, "axis_columns", None)
+            out.append(None if lean is None else lean(t_s, output.sensed_mps2, params.sensor.gain))
+    return out
+
+
+def lean_scores(
+    candidates: tuple[Effect, ...],
+    params: CalibrationParams,
+    output: ModelOutput,
+    t_s: np.ndarray,
+    weights: np.ndarray,
+) -> list:
+    """Σ_n (lean column k at sample n) · w_n of each candidate (its ``axis_scores``), or None.
+
+    The score's sums of :func:`lean_columns`'s columns for weights w (3, N), without
+    forming them where an effect sums directly; a grid of warm-ups shares its
+    exponentials as there.
+    """
+    decays = _warmup_decays(candidates, t_s)
+    out = []
+    for cand in candidates:
+        if type(cand) is OffsetWarmup:
+            out.append(weights @ (1.0 - decays[cand.tau_s]))
+        else:
+            scores = getattr(cand, "axis_scores", None)
+            sensed, gain = output.sensed_mps2, params.sensor.gain
+            out.append(None if scores is None else scores(t_s, sensed, gain, weights))
+    return out
+
+
+def _warmup_decays(candidates: tuple[Effect, ...], t_s: np.ndarray) -> dict[float, np.ndarray]:
+    """e^{−t/τ} of each warm-up's τ: for the longest τ, then squared down where τ halves.
+
+    The default grid takes one exponential, not four.
     """
     warm = {c.tau_s for c in candidates if type(c) is OffsetWarmup}
     decays: dict[float, np.ndarray] = {}
@@ -55,11 +95,4 @@ def lean_columns(
         else:
             decays[tau] = np.exp(-t_s / tau)
         previous = (tau, decays[tau])
-    out = []
-    for cand in candidates:
-        if type(cand) is OffsetWarmup:
-            out.append((np.broadcast_to(1.0 - decays[cand.tau_s], (3, t_s.size)), (0, 1, 2)))
-        else:
-            lean = getattr(cand, "axis_columns", None)
-            out.append(None if lean is None else lean(t_s, output.sensed_mps2, params.sensor.gain))
-    return out
+    return decays
