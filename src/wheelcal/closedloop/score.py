@@ -451,14 +451,18 @@ def finish_tests(contributions: list[ScoreContribution]) -> list[ScoreTest]:
         )
         # λ_min of D⁻½ C D⁻½ (information_fraction), all at once.
         fractions = np.maximum(np.linalg.eigvalsh(c / (d[:, :, None] * d[:, None, :]))[:, 0], 0.0)
-        for row, i in enumerate(index):
-            frac = float(fractions[row])
-            if frac > IDENTIFIABLE_FRACTION:
-                c_inv = np.linalg.inv(c[row])
-                stat = float(u[row] @ c_inv @ u[row])
-                verdicts[i] = (frac, stat, -c_inv @ u[row], np.sqrt(np.diag(c_inv)))
-            else:
-                verdicts[i] = (frac, None, None, None)
+        ok = fractions > IDENTIFIABLE_FRACTION
+        for row in np.flatnonzero(~ok):
+            verdicts[index[row]] = (float(fractions[row]), None, None, None)
+        if not ok.any():
+            continue
+        # The identifiable ones' inverses, statistics uᵀC⁻¹u and one-step sizes −C⁻¹u together.
+        c_inv = np.linalg.inv(c[ok])
+        along = np.matmul(c_inv, u[ok][:, :, None])[:, :, 0]  # C⁻¹u
+        stats = np.einsum("nk,nk->n", u[ok], along)
+        predicted = np.sqrt(np.diagonal(c_inv, axis1=1, axis2=2))
+        for j, row in enumerate(np.flatnonzero(ok)):
+            verdicts[index[row]] = (float(fractions[row]), float(stats[j]), -along[j], predicted[j])
     tested = sum(v[1] is not None for v in verdicts)
     results = []
     for part, (frac, stat, estimate, predicted) in zip(contributions, verdicts, strict=True):
