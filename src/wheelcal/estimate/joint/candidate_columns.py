@@ -14,19 +14,37 @@ import numpy as np
 
 from wheelcal.model import CalibrationParams, ModelOutput
 from wheelcal.model.effects import Effect, OffsetWarmup
-from wheelcal.model.forward import candidate_columns
+from wheelcal.model.forward import candidate_columns, spin_columns
 
 
 def candidate_extra(candidates: tuple[Effect, ...], layout):
-    """The candidates' columns as an ``extra`` callback of the normal equations."""
+    """The candidates' columns as an ``extra`` callback of the normal equations.
 
-    def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
-        cols = np.zeros((extra.size, 3, t_s.size))
+    It ``fills`` a buffer given as ``into`` (k, 3, N), e.g. the rows of a Jacobian's
+    buffer after the free parameters' (no copy), or returns new columns.
+    """
+
+    def extra(
+        params: CalibrationParams,
+        output: ModelOutput,
+        t_s: np.ndarray,
+        into: np.ndarray | None = None,
+    ) -> np.ndarray:
+        if into is None:
+            cols = np.zeros((extra.size, 3, t_s.size))
+        else:
+            cols = into
+            cols[...] = 0.0
         row = 0
         table = lean_columns(candidates, params, output, t_s)
+        force = output.force
         for cand, lean in zip(candidates, table, strict=True):
-            if lean is None:
-                cols[row : row + cand.size] = candidate_columns(params, t_s, layout, cand, output)
+            here = cols[row : row + cand.size]
+            if lean is None and cand.stage == "spin":  # written in place
+                rows = cand.own_rows(t_s, output.kinematics, force.sin_theta, force.cos_theta)
+                spin_columns(params, t_s, layout, rows, output, here)
+            elif lean is None:
+                here[...] = candidate_columns(params, t_s, layout, cand, output)
             else:
                 values, axes = lean
                 for k, axis in enumerate(axes):
@@ -35,6 +53,7 @@ def candidate_extra(candidates: tuple[Effect, ...], layout):
         return cols
 
     extra.size = sum(c.size for c in candidates)
+    extra.fills = True
     return extra
 
 
@@ -70,10 +89,18 @@ def lean_scores(
     exponentials as there.
     """
     decays = _warmup_decays(candidates, t_s)
+    warm = {}
+    if decays:  # Σ (1 − e^{−t/τ}) w of every τ in one product
+        taus = list(decays)
+        rises = np.empty((len(taus), t_s.size))
+        for row, tau in enumerate(taus):
+            np.subtract(1.0, decays[tau], out=rises[row])
+        sums = weights @ rises.T  # (3, τs)
+        warm = {tau: sums[:, j] for j, tau in enumerate(taus)}
     out = []
     for cand in candidates:
         if type(cand) is OffsetWarmup:
-            out.append(weights @ (1.0 - decays[cand.tau_s]))
+            out.append(warm[cand.tau_s])
         else:
             scores = getattr(cand, "axis_scores", None)
             sensed, gain = output.sensed_mps2, params.sensor.gain

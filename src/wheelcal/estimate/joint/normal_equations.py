@@ -44,7 +44,8 @@ CHUNK_SAMPLES = 32768
 SPARSE_CHUNK_SAMPLES = (1024, 2048)
 
 # (params, model output, chunk times) → (k, 3, n) extra columns at those times; a callback
-# with a ``size`` attribute (k) has its columns written straight after the free ones.
+# with a ``size`` attribute (k) has its columns written straight after the free ones, and
+# one that also ``fills`` writes them there itself (keyword ``into``: the quadrature's).
 ExtraColumns = Callable[[CalibrationParams, ModelOutput, np.ndarray], np.ndarray]
 
 
@@ -341,7 +342,9 @@ def quadrature_hessian(
         t = t_s[samples.reshape(-1)]
         buf = np.empty((layout.size + (extra_size or 0), 3, t.size))
         out = evaluate(params, t, layout, jacobian=True, out=buf[: layout.size])
-        if extra is not None:
+        if extra is not None and extra_size and getattr(extra, "fills", False):
+            extra(params, out, t, into=buf[layout.size :])
+        elif extra is not None:
             cols = extra(params, out, t)
             if extra_size is None:
                 buf = np.concatenate([buf[: layout.size], cols])
