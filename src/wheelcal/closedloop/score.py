@@ -436,60 +436,57 @@ def _reverse_at(evaluated: EvaluatedModel, params, t_s, layout, noise, accel_mps
 def finish_tests(contributions: list[ScoreContribution]) -> list[ScoreTest]:
     """Statistics, p-values and Bonferroni correction from (summed) contributions.
 
-    The small matrices of candidates of one size are handled as one stack (the
-    eigenvalues of the information fractions, the inverses): a dozen candidates
-    cost a few numpy calls, not a few dozen.
+    The small matrices of every candidate are handled as one stack, each padded to
+    the largest size with an identity block (which leaves its λ_min ≤ 1, inverse,
+    uᵀC⁻¹u and −C⁻¹u as they are): a dozen candidates cost a few numpy calls, not
+    a few dozen.
     """
-    verdicts: list[tuple | None] = [None] * len(contributions)
-    sizes = {part.effect.size for part in contributions}
-    for size in sizes:
-        index = [i for i, part in enumerate(contributions) if part.effect.size == size]
-        c = np.stack([contributions[i].information for i in index])  # (n, k, k)
-        u = np.stack([contributions[i].score for i in index])  # (n, k)
-        d = np.sqrt(
-            np.maximum(np.stack([contributions[i].raw_information_diag for i in index]), 1e-300)
-        )
-        # λ_min of D⁻½ C D⁻½ (information_fraction), all at once.
-        fractions = np.maximum(np.linalg.eigvalsh(c / (d[:, :, None] * d[:, None, :]))[:, 0], 0.0)
-        ok = fractions > IDENTIFIABLE_FRACTION
-        for row in np.flatnonzero(~ok):
-            verdicts[index[row]] = (float(fractions[row]), None, None, None)
-        if not ok.any():
-            continue
-        # The identifiable ones' inverses, statistics uᵀC⁻¹u and one-step sizes −C⁻¹u together.
+    if not contributions:
+        return []
+    c, u, d, sizes = _padded(contributions)
+    # λ_min of D⁻½ C D⁻½ (information_fraction), all at once.
+    fractions = np.maximum(np.linalg.eigvalsh(c / (d[:, :, None] * d[:, None, :]))[:, 0], 0.0)
+    ok = fractions > IDENTIFIABLE_FRACTION
+    tested = int(np.count_nonzero(ok))
+    if tested:
+        # The identifiable ones' inverses, statistics uᵀC⁻¹u and one-step sizes −C⁻¹u.
         c_inv = np.linalg.inv(c[ok])
         along = np.matmul(c_inv, u[ok][:, :, None])[:, :, 0]  # C⁻¹u
         stats = np.einsum("nk,nk->n", u[ok], along)
         predicted = np.sqrt(np.diagonal(c_inv, axis1=1, axis2=2))
-        for j, row in enumerate(np.flatnonzero(ok)):
-            verdicts[index[row]] = (float(fractions[row]), float(stats[j]), -along[j], predicted[j])
-    tested = sum(v[1] is not None for v in verdicts)
-    results = []
-    for part, (frac, stat, estimate, predicted) in zip(contributions, verdicts, strict=True):
-        k = part.effect.size
-        if stat is None:
-            results.append(
-                ScoreTest(
-                    part.effect,
-                    np.nan,
-                    k,
-                    np.nan,
-                    np.nan,
-                    False,
-                    frac,
-                    np.full(k, np.nan),
-                    np.full(k, np.inf),
-                )
-            )
-            continue
         # The χ² survival function (what stats.chi2.sf returns, without its ~40 µs of checks).
-        p = float(special.chdtrc(k, stat))
+        p_values = special.chdtrc(sizes[ok], stats)
+    results = []
+    j = 0
+    for part, frac, identifiable in zip(contributions, fractions.tolist(), ok, strict=True):
+        k = part.effect.size
+        if not identifiable:
+            nan, inf = np.full(k, np.nan), np.full(k, np.inf)
+            results.append(ScoreTest(part.effect, np.nan, k, np.nan, np.nan, False, frac, nan, inf))
+            continue
+        stat, p = float(stats[j]), float(p_values[j])
+        estimate, std = -along[j, :k], predicted[j, :k]
+        j += 1
         results.append(
-            ScoreTest(
-                part.effect, stat, k, p, min(1.0, p * tested), True, frac, estimate, predicted
-            )
+            ScoreTest(part.effect, stat, k, p, min(1.0, p * tested), True, frac, estimate, std)
         )
     return results
+
+
+def _padded(contributions: list[ScoreContribution]):
+    """C (n, K, K), u (n, K), √diag(H_ee) (n, K) padded to the largest size K; the sizes (n,)."""
+    sizes = np.array([part.effect.size for part in contributions])
+    n, width = sizes.size, int(sizes.max())
+    c = np.zeros((n, width, width))
+    c[:, range(width), range(width)] = 1.0
+    u = np.zeros((n, width))
+    d = np.ones((n, width))
+    for i, part in enumerate(contributions):
+        k = sizes[i]
+        c[i, :k, :k] = part.information
+        u[i, :k] = part.score
+        d[i, :k] = np.sqrt(np.maximum(part.raw_information_diag, 1e-300))
+    return c, u, d, sizes
 
 
 def score_tests(
