@@ -381,6 +381,7 @@ def _normal_by_quadrature(
     width = sum(c.size for c in candidates)
     grad = np.zeros(size + width)
     p = noise.order
+    whole = None  # the model over the whole window (one chunk), for the clusters too
     for start in range(0, tc.size, CHUNK_SAMPLES):
         stop = min(tc.size, start + CHUNK_SAMPLES)
         lo = max(0, start - p)
@@ -393,6 +394,8 @@ def _normal_by_quadrature(
         else:  # the whole window
             data = recording.accel_mps2
             u, base, adjoint = _reverse_at(evaluated, params, t, layout, noise, data)
+        if lo == 0 and stop == tc.size:
+            whole = output
         grad[:size] += base
         scores = lean_scores(candidates, params, output, t, u)
         force = output.force
@@ -411,7 +414,7 @@ def _normal_by_quadrature(
             row += cand.size
     rows = quadrature_rows(tc.size, noise.order, stride)
     extra = candidate_extra(candidates, layout)
-    hess = quadrature_hessian(params, tc, layout, noise, rows, extra)
+    hess = quadrature_hessian(params, tc, layout, noise, rows, extra, whole)
     return hess, grad
 
 

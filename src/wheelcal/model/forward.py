@@ -53,6 +53,30 @@ class ModelOutput:
     effects_by_tilt: np.ndarray | None = None
 
 
+def output_at_samples(output: ModelOutput, index: np.ndarray) -> ModelOutput:
+    """The paper's model evaluated (no Jacobian) at some of ``output``'s samples.
+
+    Every quantity is per sample (ϑ, ω, ω̇, the bench force, s, v), so taking them
+    gives what :func:`evaluate` computes there, for :func:`evaluate`'s ``output``.
+    """
+    if output.jacobian is not None or output.force_by_radius is not None:
+        raise ValueError("output_at_samples takes the paper's model without a Jacobian")
+    kin, force = output.kinematics, output.force
+    return ModelOutput(
+        output.predicted_mps2[index],
+        None,
+        Kinematics(kin.theta_rad[index], kin.omega_radps[index], kin.omega_dot_radps2[index]),
+        BenchForce(
+            force.accel_mps2[index],
+            force.sin_theta[index],
+            force.cos_theta[index],
+            force.g_sin_tilt,
+            force.g_cos_tilt,
+        ),
+        output.sensed_mps2[index],
+    )
+
+
 @dataclass(frozen=True, eq=False)
 class EvaluatedModel:
     """The model (no Jacobian) at ``params`` and times ``t_s``, kept for a later pass there.

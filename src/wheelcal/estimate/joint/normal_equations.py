@@ -32,7 +32,7 @@ from wheelcal.estimate.joint.fisher_quadrature import (
 )
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
-from wheelcal.model.forward import ReverseAt, reverse_pass
+from wheelcal.model.forward import ReverseAt, output_at_samples, reverse_pass
 
 #: Samples per chunk: ~12 MB of Jacobian for 18 columns; one chunk for a typical
 #: 90 s / 200 Hz recording, bounded memory for long or fast ones.
@@ -291,7 +291,7 @@ def accumulate_fitting_noise(
         return _whitened_normal(buf, residual, noise), noise
     normal = gradient_pass(params, t_s, accel_mps2, layout, noise, output=output)
     rows = quadrature_rows(t_s.size, noise.order, stride)
-    hessian = quadrature_hessian(params, t_s, layout, noise, rows, extra)
+    hessian = quadrature_hessian(params, t_s, layout, noise, rows, extra, output)
     return dataclasses.replace(normal, hessian=hessian), noise
 
 
@@ -330,18 +330,23 @@ def quadrature_hessian(
     noise: NoiseModel,
     rows: QuadratureRows,
     extra: ExtraColumns | None = None,
+    output: ModelOutput | None = None,
 ) -> np.ndarray:
     """J̃ᵀJ̃ over [free | extra] by the quadrature ``rows`` (the model at their clusters only).
 
     The clusters are evaluated at most :data:`CHUNK_SAMPLES` samples at a time.
+    ``output``: the paper's model (no Jacobian) at ``params`` over all of ``t_s``, when
+    the caller has it: its ϑ, ω, ω̇, force and prediction at the clusters then serve.
     """
     extra_size = getattr(extra, "size", None) if extra is not None else 0
     gram = None
     for part in rows.batches(CHUNK_SAMPLES):
         samples = part.samples  # (p + 1, n)
-        t = t_s[samples.reshape(-1)]
+        index = samples.reshape(-1)
+        t = t_s[index]
         buf = np.empty((layout.size + (extra_size or 0), 3, t.size))
-        out = evaluate(params, t, layout, jacobian=True, out=buf[: layout.size])
+        there = None if output is None else output_at_samples(output, index)
+        out = evaluate(params, t, layout, jacobian=True, out=buf[: layout.size], output=there)
         if extra is not None and extra_size and getattr(extra, "fills", False):
             extra(params, out, t, into=buf[layout.size :])
         elif extra is not None:
