@@ -29,7 +29,7 @@ from scipy import special
 
 from wheelcal.closedloop.rest_stream import rest_normal, usable_rests
 from wheelcal.estimate.gyro.block import regress_gyro
-from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_columns
+from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_scores
 from wheelcal.estimate.joint.fisher_quadrature import quadrature_rows, stride_for
 from wheelcal.estimate.joint.fit import gyro_samples
 from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect
@@ -49,7 +49,6 @@ from wheelcal.model.forward import (
     EvaluatedModel,
     candidate_columns,
     reverse_pass,
-    spin_columns,
 )
 from wheelcal.recording import Recording
 
@@ -366,13 +365,15 @@ def _normal_by_quadrature(
 ) -> tuple[np.ndarray, np.ndarray]:
     """H over [the fit's parameters | the candidates] by quadrature, g over every sample.
 
-    H sums smooth functions of time (:mod:`~wheelcal.estimate.joint.fisher_quadrature`);
+    H sums smooth functions of time (:mod:`~wheelcal.estimate.joint.fisher_quadrature`):
+    the candidates' columns are formed at the quadrature's clusters only
+    (:func:`~wheelcal.estimate.joint.candidate_columns.candidate_extra`).
     g = J̃ᵀr̃ is a sum of noise, taken over every sample without a Jacobian: the
     residual whitened back (u = WᵀW r), the fit's parameters by the model's reverse
-    mode, a sensor candidate as Σ (its column on its axis) · u, a spin candidate
+    mode (both from the fit's own last gradient pass when it took one there:
+    :func:`_reverse_at`), a sensor candidate as Σ (its column on its axis) · u
+    (:func:`~wheelcal.estimate.joint.candidate_columns.lean_scores`), a spin candidate
     through the wheel angle's adjoint rows (:func:`~wheelcal.model.forward.spin_adjoint`).
-    For a window of one chunk the candidates' lean columns are computed once, for
-    the score, and the quadrature's clusters take theirs from them.
     """
     params, layout, noise = fit.params, fit.layout, fit.noise
     tc = recording.time_s - fit.centre_s
@@ -380,7 +381,7 @@ def _normal_by_quadrature(
     width = sum(c.size for c in candidates)
     grad = np.zeros(size + width)
     p = noise.order
-    kept = None  # (output, lean columns, spin rows) over every sample: one chunk
+    whole = None  # the model over the whole window (one chunk), for the clusters too
     for start in range(0, tc.size, CHUNK_SAMPLES):
         stop = min(tc.size, start + CHUNK_SAMPLES)
         lo = max(0, start - p)
@@ -388,24 +389,22 @@ def _normal_by_quadrature(
         output = evaluated.output_at(params, t) if evaluated is not None else None
         if output is None:
             output = evaluate(params, t, layout)
-        _, u = whitened_back(output.predicted_mps2 - recording.accel_mps2[lo:stop], noise)
-        base, adjoint = reverse_pass(params, t, layout, u, output)
+            data = recording.accel_mps2[lo:stop]
+            u, base, adjoint = _reverse(params, t, layout, noise, data, output)
+        else:  # the whole window
+            data = recording.accel_mps2
+            u, base, adjoint = _reverse_at(evaluated, params, t, layout, noise, data)
+        if lo == 0 and stop == tc.size:
+            whole = output
         grad[:size] += base
-        table = lean_columns(candidates, params, output, t)
+        scores = lean_scores(candidates, params, output, t, u)
         force = output.force
-        spin_rows = [
-            c.own_rows(t, output.kinematics, force.sin_theta, force.cos_theta)
-            if c.stage == "spin"
-            else None
-            for c in candidates
-        ]
         row = size
-        for cand, lean, rows in zip(candidates, table, spin_rows, strict=True):
-            if lean is not None:
-                values, axes = lean
-                for k, axis in enumerate(axes):
-                    grad[row + k] += values[k] @ u[axis]
-            elif rows is not None:
+        for cand, score in zip(candidates, scores, strict=True):
+            if score is not None:
+                grad[row : row + cand.size] += score
+            elif cand.stage == "spin":
+                rows = cand.own_rows(t, output.kinematics, force.sin_theta, force.cos_theta)
                 grad[row : row + cand.size] += sum(
                     r @ a for r, a in zip(rows, adjoint, strict=True)
                 )
@@ -413,93 +412,84 @@ def _normal_by_quadrature(
                 cols = candidate_columns(params, t, layout, cand, output)
                 grad[row : row + cand.size] += cols.reshape(cand.size, -1) @ u.reshape(-1)
             row += cand.size
-        if lo == 0 and stop == tc.size:
-            kept = (table, spin_rows)
     rows = quadrature_rows(tc.size, noise.order, stride)
     extra = candidate_extra(candidates, layout)
-    if kept is not None:
-        extra = _from_kept(candidates, layout, tc, *kept)
-    hess = quadrature_hessian(params, tc, layout, noise, rows, extra)
+    hess = quadrature_hessian(params, tc, layout, noise, rows, extra, whole)
     return hess, grad
 
 
-def _from_kept(candidates, layout, tc: np.ndarray, table: list, spin_rows: list):
-    """``extra`` callback taking the candidates' columns at the clusters from every sample's."""
+def _reverse(params, t_s, layout, noise, accel_mps2, output):
+    """The residual whitened back (u = Wᵀ W r), the fit's parameters' sums Jᵀu, ϑ's rows."""
+    _, u = whitened_back(output.predicted_mps2 - accel_mps2, noise)
+    return u, *reverse_pass(params, t_s, layout, u, output)
 
-    def extra(params: CalibrationParams, output: ModelOutput, t_s: np.ndarray) -> np.ndarray:
-        index = np.searchsorted(tc, t_s)  # the clusters' samples (times are increasing)
-        cols = np.zeros((extra.size, 3, t_s.size))
-        row = 0
-        for cand, lean, rows in zip(candidates, table, spin_rows, strict=True):
-            if lean is not None:
-                values, axes = lean
-                for k, axis in enumerate(axes):
-                    cols[row + k, axis] = values[k][index]
-            elif rows is not None:
-                here = tuple(r[:, index] for r in rows)
-                spin_columns(params, t_s, layout, here, output, cols[row : row + cand.size])
-            else:
-                cols[row : row + cand.size] = candidate_columns(params, t_s, layout, cand, output)
-            row += cand.size
-        return cols
 
-    extra.size = sum(c.size for c in candidates)
-    return extra
+def _reverse_at(evaluated: EvaluatedModel, params, t_s, layout, noise, accel_mps2):
+    """:func:`_reverse` over the whole window, from the fit's own gradient pass if it took one.
+
+    The joint fit's last gradient pass at its result (its noise model, these samples)
+    computed the very same sums (:class:`~wheelcal.model.forward.ReverseAt`).
+    """
+    kept = evaluated.reverse_for(noise, accel_mps2)
+    if kept is None:
+        return _reverse(params, t_s, layout, noise, accel_mps2, evaluated.output)
+    return kept.weights, kept.gradient, kept.adjoint
 
 
 def finish_tests(contributions: list[ScoreContribution]) -> list[ScoreTest]:
     """Statistics, p-values and Bonferroni correction from (summed) contributions.
 
-    The small matrices of candidates of one size are handled as one stack (the
-    eigenvalues of the information fractions, the inverses): a dozen candidates
-    cost a few numpy calls, not a few dozen.
+    The small matrices of every candidate are handled as one stack, each padded to
+    the largest size with an identity block (which leaves its λ_min ≤ 1, inverse,
+    uᵀC⁻¹u and −C⁻¹u as they are): a dozen candidates cost a few numpy calls, not
+    a few dozen.
     """
-    verdicts: list[tuple | None] = [None] * len(contributions)
-    sizes = {part.effect.size for part in contributions}
-    for size in sizes:
-        index = [i for i, part in enumerate(contributions) if part.effect.size == size]
-        c = np.stack([contributions[i].information for i in index])  # (n, k, k)
-        u = np.stack([contributions[i].score for i in index])  # (n, k)
-        d = np.sqrt(
-            np.maximum(np.stack([contributions[i].raw_information_diag for i in index]), 1e-300)
-        )
-        # λ_min of D⁻½ C D⁻½ (information_fraction), all at once.
-        fractions = np.maximum(np.linalg.eigvalsh(c / (d[:, :, None] * d[:, None, :]))[:, 0], 0.0)
-        for row, i in enumerate(index):
-            frac = float(fractions[row])
-            if frac > IDENTIFIABLE_FRACTION:
-                c_inv = np.linalg.inv(c[row])
-                stat = float(u[row] @ c_inv @ u[row])
-                verdicts[i] = (frac, stat, -c_inv @ u[row], np.sqrt(np.diag(c_inv)))
-            else:
-                verdicts[i] = (frac, None, None, None)
-    tested = sum(v[1] is not None for v in verdicts)
-    results = []
-    for part, (frac, stat, estimate, predicted) in zip(contributions, verdicts, strict=True):
-        k = part.effect.size
-        if stat is None:
-            results.append(
-                ScoreTest(
-                    part.effect,
-                    np.nan,
-                    k,
-                    np.nan,
-                    np.nan,
-                    False,
-                    frac,
-                    np.full(k, np.nan),
-                    np.full(k, np.inf),
-                )
-            )
-            continue
+    if not contributions:
+        return []
+    c, u, d, sizes = _padded(contributions)
+    # λ_min of D⁻½ C D⁻½ (information_fraction), all at once.
+    fractions = np.maximum(np.linalg.eigvalsh(c / (d[:, :, None] * d[:, None, :]))[:, 0], 0.0)
+    ok = fractions > IDENTIFIABLE_FRACTION
+    tested = int(np.count_nonzero(ok))
+    if tested:
+        # The identifiable ones' inverses, statistics uᵀC⁻¹u and one-step sizes −C⁻¹u.
+        c_inv = np.linalg.inv(c[ok])
+        along = np.matmul(c_inv, u[ok][:, :, None])[:, :, 0]  # C⁻¹u
+        stats = np.einsum("nk,nk->n", u[ok], along)
+        predicted = np.sqrt(np.diagonal(c_inv, axis1=1, axis2=2))
         # The χ² survival function (what stats.chi2.sf returns, without its ~40 µs of checks).
-        p = float(special.chdtrc(k, stat))
+        p_values = special.chdtrc(sizes[ok], stats)
+    results = []
+    j = 0
+    for part, frac, identifiable in zip(contributions, fractions.tolist(), ok, strict=True):
+        k = part.effect.size
+        if not identifiable:
+            nan, inf = np.full(k, np.nan), np.full(k, np.inf)
+            results.append(ScoreTest(part.effect, np.nan, k, np.nan, np.nan, False, frac, nan, inf))
+            continue
+        stat, p = float(stats[j]), float(p_values[j])
+        estimate, std = -along[j, :k], predicted[j, :k]
+        j += 1
         results.append(
-            ScoreTest(
-                part.effect, stat, k, p, min(1.0, p * tested), True, frac, estimate, predicted
-            )
+            ScoreTest(part.effect, stat, k, p, min(1.0, p * tested), True, frac, estimate, std)
         )
     return results
+
+
+def _padded(contributions: list[ScoreContribution]):
+    """C (n, K, K), u (n, K), √diag(H_ee) (n, K) padded to the largest size K; the sizes (n,)."""
+    sizes = np.array([part.effect.size for part in contributions])
+    n, width = sizes.size, int(sizes.max())
+    c = np.zeros((n, width, width))
+    c[:, range(width), range(width)] = 1.0
+    u = np.zeros((n, width))
+    d = np.ones((n, width))
+    for i, part in enumerate(contributions):
+        k = sizes[i]
+        c[i, :k, :k] = part.information
+        u[i, :k] = part.score
+        d[i, :k] = np.sqrt(np.maximum(part.raw_information_diag, 1e-300))
+    return c, u, d, sizes
 
 
 def score_tests(

@@ -190,6 +190,20 @@ class _SensorEffect(Effect, ABC):
         """
         return None
 
+    def axis_scores(
+        self, t_s: np.ndarray, sensed: np.ndarray, gain: np.ndarray, weights: np.ndarray
+    ) -> np.ndarray | None:
+        """Σ_n (column k at sample n) · w_n (k,) of the lean columns, for weights w (3, N).
+
+        The screen's score of the effect (weights: the residual whitened back); ``None``
+        where :meth:`axis_columns` is.  An effect may sum without forming its columns.
+        """
+        lean = self.axis_columns(t_s, sensed, gain)
+        if lean is None:
+            return None
+        values, axes = lean
+        return np.array([values[k] @ weights[axis] for k, axis in enumerate(axes)])
+
 
 class SpinPolynomialExtension(_SpinEffect):
     """Spin-down beyond the cubic: ω(t) gains ω₄t⁴ + ω₅t⁵ (+ …).
@@ -657,6 +671,11 @@ class QuadraticNonlinearity(_SensorEffect):
         s_i = sensed[:, self.axis]
         return (gain[self.axis] * s_i * s_i)[None, :], (self.axis,)
 
+    def axis_scores(self, t_s, sensed, gain, weights):
+        i = self.axis
+        s_i = sensed[:, i]
+        return np.array([gain[i] * ((s_i * weights[i]) @ s_i)])
+
 
 class OffsetWarmup(_SensorEffect):
     """Thermal warm-up of the offsets: Δo_i(t) = a_i (1 − e^{−t/τ}), zero at the centre.
@@ -769,6 +788,9 @@ class OffsetDrift(_SensorEffect):
     def axis_columns(self, t_s, sensed, gain):
         return np.broadcast_to(t_s, (3, t_s.size)), (0, 1, 2)
 
+    def axis_scores(self, t_s, sensed, gain, weights):
+        return weights @ t_s
+
 
 class GainDrift(_SensorEffect):
     """Linear gain drift: γ_i(t) = γ_i (1 + h_i t), reported at the centre."""
@@ -794,6 +816,9 @@ class GainDrift(_SensorEffect):
 
     def axis_columns(self, t_s, sensed, gain):
         return (gain * sensed).T * t_s, (0, 1, 2)
+
+    def axis_scores(self, t_s, sensed, gain, weights):
+        return gain * ((sensed.T * weights) @ t_s)
 
 
 class CrossAxis(_SensorEffect):

@@ -53,6 +53,30 @@ class ModelOutput:
     effects_by_tilt: np.ndarray | None = None
 
 
+def output_at_samples(output: ModelOutput, index: np.ndarray) -> ModelOutput:
+    """The paper's model evaluated (no Jacobian) at some of ``output``'s samples.
+
+    Every quantity is per sample (ϑ, ω, ω̇, the bench force, s, v), so taking them
+    gives what :func:`evaluate` computes there, for :func:`evaluate`'s ``output``.
+    """
+    if output.jacobian is not None or output.force_by_radius is not None:
+        raise ValueError("output_at_samples takes the paper's model without a Jacobian")
+    kin, force = output.kinematics, output.force
+    return ModelOutput(
+        output.predicted_mps2[index],
+        None,
+        Kinematics(kin.theta_rad[index], kin.omega_radps[index], kin.omega_dot_radps2[index]),
+        BenchForce(
+            force.accel_mps2[index],
+            force.sin_theta[index],
+            force.cos_theta[index],
+            force.g_sin_tilt,
+            force.g_cos_tilt,
+        ),
+        output.sensed_mps2[index],
+    )
+
+
 @dataclass(frozen=True, eq=False)
 class EvaluatedModel:
     """The model (no Jacobian) at ``params`` and times ``t_s``, kept for a later pass there.
@@ -67,12 +91,42 @@ class EvaluatedModel:
     params: CalibrationParams
     t_s: np.ndarray
     output: ModelOutput
+    #: The reverse mode the last pass took there (a gradient pass), when it took one.
+    reverse: ReverseAt | None = None
 
     def output_at(self, params: CalibrationParams, t_s: np.ndarray) -> ModelOutput | None:
         """The kept output if it was evaluated at ``params`` itself and these times, else None."""
         if params is not self.params or t_s.shape != self.t_s.shape:
             return None
         return self.output if np.array_equal(t_s, self.t_s) else None
+
+    def reverse_for(self, *made_of: object) -> ReverseAt | None:
+        """The kept reverse pass if its weights were made of ``made_of`` themselves, else None.
+
+        E.g. ``(noise model, samples)``: the very objects, not equal ones.
+        """
+        reverse = self.reverse
+        if reverse is None or len(made_of) != len(reverse.made_of):
+            return None
+        same = all(a is b for a, b in zip(made_of, reverse.made_of, strict=True))
+        return reverse if same else None
+
+
+@dataclass(frozen=True, eq=False)
+class ReverseAt:
+    """:func:`reverse_pass` at an :class:`EvaluatedModel`, with the weights it took.
+
+    A fit's gradient pass at its result (weights u = Wᵀ W r: the residual whitened
+    back) is what a score test there needs again: the fit's parameters' sums, the
+    wheel angle's adjoint rows and u itself (a sensor effect's score is Σ column · u).
+    ``made_of`` holds what made the weights (the fit's noise model and samples): a
+    reuser checks that they are its own (:meth:`EvaluatedModel.reverse_for`).
+    """
+
+    weights: np.ndarray  # (3, N)
+    gradient: np.ndarray  # (P,) Σ_n ∂v_n/∂x · w_n
+    adjoint: np.ndarray  # (3, N) :func:`spin_adjoint` rows
+    made_of: tuple[object, ...]
 
 
 def _apply_spin_effect(

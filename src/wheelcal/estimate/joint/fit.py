@@ -584,7 +584,9 @@ class _LastResidual:
     (data − model) saves the result a model evaluation.  For a window of one
     chunk and the paper's model the pass's whole evaluation is kept too
     (:class:`~wheelcal.model.forward.EvaluatedModel`: ~100 B per sample), for
-    the motion check at the result.
+    the motion check at the result, and a gradient pass's reverse mode with it
+    (:class:`~wheelcal.model.forward.ReverseAt`: 48 B per sample), for the closed
+    loop's screen there.
     """
 
     def __init__(self, normal_fn, tc, v, layout: ParameterLayout, noise: NoiseModel) -> None:
@@ -620,9 +622,19 @@ class _LastResidual:
         residual = np.empty_like(v, dtype=float)
         evaluated = self._evaluated_at(params)
         output = evaluated.output if evaluated is not None else None
+        reverse: list = []
         out = gradient_pass(
-            params, tc, v, layout, self._noise, residual_out=residual, output=output
+            params,
+            tc,
+            v,
+            layout,
+            self._noise,
+            residual_out=residual,
+            output=output,
+            reverse_out=reverse,
         )
+        if reverse:  # the screen at the result takes its sums from this pass
+            evaluated = dataclasses.replace(evaluated, reverse=reverse[0])
         self._params, self._residual, self._evaluated = params, residual, evaluated
         return out
 

@@ -32,7 +32,7 @@ from wheelcal.estimate.joint.fisher_quadrature import (
 )
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
-from wheelcal.model.forward import jacobian_transpose_times
+from wheelcal.model.forward import ReverseAt, output_at_samples, reverse_pass
 
 #: Samples per chunk: ~12 MB of Jacobian for 18 columns; one chunk for a typical
 #: 90 s / 200 Hz recording, bounded memory for long or fast ones.
@@ -44,7 +44,8 @@ CHUNK_SAMPLES = 32768
 SPARSE_CHUNK_SAMPLES = (1024, 2048)
 
 # (params, model output, chunk times) → (k, 3, n) extra columns at those times; a callback
-# with a ``size`` attribute (k) has its columns written straight after the free ones.
+# with a ``size`` attribute (k) has its columns written straight after the free ones, and
+# one that also ``fills`` writes them there itself (keyword ``into``: the quadrature's).
 ExtraColumns = Callable[[CalibrationParams, ModelOutput, np.ndarray], np.ndarray]
 
 
@@ -290,7 +291,7 @@ def accumulate_fitting_noise(
         return _whitened_normal(buf, residual, noise), noise
     normal = gradient_pass(params, t_s, accel_mps2, layout, noise, output=output)
     rows = quadrature_rows(t_s.size, noise.order, stride)
-    hessian = quadrature_hessian(params, t_s, layout, noise, rows, extra)
+    hessian = quadrature_hessian(params, t_s, layout, noise, rows, extra, output)
     return dataclasses.replace(normal, hessian=hessian), noise
 
 
@@ -329,19 +330,26 @@ def quadrature_hessian(
     noise: NoiseModel,
     rows: QuadratureRows,
     extra: ExtraColumns | None = None,
+    output: ModelOutput | None = None,
 ) -> np.ndarray:
     """J̃ᵀJ̃ over [free | extra] by the quadrature ``rows`` (the model at their clusters only).
 
     The clusters are evaluated at most :data:`CHUNK_SAMPLES` samples at a time.
+    ``output``: the paper's model (no Jacobian) at ``params`` over all of ``t_s``, when
+    the caller has it: its ϑ, ω, ω̇, force and prediction at the clusters then serve.
     """
     extra_size = getattr(extra, "size", None) if extra is not None else 0
     gram = None
     for part in rows.batches(CHUNK_SAMPLES):
         samples = part.samples  # (p + 1, n)
-        t = t_s[samples.reshape(-1)]
+        index = samples.reshape(-1)
+        t = t_s[index]
         buf = np.empty((layout.size + (extra_size or 0), 3, t.size))
-        out = evaluate(params, t, layout, jacobian=True, out=buf[: layout.size])
-        if extra is not None:
+        there = None if output is None else output_at_samples(output, index)
+        out = evaluate(params, t, layout, jacobian=True, out=buf[: layout.size], output=there)
+        if extra is not None and extra_size and getattr(extra, "fills", False):
+            extra(params, out, t, into=buf[layout.size :])
+        elif extra is not None:
             cols = extra(params, out, t)
             if extra_size is None:
                 buf = np.concatenate([buf[: layout.size], cols])
@@ -365,6 +373,7 @@ def gradient_pass(
     chunk: int | None = None,
     residual_out: np.ndarray | None = None,
     output: ModelOutput | None = None,
+    reverse_out: list | None = None,
 ) -> NormalEquations:
     """Cost and g = J̃ᵀr̃ without H: the whitening applied to the residual, not to J.
 
@@ -378,7 +387,9 @@ def gradient_pass(
     chunk; so the chunks' sums add up to the whole.  ``residual_out`` (N, 3), when
     given, receives the residual data − model.  ``output``: the model (no Jacobian)
     at ``params`` over all of ``t_s`` when the caller has evaluated it (the paper's
-    model, one chunk).
+    model, one chunk).  ``reverse_out``, when given with ``output``, receives the pass's
+    :class:`~wheelcal.model.forward.ReverseAt` (u, the sums and the wheel angle's
+    adjoint rows: what a score test at ``params`` needs again).
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
@@ -407,7 +418,10 @@ def gradient_pass(
         cost += float(np.sum(rw * rw))
         entries += rw.size
         if reverse:
-            grad += jacobian_transpose_times(params, t_s[lo:stop], layout, u, out)
+            base, adjoint = reverse_pass(params, t_s[lo:stop], layout, u, out)
+            grad += base
+            if reverse_out is not None and output is not None:
+                reverse_out.append(ReverseAt(u, base, adjoint, (noise, accel_mps2)))
         else:
             grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
     normal = NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
