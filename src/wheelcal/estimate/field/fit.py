@@ -140,6 +140,7 @@ class FieldFit:
         """
         if window.gyro_radps is None:
             raise RecordingError(f"{window.source}: a field fit needs the gyroscope")
+        window = _gyro_rows_filled(window)
         t = window.time_s
         tc = t - 0.5 * (t[0] + t[-1])
         axle = gyro_axle(tc, window.gyro_radps)
@@ -320,6 +321,22 @@ def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tu
     axle = refined_axle(window.gyro_radps, axle, theta, rotation)
     yaw, _ = yaw_across(tc, window.gyro_radps, axle, theta, rotation)
     return axle, lean_change_rad(tc, window.gyro_radps, axle, theta, rotation, yaw)
+
+
+def _gyro_rows_filled(window: Recording) -> Recording:
+    """The gyro's rows left out by the reader (a logger's glitch: NaN) interpolated.
+
+    The wheel angle integrates the rate: a row missing is a gap in the angle, and a
+    row interpolated from its neighbours costs the angle ~ω̈ Δt³ (nothing).
+    """
+    valid = window.gyro_valid
+    if valid.all():
+        return window
+    if np.count_nonzero(valid) < 10:
+        raise RecordingError(f"{window.source}: the gyroscope has too few valid rows")
+    t = window.time_s
+    gyro = np.column_stack([np.interp(t, t[valid], window.gyro_radps[valid, i]) for i in range(3)])
+    return dataclasses.replace(window, gyro_radps=gyro)
 
 
 def _plausible_gains(params: CalibrationParams) -> CalibrationParams:

@@ -99,9 +99,10 @@ def _axis_and_bias(gyro: np.ndarray, moving: np.ndarray) -> tuple[np.ndarray, np
     """
     _, vectors = np.linalg.eigh(gyro[moving].T @ gyro[moving])
     axis = vectors[:, -1]
+    gyro = gyro[np.all(np.isfinite(gyro), axis=1)]  # a row left out (a glitch) is NaN
     rate = gyro @ axis
     design = np.column_stack([rate, np.ones_like(rate)])
-    if np.ptp(rate) < MOVING_RADPS or np.linalg.cond(design) > 1e6:
+    if rate.size < 10 or np.ptp(rate) < MOVING_RADPS or np.linalg.cond(design) > 1e6:
         return axis, np.zeros(3)
     for _ in range(2):
         (slope, bias), *_ = np.linalg.lstsq(design, gyro, rcond=None)
@@ -137,7 +138,9 @@ def refined_axle(
     e2 = np.cross(a, e1)
     # in the gyro's own plane ⊥ ŵ: its axes and the accelerometer's differ by a degree or
     # two, which a side direction with a share along ŵ would read as the axle's error
-    side = _side(theta_rad, rotation)
+    valid = np.all(np.isfinite(gyro), axis=1)  # a row left out (a glitch) is NaN
+    side = _side(np.asarray(theta_rad, dtype=float)[valid], rotation)
+    gyro = gyro[valid]
     s1, s2 = side @ e1, side @ e2
     norm = np.hypot(s1, s2)
     s1, s2 = s1 / norm, s2 / norm
