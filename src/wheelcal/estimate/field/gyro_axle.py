@@ -129,7 +129,8 @@ def refined_axle(
     on a carrier that does not lean — only ω d (the axle's error d) and the bias
     b⊥, both turning with ϑ: p = ω d·side + b⊥·side, linear in d and b⊥.  The
     regression of :func:`gyro_axle` cannot keep a robot's yaw (1 rad/s turns at a
-    few rad/s of spin) out of b⊥: 0.023 rad/s off, read as a lean of 3°.
+    few rad/s of spin) out of b⊥: 0.023 rad/s off, read as a lean of 3°.  Every row
+    finite (the field fit fills a glitch's rows first).
     """
     gyro = np.asarray(gyro_radps, dtype=float)
     a = axle.axis
@@ -138,9 +139,7 @@ def refined_axle(
     e2 = np.cross(a, e1)
     # in the gyro's own plane ⊥ ŵ: its axes and the accelerometer's differ by a degree or
     # two, which a side direction with a share along ŵ would read as the axle's error
-    valid = np.all(np.isfinite(gyro), axis=1)  # a row left out (a glitch) is NaN
-    side = _side(np.asarray(theta_rad, dtype=float)[valid], rotation)
-    gyro = gyro[valid]
+    side = _side(theta_rad, rotation)
     s1, s2 = side @ e1, side @ e2
     norm = np.hypot(s1, s2)
     s1, s2 = s1 / norm, s2 / norm

@@ -106,15 +106,9 @@ def _with_undetermined(cov: np.ndarray, finite: np.ndarray) -> np.ndarray:
     return cov
 
 
-def sandwich_covariance(result: CalibrationResult, accel_mps2: np.ndarray) -> np.ndarray:
-    """C = H⁻¹ (M + Λ) H⁻¹ in the reported parameters (module docstring).
-
-    ``accel_mps2`` are the samples ``result`` was fitted to (its window).
-    """
-    pieces = _pieces(result, accel_mps2)
-    bread, finite = _bread(pieces)
-    cov = bread @ (pieces.meat + np.diag(pieces.prior_info)) @ bread
-    return _in_reported(result, _with_undetermined(cov, finite))
+def _sandwich(pieces: _Pieces, bread: np.ndarray) -> np.ndarray:
+    """C = H⁻¹ (M + Λ) H⁻¹ (module docstring), in the fit's own parameters."""
+    return bread @ (pieces.meat + np.diag(pieces.prior_info)) @ bread
 
 
 def _angle_walk(pieces: _Pieces, bread: np.ndarray, density: float) -> np.ndarray:
@@ -142,7 +136,7 @@ def robust_result(
     """
     pieces = _pieces(result, accel_mps2)
     bread, finite = _bread(pieces)
-    cov = bread @ (pieces.meat + np.diag(pieces.prior_info)) @ bread
+    cov = _sandwich(pieces, bread)
     if gyro_density is not None and gyro_density > 0:
         cov = cov + _angle_walk(pieces, bread, gyro_density)
     covariance = _in_reported(result, _with_undetermined(cov, finite))
