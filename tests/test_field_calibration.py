@@ -187,6 +187,22 @@ def test_calibrate_prints_and_writes_the_detected_geometry(tmp_path, capsys):
     assert (bench["geometry"], bench["radius_source"]) == ("rolling", "fitted")
 
 
+def test_a_simulated_rolling_car_from_the_command_line_is_refused_as_lean(tmp_path, capsys):
+    from wheelcal.cli.main import main
+
+    drive, out = tmp_path / "roll.mcap", tmp_path / "cal"
+    argv = ["simulate", str(drive), "--preset", "car", "--seed", "3"]
+    assert main([*argv, "--body-roll-deg-per-mps2", "0.8"]) == 0
+    assert main(["calibrate", str(drive), "--out", str(out)]) == 1
+    captured = capsys.readouterr()
+    assert "refused (lean): the wheel's camber changes by" in captured.out + captured.err
+    assert not list(out.glob("*.calibration.json"))
+    # a fixed axle cannot lean: a usage error, no file
+    stand = tmp_path / "stand.mcap"
+    assert main(["simulate", str(stand), "--preset", "stand", "--body-roll-deg-per-mps2", "1"]) == 2
+    assert "needs a rolling wheel" in capsys.readouterr().err and not stand.exists()
+
+
 def test_the_session_says_where_its_geometry_came_from():
     rng = np.random.default_rng(5)
     sim = simulate_field(car_drive(rng), rng)

@@ -63,6 +63,15 @@ def register(sub) -> None:
         help="add a sensor temperature (ROS 2: a sensor_msgs/msg/Temperature topic at 1/20 of "
         "the rate; JSON: temperature_c)",
     )
+    p.add_argument(
+        "--body-roll-deg-per-mps2",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="--preset car|robot|wheelchair: the wheel's camber changes by DEG per m/s² of "
+        "lateral acceleration (a body rolling in its turns; wheelcal refuses such a drive "
+        "as 'lean')",
+    )
     p.add_argument("--sensor-id", default="sim-sensor")
     p.add_argument("--mounting-id", default="sim-mounting")
     p.add_argument("--truth", metavar="JSON", help="also write the ground truth here")
@@ -197,7 +206,14 @@ def _run_field(args: argparse.Namespace, rng) -> int:
 
     profiles = (car_drive, robot_drive, wheelchair_coast, stand_spin)
     make = dict(zip(FIELD_PRESETS, profiles, strict=True))[args.preset]
-    sim = simulate_field(make(rng), rng)
+    scenario = make(rng)
+    if args.body_roll_deg_per_mps2:
+        if args.preset not in ("car", "robot", "wheelchair"):
+            raise UsageError(
+                "--body-roll-deg-per-mps2 needs a rolling wheel: car, robot or wheelchair"
+            )
+        scenario = dataclasses.replace(scenario, body_roll_deg_per_mps2=args.body_roll_deg_per_mps2)
+    sim = simulate_field(scenario, rng)
     info = sim.recording.info.merged(sensor_id=args.sensor_id, mounting_id=args.mounting_id)
     recording = dataclasses.replace(sim.recording, info=info, source=args.out)
     write_recording(recording, args.out, encoding=args.format, batch_size=args.batch)
