@@ -294,16 +294,6 @@ def test_study_calibrates_and_detects_nearly_every_drive(study, kind):
     assert sum(d.geometry == "rolling" for d in done) >= 0.99 * len(done)
 
 
-#: Known gap of the field fit (issue "wheels in the field"), strict: it fails the study
-#: when it closes, so that the mark comes off.
-CONSERVATIVE = pytest.mark.xfail(
-    strict=True,
-    reason="wheelchair coasts: sigma 1.2-1.4x the spread of the gains and offsets; the "
-    "sandwich's blocks also see the gyro's angle walk, which is added once more, and the "
-    "yaw scale's 1 % prior is wide for a factory-calibrated gyro (0.3 %)",
-)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(DRIVES))
 def test_study_every_parameter_within_5_sigma_crlb_of_the_truth(study, kind):
@@ -318,10 +308,7 @@ def test_study_every_parameter_within_5_sigma_crlb_of_the_truth(study, kind):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "kind",
-    ["car", "robot", pytest.param("wheelchair", marks=CONSERVATIVE)],
-)
+@pytest.mark.parametrize("kind", sorted(DRIVES))
 def test_study_reported_sigma_matches_the_spread(study, kind):
     done = [d for d in study if d.kind == kind and d.refused is None]
     for name in SENSOR:

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from wheelcal.estimate.field.gyro_axle import rate_noise_density
-from wheelcal.estimate.field.robust import angle_walk_covariance
+from wheelcal.estimate.field.robust import angle_walk_covariance, block_meat
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.model import (
     BenchParams,
@@ -106,3 +106,22 @@ def test_the_rate_noise_density_comes_from_the_samples():
     noisy[1000] = 3.7e7  # one logger glitch
     found = rate_noise_density(t, noisy)
     assert abs(found / DENSITY_RADPS_RTHZ - 1.0) < 0.03, found
+
+
+def test_the_meat_with_lags_follows_anti_correlated_blocks():
+    # Block scores g_b = e_b − 0.6 e_{b−1} (the whitened residual anti-correlated across
+    # neighbouring blocks): the variance of their sum per block is (1 − 0.6)² = 0.16, while
+    # the blocks alone say 1 + 0.36.  The Bartlett-weighted lags bring the meat down by
+    # 2 (1 − 1/(L+1)) 0.6 (its expectation), and it stays positive semi-definite.
+    rng = np.random.default_rng(3)
+    e = rng.standard_normal((2, 200_001))
+    sums = e[:, 1:] - 0.6 * e[:, :-1]
+    blocks = sums.shape[1]
+    alone = block_meat(sums, lags=0) / blocks
+    np.testing.assert_allclose(np.diag(alone), 1.36, rtol=0.02)
+    for lags in (1, 5):
+        meat = block_meat(sums, lags=lags) / blocks
+        expected = 1.36 - 2 * (1 - 1 / (lags + 1)) * 0.6
+        np.testing.assert_allclose(np.diag(meat), expected, rtol=0.03)
+        assert abs(meat[0, 1]) < 0.02
+        assert np.linalg.eigvalsh(block_meat(sums[:, :7], lags=lags)).min() >= -1e-12
