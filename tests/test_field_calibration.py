@@ -131,12 +131,43 @@ def test_a_drive_with_gyro_glitches_and_leading_zero_rows_calibrates():
     cal = wheelcal.calibrate(sim.recording)
     notes = " ".join(cal.session.recording.notes)
     assert "a logger's glitch" in notes and "dropped the first 5 samples" in notes
+    assert "clipped" not in cal["source"]["window_reason"]  # a glitch's row is bridged
     crlb = _crlb_at_truth(cal, sim.truth)
     for name in CHECKED:
         if name in dict(cal.undetermined):
             continue
         error = cal.result.value_of(name) - _truth_value(sim.truth, name)
         assert abs(error / crlb[name]) <= Z_MAX, (name, error / crlb[name])
+
+
+def test_a_car_whose_gyro_clips_is_calibrated_between_the_clippings(tmp_path):
+    """Regression: a ±2000 °/s gyro on a car wheel clips above ~35 rad/s; its rows are left
+    out, and the wheel angle was interpolated across 35 s of them — refused as
+    `offset_range` (−13.9 m/s², "check the unit and the radius"), and the fast stretch
+    outside the window passed for a rest (|a| 250 m/s² "at rest")."""
+    from wheelcal.io import write_recording
+
+    rng = np.random.default_rng(1000)
+    scenario = car_drive(rng)
+    gyro = dataclasses.replace(scenario.gyro, full_scale_dps=2000.0)
+    sim = simulate_field(dataclasses.replace(scenario, gyro=gyro), rng)
+    path = tmp_path / "clipping.mcap"
+    write_recording(sim.recording, path)
+    cal = wheelcal.calibrate(path)
+    assert "clipped at the gyro range" in " ".join(cal.session.recording.notes)
+    assert "the gyroscope clipped" in cal["source"]["window_reason"]
+    start_s, end_s = cal["source"]["window_s"]
+    assert end_s - start_s > 30.0
+    crlb = _crlb_at_truth(cal, sim.truth)
+    for name in CHECKED:
+        if name in dict(cal.undetermined):
+            continue
+        error = cal.result.value_of(name) - _truth_value(sim.truth, name)
+        assert abs(error / crlb[name]) <= Z_MAX, (name, error / crlb[name])
+    rests = cal.session.rests
+    assert rests, "the drive's stops are rests"
+    for rest in rests:  # still wheels: |a| is gravity, not a fast wheel's centripetal force
+        assert abs(np.linalg.norm(rest.mean_mps2) - 9.81) < 1.0, (rest.start_s, rest.mean_mps2)
 
 
 def test_a_car_that_rolls_in_its_turns_is_refused_by_name():

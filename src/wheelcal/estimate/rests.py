@@ -13,7 +13,9 @@ Detection needs no unit or mounting: the signal is cut into blocks of
 by no more than the noise explains (a turning wheel moves its rotating
 gravity component by g sinα·ω·0.1 s ≫ the noise between blocks, even at
 1.5 rad/s).  Runs of still blocks lasting ``min_duration_s`` outside the
-free-spin window, trimmed by one block at each end, are rests.
+free-spin window, trimmed by one block at each end, are rests.  With a gyroscope a
+still block must also show a wheel that does not turn: a car's wheel spinning fast
+and steadily has steady block means too (``REST_MAX_RATE_RADPS``).
 """
 
 from __future__ import annotations
@@ -31,6 +33,11 @@ from wheelcal.recording import Recording
 BLOCK_S = 0.1
 #: A block is still when |Δmean| < this × the noise expected of a difference of means.
 STILL_FACTOR = 5.0
+#: With a gyroscope a rest is also a wheel that does not turn: a block's median |ω| below
+#: this (rad/s), most of its gyro rows read.  A wheel spinning fast and steadily has
+#: steady block means too (its gravity term averages out within a block), and a gyro
+#: that clipped there has left its rows out (NaN).
+REST_MAX_RATE_RADPS = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,6 +83,9 @@ def find_rests(
     limit = STILL_FACTOR * np.sqrt(2.0 / block) * np.maximum(stds[1:], stds[:-1])
     step_ok = np.all(np.abs(np.diff(means, axis=0)) <= limit + 1e-12, axis=1)
     still = np.concatenate([step_ok[:1], step_ok])  # block b vs block b − 1
+    gyro = getattr(recording, "gyro_radps", None)
+    if gyro is not None:
+        still &= _gyro_quiet(gyro, block, n_blocks)
     # Times of blocks; remove anything near the free spin.
     block_t0 = t[: n_blocks * block : block]
     block_t1 = t[block - 1 : n_blocks * block : block]
@@ -98,9 +108,16 @@ def find_rests(
         i0, i1 = first * block, (last + 1) * block
         if t[i1 - 1] - t[i0] < min_duration_s:
             continue
-        gyro = getattr(recording, "gyro_radps", None)
         segments.append(_segment(t[i0:i1], v[i0:i1], rate, None if gyro is None else gyro[i0:i1]))
     return tuple(segments)
+
+
+def _gyro_quiet(gyro_radps: np.ndarray, block: int, n_blocks: int) -> np.ndarray:
+    """Per block: most gyro rows read, and their median |ω| below ``REST_MAX_RATE_RADPS``."""
+    size = np.linalg.norm(gyro_radps[: n_blocks * block], axis=1).reshape(n_blocks, block)
+    finite = np.isfinite(size)
+    median = np.median(np.where(finite, size, np.inf), axis=1)  # a row left out counts as fast
+    return (finite.mean(axis=1) >= 0.5) & (median < REST_MAX_RATE_RADPS)
 
 
 def block_statistics(v: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]:
