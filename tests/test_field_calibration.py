@@ -140,22 +140,31 @@ def test_a_drive_with_gyro_glitches_and_leading_zero_rows_calibrates():
         assert abs(error / crlb[name]) <= Z_MAX, (name, error / crlb[name])
 
 
-def test_a_car_whose_gyro_clips_is_calibrated_between_the_clippings(tmp_path):
+@pytest.mark.parametrize("accel_range_g", [None, 16.0])
+def test_a_car_whose_gyro_clips_is_calibrated_between_the_clippings(tmp_path, accel_range_g):
     """Regression: a ±2000 °/s gyro on a car wheel clips above ~35 rad/s; its rows are left
     out, and the wheel angle was interpolated across 35 s of them — refused as
     `offset_range` (−13.9 m/s², "check the unit and the radius"), and the fast stretch
-    outside the window passed for a rest (|a| 250 m/s² "at rest")."""
+    outside the window passed for a rest (|a| 250 m/s² "at rest").  Its ±16 g
+    accelerometer clips there too (32 % of the samples), which had refused the file."""
     from wheelcal.io import write_recording
+    from wheelcal.simulate.noise import Quantiser
 
     rng = np.random.default_rng(1000)
     scenario = car_drive(rng)
     gyro = dataclasses.replace(scenario.gyro, full_scale_dps=2000.0)
-    sim = simulate_field(dataclasses.replace(scenario, gyro=gyro), rng)
+    quantiser = None if accel_range_g is None else Quantiser(full_scale_g=accel_range_g)
+    scenario = dataclasses.replace(scenario, gyro=gyro, quantiser=quantiser)
+    sim = simulate_field(scenario, rng)
     path = tmp_path / "clipping.mcap"
     write_recording(sim.recording, path)
     cal = wheelcal.calibrate(path)
-    assert "clipped at the gyro range" in " ".join(cal.session.recording.notes)
-    assert "the gyroscope clipped" in cal["source"]["window_reason"]
+    notes = " ".join(cal.session.recording.notes)
+    if accel_range_g is None:  # the gyro's clipped rows are left out: NaN
+        assert "clipped at the gyro range" in notes, notes
+    else:  # … and with the accelerometer's, dropped: a gap
+        assert "clipped samples (32 %)" in notes, notes
+    assert "cannot be carried across" in cal["source"]["window_reason"]
     start_s, end_s = cal["source"]["window_s"]
     assert end_s - start_s > 30.0
     crlb = _crlb_at_truth(cal, sim.truth)

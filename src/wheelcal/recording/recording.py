@@ -368,13 +368,17 @@ class Recording:
         notes = list(notes)
         mps2 = _accel_in_mps2(label, accel, unit, consume, notes)
         radps = None if gyro is None else _gyro_in_radps(label, gyro, gyro_unit, notes)
+        policy = InputPolicy() if policy is None else policy
+        if radps is not None:
+            clipping = max(policy.max_clipped_fraction, policy.max_clipped_fraction_with_gyro)
+            policy = replace(policy, max_clipped_fraction=clipping)
         clean = clean_samples(
             label,
             time_ns,
             mps2,
             unit=unit,
             full_scale_g=info.full_scale_g,
-            policy=InputPolicy() if policy is None else policy,
+            policy=policy,
             unit_remedy=unit_remedy,
         )
         notes += clean.notes

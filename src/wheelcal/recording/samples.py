@@ -68,6 +68,10 @@ class InputPolicy:
     max_duplicate_fraction: float = 0.05
     gap_factor: float = 3.0
     max_clipped_fraction: float = 0.20
+    #: … and with a gyroscope, whose integral is the wheel angle: a car's wheel clips the
+    #: accelerometer whenever it drives fast (16 g at 0.15 m: 37 km/h), and the samples
+    #: between are a whole calibration.  Clipped samples are left out either way.
+    max_clipped_fraction_with_gyro: float = 0.80
     outlier_sigmas: float = 25.0
     outlier_floor_g: float = 1.5
     max_physical_g: float = 1000.0

@@ -448,7 +448,7 @@ def find_drive_window(
     rate = _smoothed_gyro_rate(recording, search)
     moving = np.flatnonzero(rate > search.min_rate_radps)
     stretches = contiguous_stretches(t, recording.rate_hz)
-    stretches, clips = _split_at_clipping(recording.gyro_radps, stretches)
+    stretches, holes = _split_at_angle_holes(t, recording.gyro_radps, stretches)
     bounds = (float(t[0]), float(t[-1]))
     if len(stretches) > 1 and moving.size:  # the drive: the stretch that moves most
         most = max(stretches, key=lambda p: np.sum((moving >= p.start) & (moving < p.stop)))
@@ -461,63 +461,51 @@ def find_drive_window(
         )
     start_s = max(bounds[0], float(t[moving[0]]) - rest_s)
     end_s = min(bounds[1], float(t[moving[-1]]) + rest_s)
-    clipped = (
-        f"the gyroscope clipped {clips} time(s) (the wheel turned faster than its range; the "
-        "wheel angle is its integral and cannot be carried across)"
-        if clips
+    cut = (
+        f"the rate is missing for more than {MAX_ANGLE_BRIDGE_S:g} s {holes} time(s) (gyro or "
+        "accelerometer samples clipped, or a logger's gap), and the wheel angle, its "
+        "integral, cannot be carried across"
+        if holes
         else ""
     )
     if end_s - start_s < search.min_duration_s:
         raise RecordingError(
             f"{recording.source}: the wheel moves for {end_s - start_s:.1f} s "
             f"(need {search.min_duration_s:g} s)"
-            + (f" between clippings: {clipped} — use a wider gyro range" if clips else "")
+            + (f" in one piece: {cut} — use a wider gyro or accelerometer range" if cut else "")
         )
     reason = (
         f"drive {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s) from the gyroscope: "
         f"first to last motion with {rest_s:g} s of rest either side, stops included"
-        + (f"; {clipped}: the longest stretch it read within range" if clips else "")
+        + (f"; {cut}: the stretch that moves most between them" if cut else "")
     )
     return _gyro_window(t, rate, np.gradient(rate, t), start_s, end_s, reason)
 
 
-#: A gyro row left out (NaN) next to a reading this close to the largest one is a
-#: clipped sample: the rate beyond the rail is unknown, and the wheel angle, its
-#: integral, cannot be interpolated across it (an isolated glitch row can).
-CLIP_NEIGHBOUR_FRACTION = 0.97
+#: The wheel angle, the gyro's integral, is not carried across a hole in the rate (gyro
+#: rows left out or dropped: clipped, a logger's gap) longer than this: the wheel's speed
+#: peaks inside a clipped stretch, and the rate drawn straight across it leaves
+#: ≈ ω̇ h²/4 in the angle (0.006 rad at 10 rad/s²; an isolated glitch row is bridged).
+MAX_ANGLE_BRIDGE_S = 0.05
 
 
-def _split_at_clipping(gyro_radps: np.ndarray, stretches: list[slice]) -> tuple[list[slice], int]:
-    """``stretches`` cut at the gyro's clipped runs (rows left out beside the rail); their count.
-
-    A clipped row is NaN (:mod:`wheelcal.recording.gyro` leaves it out); what tells
-    it from a glitch row is its neighbours: a wheel clips at its fastest, so the
-    readings on either side of the run lie near the largest valid reading.
-    """
-    valid = np.all(np.isfinite(gyro_radps), axis=1)
-    if valid.all() or not valid.any():
-        return stretches, 0
-    size = np.max(np.abs(gyro_radps[valid]), axis=1)
-    full = np.zeros(valid.size)
-    full[valid] = size
-    near_rail = full >= CLIP_NEIGHBOUR_FRACTION * float(size.max())
-    edges = np.diff(np.concatenate([[1], valid.astype(np.int8), [1]]))
-    starts, stops = np.flatnonzero(edges == -1), np.flatnonzero(edges == 1)
-    holes = [
-        (a, b)
-        for a, b in zip(starts, stops, strict=True)
-        if (a > 0 and near_rail[a - 1]) or (b < valid.size and near_rail[b])
-    ]
-    if not holes:
+def _split_at_angle_holes(
+    time_s: np.ndarray, gyro_radps: np.ndarray, stretches: list[slice]
+) -> tuple[list[slice], int]:
+    """``stretches`` cut at the rate's holes longer than ``MAX_ANGLE_BRIDGE_S``; their count."""
+    valid = np.flatnonzero(np.all(np.isfinite(gyro_radps), axis=1))
+    cuts = np.flatnonzero(np.diff(time_s[valid]) > MAX_ANGLE_BRIDGE_S)
+    if cuts.size == 0:
         return stretches, 0
     out = []
     for part in stretches:
         begin = part.start
-        for a, b in holes:
-            if part.start <= a < part.stop:
-                if a > begin:
-                    out.append(slice(begin, a))
-                begin = max(begin, min(b, part.stop))
+        for k in cuts:
+            before, after = valid[k] + 1, valid[k + 1]  # the hole: rows before … after − 1
+            if part.start < before <= part.stop:
+                if before > begin:
+                    out.append(slice(begin, before))
+                begin = max(begin, min(after, part.stop))
         if begin < part.stop:
             out.append(slice(begin, part.stop))
-    return out, len(holes)
+    return out, int(cuts.size)
