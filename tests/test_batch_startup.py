@@ -20,15 +20,17 @@ from pathlib import Path
 
 import pytest
 
-from wheelcal.batch.runner import _some_session_new
+from wheelcal.batch.runner import _new_sessions
 from wheelcal.batch.workers import START_METHOD_ENV
 
+_FORKSERVER = "forkserver" in multiprocessing.get_all_start_methods()
 
-def test_some_session_new_is_whether_a_calibration_is_missing(tmp_path):
+
+def test_new_sessions_count_the_missing_calibrations(tmp_path):
     (tmp_path / "a.calibration.json").write_text("{}")
-    assert not _some_session_new(tmp_path, ["a"])
-    assert _some_session_new(tmp_path, ["a", "b"])
-    assert not _some_session_new(tmp_path, [])
+    assert _new_sessions(tmp_path, ["a"]) == 0
+    assert _new_sessions(tmp_path, ["a", "b", "c"]) == 2
+    assert _new_sessions(tmp_path, []) == 0
 
 
 def _fresh(code: str, start_method: str | None = None) -> str:
@@ -69,9 +71,11 @@ def test_plan_imports_the_window_search_for_new_sessions_only(tmp_path, workers)
     assert _fresh(code, "fork").split() == ["False", "2", "True"]
     # Under the fork server a planner of several workers leaves it to the server.
     expected = "True" if workers == 1 else "False"
-    if "forkserver" in multiprocessing.get_all_start_methods():
+    if _FORKSERVER:
         assert _fresh(code, "forkserver").split() == ["False", "2", expected]
     out = tmp_path / "out"
+    (out / "a.calibration.json").write_text("{}")  # one new session: it runs in process
+    assert _fresh(code, "forkserver" if _FORKSERVER else "fork").split() == ["False", "2", "True"]
     for name in ("a", "b"):  # calibrations present (stale: their run key differs)
         (out / f"{name}.calibration.json").write_text("{}")
     assert _fresh(code, "fork").split() == ["False", "2", "False"]
@@ -81,9 +85,7 @@ def _imported(names):
     return [name in sys.modules for name in names]
 
 
-@pytest.mark.skipif(
-    "forkserver" not in multiprocessing.get_all_start_methods(), reason="no fork server here"
-)
+@pytest.mark.skipif(not _FORKSERVER, reason="no fork server here")
 def test_a_fork_server_worker_starts_with_what_a_session_imports():
     code = """
         from concurrent.futures import ProcessPoolExecutor

@@ -48,6 +48,7 @@ from wheelcal.batch.stems import unique_stems
 from wheelcal.batch.workers import (
     SESSION_IMPORTS,
     exit_with_parent,
+    start_fork_server,
     start_method,
     worker_context,
 )
@@ -228,12 +229,14 @@ def _import_for_workers(in_process: bool) -> None:
     For sessions run in this process, and for workers forked from it (``fork``:
     they inherit its modules; without this each would import them on its first
     session).  Under ``forkserver`` the fork server preloads them instead
-    (:mod:`wheelcal.batch.workers`), and this process, which only plans and
-    reports, skips them; ``spawn``-ed workers import them themselves.  (Not Rerun:
+    (:mod:`wheelcal.batch.workers`): this process, which only plans and reports,
+    starts the server here, so its imports run beside the hashing.  ``spawn``-ed
+    workers import them themselves.  (Not Rerun:
     it starts threads when imported, and a process should not fork with threads it
     does not control.)
     """
     if not in_process and start_method() != "fork":
+        start_fork_server()  # its imports beside the hashing, not after it
         return
     for name in SESSION_IMPORTS:
         importlib.import_module(name)
@@ -244,12 +247,13 @@ def _in_process(pipeline: Pipeline, sessions: int) -> bool:
     return min(pipeline.executor.workers or os.cpu_count() or 1, sessions) == 1
 
 
-def _some_session_new(out: Path, stems) -> bool:
-    """Whether some session has no calibration yet: then workers will certainly run.
+def _new_sessions(out: Path, stems) -> int:
+    """How many sessions have no calibration yet: those will certainly run.
 
-    (A re-run with every session up to date forks no worker and skips the import.)
+    (A re-run with every session up to date forks no worker and skips the imports;
+    one that adds a single recording runs it in this process.)
     """
-    return any(not _calibration_file(out, stem).exists() for stem in stems)
+    return sum(not _calibration_file(out, stem).exists() for stem in stems)
 
 
 def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
@@ -264,8 +268,9 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
     # while this thread imports what each forked worker would otherwise import itself
     with ThreadPoolExecutor(min(_HASH_THREADS, len(files) or 1)) as pool:
         pending = pool.map(_fingerprint, files)
-        if pipeline.executor.kind == "processes" and _some_session_new(out, stems.values()):
-            _import_for_workers(_in_process(pipeline, len(files)))
+        new = _new_sessions(out, stems.values()) if pipeline.executor.kind == "processes" else 0
+        if new:
+            _import_for_workers(_in_process(pipeline, new))
         fingerprints = list(pending)
     for f, sha in zip(files, fingerprints, strict=True):
         stem = stems[str(f)]
