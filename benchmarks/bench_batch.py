@@ -95,8 +95,10 @@ def _run(
 
 def _cpu_s(live_descendants: bool) -> float:
     """CPU seconds of this process (with the Dask scheduler and client threads), of its ended
-    children (the local pool's workers) and, if asked, of its live descendants (Dask's nannies
-    and workers; not for a local run, which they only watch idling).
+    children, of the fork server (a live child) with the workers it has reaped (the local
+    pool's: a forkserver worker is the server's child, never this process's) and, if asked,
+    of its other live descendants (Dask's nannies and workers; not for a local run, which
+    they only watch idling).
 
     On a saturated machine a batch's throughput is bounded by its CPU per session, and CPU
     time, unlike the wall clock, hardly depends on what else the machine runs.
@@ -105,12 +107,17 @@ def _cpu_s(live_descendants: bool) -> float:
 
     ended = resource.getrusage(resource.RUSAGE_CHILDREN)
     live = 0.0
-    for child in psutil.Process().children(recursive=True) if live_descendants else ():
+    for child in psutil.Process().children(recursive=True):
         try:
+            forkserver = "forkserver" in " ".join(child.cmdline())
+            if not (live_descendants or forkserver):
+                continue
             times = child.cpu_times()
         except psutil.NoSuchProcess:
             continue
         live += times.user + times.system
+        if forkserver:
+            live += times.children_user + times.children_system
     return time.process_time() + ended.ru_utime + ended.ru_stime + live
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib
 import json
 import os
 import time
@@ -44,7 +45,13 @@ from wheelcal.batch.provenance import (
 )
 from wheelcal.batch.session import calibrate_session, check_regular_file, failed_outcome
 from wheelcal.batch.stems import unique_stems
-from wheelcal.batch.workers import exit_with_parent, worker_context
+from wheelcal.batch.workers import (
+    SESSION_IMPORTS,
+    exit_with_parent,
+    start_fork_server,
+    start_method,
+    worker_context,
+)
 from wheelcal.calibration.document import Calibration
 from wheelcal.io.atomic import OutputFolderError, prepare_output_folder
 from wheelcal.recording import RecordingError
@@ -216,22 +223,37 @@ def _fingerprint(path: Path) -> str | OSError | RecordingError:
         return exc
 
 
-def _import_for_workers() -> None:
-    """Import the window search's ``scipy.signal`` (≈ 0.6 s) once, before the pool forks.
+def _import_for_workers(in_process: bool) -> None:
+    """Import what a session imports on first use (``scipy.signal``: ≈ 0.6 s) here, once.
 
-    Forked workers inherit the parent's modules; without this each worker imports
-    it on its first session.  (Not Rerun: it starts threads when imported, and a
-    process should not fork with threads it does not control.)
+    For sessions run in this process, and for workers forked from it (``fork``:
+    they inherit its modules; without this each would import them on its first
+    session).  Under ``forkserver`` the fork server preloads them instead
+    (:mod:`wheelcal.batch.workers`): this process, which only plans and reports,
+    starts the server here, so its imports run beside the hashing.  ``spawn``-ed
+    workers import them themselves.  (Not Rerun:
+    it starts threads when imported, and a process should not fork with threads it
+    does not control.)
     """
-    import scipy.signal  # noqa: F401
+    if not in_process and start_method() != "fork":
+        start_fork_server()  # its imports beside the hashing, not after it
+        return
+    for name in SESSION_IMPORTS:
+        importlib.import_module(name)
 
 
-def _some_session_new(out: Path, stems) -> bool:
-    """Whether some session has no calibration yet: then workers will certainly run.
+def _in_process(pipeline: Pipeline, sessions: int) -> bool:
+    """Whether a local batch of ``sessions`` runs them in this process (one worker)."""
+    return min(pipeline.executor.workers or os.cpu_count() or 1, sessions) == 1
 
-    (A re-run with every session up to date forks no worker and skips the import.)
+
+def _new_sessions(out: Path, stems) -> int:
+    """How many sessions have no calibration yet: those will certainly run.
+
+    (A re-run with every session up to date forks no worker and skips the imports;
+    one that adds a single recording runs it in this process.)
     """
-    return any(not _calibration_file(out, stem).exists() for stem in stems)
+    return sum(not _calibration_file(out, stem).exists() for stem in stems)
 
 
 def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
@@ -246,8 +268,9 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
     # while this thread imports what each forked worker would otherwise import itself
     with ThreadPoolExecutor(min(_HASH_THREADS, len(files) or 1)) as pool:
         pending = pool.map(_fingerprint, files)
-        if pipeline.executor.kind == "processes" and _some_session_new(out, stems.values()):
-            _import_for_workers()
+        new = _new_sessions(out, stems.values()) if pipeline.executor.kind == "processes" else 0
+        if new:
+            _import_for_workers(_in_process(pipeline, new))
         fingerprints = list(pending)
     for f, sha in zip(files, fingerprints, strict=True):
         stem = stems[str(f)]

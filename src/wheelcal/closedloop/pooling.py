@@ -53,6 +53,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import special
 
 from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
@@ -336,11 +337,9 @@ def _left_out(sessions, determined, used):
 
 
 def _spread_warnings(chi2_red, dof, scale) -> list[str]:
-    from scipy import stats
-
     out = []
     for name, c, nu, s in zip(POOLED_PARAMETERS, chi2_red, dof, scale, strict=True):
-        if nu > 0 and np.isfinite(c) and c > 1 and stats.chi2.sf(c * nu, nu) < SPREAD_WARNING_P:
+        if nu > 0 and np.isfinite(c) and c > 1 and special.chdtrc(nu, c * nu) < SPREAD_WARNING_P:
             out.append(
                 f"{name}: the sessions scatter {s:.2g}× more than their σ (χ²_red {c:.3g}, "
                 f"{int(nu)} dof): σ scaled by {s:.2g}; something varies between sessions that "

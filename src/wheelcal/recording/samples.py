@@ -212,9 +212,11 @@ def _drop_leading_zeros(path, t, a, notes):
     A real accelerometer never reads exactly (0, 0, 0): gravity alone is 9.8 m/s².
     Loggers often write zero rows before the sensor's first reading.
     """
+    if not a.shape[0] or np.any(a[0] != 0.0):  # the usual case, without a pass over every row
+        return t, a
     zero = np.all(a == 0.0, axis=1)
-    if not zero.size or not zero[0] or np.all(zero):
-        return t, a  # nothing to drop, or nothing left: _check_alive names it
+    if np.all(zero):
+        return t, a  # nothing left: _check_alive names it
     first = int(np.argmin(zero))
     notes.append(
         f"dropped the first {first} samples: every axis reads exactly 0 (a logger's rows "
