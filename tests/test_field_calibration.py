@@ -192,6 +192,22 @@ def test_a_car_whose_gyro_clips_is_calibrated_between_the_clippings(tmp_path, ac
         assert abs(np.linalg.norm(rest.mean_mps2) - 9.81) < 1.0, (rest.start_s, rest.mean_mps2)
 
 
+def test_the_gyros_stated_sensitivity_to_acceleration_reaches_the_field_fit():
+    # --gyro-g-sensitivity had reached only the bench's fit: the field fit's prior stayed at
+    # 0.1 °/s/g, and with it (in the sandwich's meat) a factory IMU's camber σ 1.6× its
+    # spread over 40 cars; stated as 0.02 (the simulated IMU's class), 1.18×.
+    rng = np.random.default_rng(5)
+    sim = simulate_field(car_drive(rng), rng)
+    sigma = {}
+    for stated in (0.1, 0.02):
+        cal = wheelcal.calibrate(sim.recording, gyro_g_sensitivity_dps_per_g=stated)
+        (angle,) = [e for e in cal.result.layout.effects if e.name == "gyro_angle"]
+        expected = np.deg2rad(stated) / 9.80665
+        np.testing.assert_allclose(angle.prior_std_values()[-3:], expected, rtol=1e-12)
+        sigma[stated] = cal.result.std_of("tilt_deg")
+    assert sigma[0.02] < 0.8 * sigma[0.1], sigma
+
+
 def test_a_car_that_rolls_in_its_turns_is_refused_by_name():
     """A camber that follows the turns (body roll, 0.8°/(m/s²)) is out of scope: the fit
     put it into offset_x (15 σ off) and the camber (16 σ) with no other gate firing."""

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from wheelcal.estimate.field.fit import YAW_RMS_RADPS, FieldFit
+from wheelcal.estimate.field.fit import YAW_RMS_RADPS
 from wheelcal.estimate.field.gyro_axle import gyro_axle
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.field import calibrate_field, is_vertical_axle, yaw_rms_radps
@@ -64,7 +64,10 @@ def calibrate_auto(recording: Recording, options) -> SessionResult:
         return _detected(session, "bench", "a fixed axle: the carrier does not turn")
     try:
         session, field = calibrate_field(
-            recording, options.gates, FieldFit(), why="no radius given: the geometry from the data"
+            recording,
+            options.gates,
+            options.field_fitter(),
+            why="no radius given: the geometry from the data",
         )
     except (CalibrationRefused, RecordingError) as exc:
         # The field fit could not read a rolling wheel: a wheel on a fixed axle.
@@ -93,7 +96,7 @@ def _fixed_axle(recording: Recording, options, axis, why: str) -> SessionResult:
 
 
 def _field(recording: Recording, options, why: str) -> SessionResult:
-    session, field = calibrate_field(recording, options.gates, FieldFit(), why=why)
+    session, field = calibrate_field(recording, options.gates, options.field_fitter(), why=why)
     if field.geometry.kind == "rolling":
         return session
     raise CalibrationRefused(

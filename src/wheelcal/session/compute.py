@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from wheelcal.estimate.field.fit import FieldFit
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.recording import SESSION_FACT_KEYS, Recording
 from wheelcal.session.fit import SessionFit
@@ -141,6 +142,10 @@ class SessionOptions:
             use_gyro=self.geometry == "rolling",  # the yaw rate comes from the gyro
             gyro_g_prior_dps_per_g=self.gyro_g_sensitivity_dps_per_g,
         )
+
+    def field_fitter(self) -> FieldFit:
+        """The field fit's configuration for these options (a wheel in the field)."""
+        return FieldFit(gyro_g_prior_dps_per_g=self.gyro_g_sensitivity_dps_per_g)
 
     def session_fit(self) -> SessionFit:
         """Window, joint fit, closed loop (unless ``model="paper"``) and gates."""

@@ -47,9 +47,10 @@ from wheelcal.estimate.field.start import field_start
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model import CalibrationParams, Rotation, SpinParams
-from wheelcal.model.effects import CrossAxis
+from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, CrossAxis
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.gyro_angle import GyroAngle
+from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 from wheelcal.model.rolling import Rolling
 from wheelcal.recording import Recording, RecordingError
 
@@ -126,6 +127,11 @@ class FieldFit:
     fit_yaw_offset: bool = True
     fit_cross: bool = True
     fit_g_sensitivity: bool = True
+    #: The prior on the gyro's sensitivity to acceleration, °/s/g (``--gyro-g-sensitivity``:
+    #: MPU-9250 class 0.1; a factory-calibrated IMU less).  Its information joins the
+    #: sandwich's meat as a prior whose mean is off by this much (``robust``), so a prior
+    #: wider than the gyro widens σ.
+    gyro_g_prior_dps_per_g: float = G_SENSITIVITY_PRIOR_DPS_PER_G
     #: σ from the sandwich and the gyro's angle walk (:mod:`~wheelcal.estimate.field.robust`).
     robust_sigma: bool = True
     #: The final fit lets the sensor's axes be non-orthogonal (:class:`CrossAxis`).
@@ -254,7 +260,10 @@ class FieldFit:
         frame = (float(window.time_s[0]), float(window.time_s[-1]))
 
         def angle_of(axle):
-            return GyroAngle(tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel)
+            g_prior = np.deg2rad(self.gyro_g_prior_dps_per_g) / STANDARD_GRAVITY_MPS2
+            return GyroAngle(
+                tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel, g_prior
+            )
 
         angle = angle_of(axle)
         # The yaw as the gyro's axes across the axle read it: their scale is their own
