@@ -10,6 +10,8 @@ reported null with the reason, a misfit is refused.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from wheelcal.estimate.field.fit import FieldFit, FieldResult
@@ -50,6 +52,9 @@ def calibrate_field(
     span = (float(drive.time_s[0]), float(drive.time_s[-1]))
     rests = find_rests(recording, span)
     assessment = assess(field.result, rests, gates)
+    turns = _lean_in_turns_warning(field)
+    if turns:
+        assessment = dataclasses.replace(assessment, warnings=(*assessment.warnings, turns))
     reason = "; ".join(x for x in (why, field.geometry.reason) if x)
     session = SessionResult(
         source=recording.source,
@@ -81,6 +86,29 @@ def _refuse_a_lean(source: str, field: FieldResult, gates: Gates) -> None:
             "calibrate from straight runs or a vehicle that does not lean, or on a bench; "
             f"--max-lean-change-deg (now {gates.max_lean_change_deg:g}) sets the limit",
         )
+
+
+#: A lean that follows the turns is named in a warning from this size (2–98 % range, °) …
+LEAN_IN_TURNS_WARNING_DEG = 0.2
+#: … where its slope k stands this many σ from zero.
+LEAN_IN_TURNS_Z = 5.0
+
+
+def _lean_in_turns_warning(field: FieldResult) -> str:
+    """A warning when the camber follows the turns (a body's roll below the ``lean`` gate)."""
+    turns = field.geometry.lean_in_turns
+    if field.geometry.kind != "rolling" or turns is None:
+        return ""
+    size = float(np.rad2deg(turns.range_rad))
+    if size < LEAN_IN_TURNS_WARNING_DEG or turns.z < LEAN_IN_TURNS_Z:
+        return ""
+    k, std = np.rad2deg(abs(turns.per_lateral_mps2_rad)), np.rad2deg(turns.std_rad)
+    return (
+        f"the wheel's camber follows the turns: {k:.3f} ± {std:.3f}°/(m/s²) of lateral "
+        f"acceleration, {size:.2f}° over the drive (the carrier rolls in its turns); the model "
+        "has one camber, and on simulated cars a lean of half a degree moved the camber and "
+        "an offset by several σ — calibrate from straight runs, or read those with care"
+    )
 
 
 def yaw_rms_radps(recording: Recording) -> float:

@@ -35,8 +35,10 @@ import numpy as np
 
 from wheelcal.estimate.field.gyro_axle import (
     GyroAxle,
+    LeanInTurns,
     gyro_axle,
     lean_change_rad,
+    lean_in_turns,
     rate_noise_density,
     refined_axle,
     smoothed_accel,
@@ -87,6 +89,8 @@ class FieldGeometry:
     yaw_rms_radps: float
     #: How far the camber changed during the drive, from the gyro (2–98 % range, °).
     lean_change_deg: float = 0.0
+    #: The part of it that follows the turns (:func:`~.gyro_axle.lean_in_turns`), rolling only.
+    lean_in_turns: LeanInTurns | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,7 +183,7 @@ class FieldFit:
             )
             return FieldResult(first, geometry, axle)
         final = self._turns(window, lead, tc, axle, second, radius, stride)
-        axle, lean_rad = _lean(window, tc, axle, final)
+        axle, lean_rad, in_turns = _lean(window, tc, axle, final)
         camber = 90.0 - float(np.rad2deg(final.params.bench.tilt_rad))
         why = []
         if z > self.travel_z:
@@ -195,6 +199,7 @@ class FieldFit:
             float(z),
             axle.yaw_rms_radps,
             float(np.rad2deg(lean_rad)),
+            in_turns,
         )
         return FieldResult(final, geometry, axle)
 
@@ -323,13 +328,21 @@ class FieldFit:
 
 
 def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tuple:
-    """The axle refined at the final fit's ϑ and R, and how far the camber changed (rad)."""
+    """The axle refined at the final fit's ϑ and R, the camber's change and its turns' part.
+
+    The change is :func:`lean_change_rad` (rad); the part that follows the turns is a
+    :class:`LeanInTurns`.
+    """
     params = final.params
-    theta = wheel_kinematics(params, tc, final.layout.effects).theta_rad
+    kin = wheel_kinematics(params, tc, final.layout.effects)
     rotation = params.bench.misalignment.matrix
-    axle = refined_axle(window.gyro_radps, axle, theta, rotation)
-    yaw, _ = yaw_across(tc, window.gyro_radps, axle, theta, rotation)
-    return axle, lean_change_rad(tc, window.gyro_radps, axle, theta, rotation, yaw)
+    axle = refined_axle(window.gyro_radps, axle, kin.theta_rad, rotation)
+    yaw, _ = yaw_across(tc, window.gyro_radps, axle, kin.theta_rad, rotation)
+    change = lean_change_rad(tc, window.gyro_radps, axle, kin.theta_rad, rotation, yaw)
+    rho = float(params.effect("rolling", 1)[0])
+    lateral = rho * kin.omega_radps * yaw  # v ψ̇, up to its sign
+    in_turns = lean_in_turns(tc, window.gyro_radps, axle, kin.theta_rad, rotation, yaw, lateral)
+    return axle, change, in_turns
 
 
 def _gyro_rows_filled(window: Recording) -> Recording:

@@ -203,6 +203,70 @@ def yaw_across(
     return y, np.gradient(_lowpass(y, rate_hz, YAW_BAND_HZ), t)
 
 
+@dataclass(frozen=True)
+class LeanInTurns:
+    """The part of the camber that follows the turns: γ = k·a, a = ρ ω y (rad, per m/s²)."""
+
+    per_lateral_mps2_rad: float  # k
+    std_rad: float  # σ of k
+    range_rad: float  # |k| × the lateral acceleration's 2–98 % range
+
+    @property
+    def z(self) -> float:
+        """|k| / σ_k (inf when σ is 0)."""
+        return abs(self.per_lateral_mps2_rad) / self.std_rad if self.std_rad > 0 else np.inf
+
+
+#: The lean rate is regressed at this spacing (its low-pass keeps ≲ 1 Hz: about independent).
+LEAN_STEP_S = 0.5
+
+
+def lean_in_turns(
+    time_s: np.ndarray,
+    gyro_radps: np.ndarray,
+    axle: GyroAxle,
+    theta_rad: np.ndarray,
+    rotation: np.ndarray,
+    yaw_radps: np.ndarray,
+    lateral_mps2: np.ndarray,
+) -> LeanInTurns:
+    """How much of the camber follows the lateral acceleration (a body's roll in its turns).
+
+    The lean rate (:func:`lean_change_rad`'s, low-passed) regressed on the lateral
+    acceleration's rate d(ρ ω y)/dt, with what the gyro's own errors put there (bias,
+    y, y sin 2ϑ, y cos 2ϑ: :func:`lean_change_rad`), every ``LEAN_STEP_S``.  A
+    carrier that rolls in its turns has k ≠ 0 far beyond its σ; the range of the lean
+    is then |k| times the lateral acceleration's — free of the gyro's walk, which the
+    detrended track of :func:`lean_change_rad` carries (0.02–0.56° without lean).
+    """
+    t = np.asarray(time_s, dtype=float)
+    rate_hz = 1.0 / float(np.median(np.diff(t)))
+    side = _side(theta_rad, rotation)
+    lean_rate = _lowpass(np.sum(axle.across(gyro_radps) * side, axis=1), rate_hz, 1.0)
+    twice = 2.0 * np.asarray(theta_rad, dtype=float)
+    lateral = np.asarray(lateral_mps2, dtype=float)
+    design = np.column_stack(
+        [
+            np.ones_like(t),
+            yaw_radps,
+            yaw_radps * np.sin(twice),
+            yaw_radps * np.cos(twice),
+            np.gradient(lateral, t),
+        ]
+    )
+    rows = np.arange(0, t.size, max(1, round(LEAN_STEP_S * rate_hz)))
+    x, y = design[rows], lean_rate[rows]
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    dof = rows.size - x.shape[1]
+    if dof <= 0:
+        return LeanInTurns(0.0, np.inf, 0.0)
+    scale = float(np.sum((y - x @ coef) ** 2)) / dof
+    cov = scale * np.linalg.pinv(x.T @ x)
+    k = float(coef[-1])
+    low, high = np.percentile(lateral, [2.0, 98.0])
+    return LeanInTurns(k, float(np.sqrt(max(cov[-1, -1], 0.0))), abs(k) * float(high - low))
+
+
 def lean_change_rad(
     time_s: np.ndarray,
     gyro_radps: np.ndarray,
