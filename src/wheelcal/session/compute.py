@@ -16,15 +16,18 @@ import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from wheelcal.estimate.field.fit import FieldFit
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.recording import SESSION_FACT_KEYS, Recording
 from wheelcal.session.fit import SessionFit
 from wheelcal.session.gates import Gates
 from wheelcal.session.result import SessionResult
+
+if TYPE_CHECKING:
+    from wheelcal.estimate.field.fit import FieldFit
 
 #: Local gravity on Earth lies in this range; outside it needs ``force_gravity``.
 EARTH_GRAVITY_RANGE_MPS2 = (9.7, 9.9)
@@ -145,6 +148,8 @@ class SessionOptions:
 
     def field_fitter(self) -> FieldFit:
         """The field fit's configuration for these options (a wheel in the field)."""
+        from wheelcal.estimate.field.fit import FieldFit  # scipy.signal: not for every import
+
         return FieldFit(gyro_g_prior_dps_per_g=self.gyro_g_sensitivity_dps_per_g)
 
     def session_fit(self) -> SessionFit:
