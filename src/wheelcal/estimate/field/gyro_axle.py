@@ -217,6 +217,13 @@ class LeanInTurns:
         return abs(self.per_lateral_mps2_rad) / self.std_rad if self.std_rad > 0 else np.inf
 
 
+def _lean_rate(t, gyro_radps, axle: GyroAxle, theta_rad, rotation) -> tuple[float, np.ndarray]:
+    """The sample rate (Hz) and the gyro along the direction of travel, low-passed to 1 Hz."""
+    rate_hz = 1.0 / float(np.median(np.diff(t)))
+    across = axle.across(np.asarray(gyro_radps, dtype=float))
+    return rate_hz, _lowpass(np.sum(across * _side(theta_rad, rotation), axis=1), rate_hz, 1.0)
+
+
 #: The lean rate is regressed at this spacing (its low-pass keeps ≲ 1 Hz: about independent).
 LEAN_STEP_S = 0.5
 
@@ -240,9 +247,7 @@ def lean_in_turns(
     detrended track of :func:`lean_change_rad` carries (0.02–0.56° without lean).
     """
     t = np.asarray(time_s, dtype=float)
-    rate_hz = 1.0 / float(np.median(np.diff(t)))
-    side = _side(theta_rad, rotation)
-    lean_rate = _lowpass(np.sum(axle.across(gyro_radps) * side, axis=1), rate_hz, 1.0)
+    rate_hz, lean_rate = _lean_rate(t, gyro_radps, axle, theta_rad, rotation)
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
     lateral = np.asarray(lateral_mps2, dtype=float)
     design = np.column_stack(
@@ -286,10 +291,7 @@ def lean_change_rad(
     a robot turning on the spot does not average out).
     """
     t = np.asarray(time_s, dtype=float)
-    gyro = np.asarray(gyro_radps, dtype=float)
-    rate_hz = 1.0 / float(np.median(np.diff(t)))
-    side = _side(theta_rad, rotation)
-    lean_rate = _lowpass(np.sum(axle.across(gyro) * side, axis=1), rate_hz, 1.0)
+    _, lean_rate = _lean_rate(t, gyro_radps, axle, theta_rad, rotation)
     dt = np.gradient(t)
     lean = np.cumsum(lean_rate * dt)
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
