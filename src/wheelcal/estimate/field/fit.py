@@ -39,6 +39,7 @@ from wheelcal.estimate.field.gyro_axle import (
     gyro_axle,
     lean_change_rad,
     lean_in_turns,
+    lean_rate_radps,
     rate_noise_density,
     refined_axle,
     smoothed_accel,
@@ -338,10 +339,11 @@ def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tu
     rotation = params.bench.misalignment.matrix
     axle = refined_axle(window.gyro_radps, axle, kin.theta_rad, rotation)
     yaw, _ = yaw_across(tc, window.gyro_radps, axle, kin.theta_rad, rotation)
-    change = lean_change_rad(tc, window.gyro_radps, axle, kin.theta_rad, rotation, yaw)
+    lean_rate = lean_rate_radps(tc, window.gyro_radps, axle, kin.theta_rad, rotation)
+    change = lean_change_rad(tc, lean_rate, kin.theta_rad, yaw)
     rho = float(params.effect("rolling", 1)[0])
     lateral = rho * kin.omega_radps * yaw  # v ψ̇, up to its sign
-    in_turns = lean_in_turns(tc, window.gyro_radps, axle, kin.theta_rad, rotation, yaw, lateral)
+    in_turns = lean_in_turns(tc, lean_rate, kin.theta_rad, yaw, lateral)
     return axle, change, in_turns
 
 

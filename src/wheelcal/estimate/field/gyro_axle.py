@@ -217,11 +217,24 @@ class LeanInTurns:
         return abs(self.per_lateral_mps2_rad) / self.std_rad if self.std_rad > 0 else np.inf
 
 
-def _lean_rate(t, gyro_radps, axle: GyroAxle, theta_rad, rotation) -> tuple[float, np.ndarray]:
-    """The sample rate (Hz) and the gyro along the direction of travel, low-passed to 1 Hz."""
+def lean_rate_radps(
+    time_s: np.ndarray,
+    gyro_radps: np.ndarray,
+    axle: GyroAxle,
+    theta_rad: np.ndarray,
+    rotation: np.ndarray,
+) -> np.ndarray:
+    """The gyro along the direction of travel, low-passed to 1 Hz: the lean's rate (rad/s).
+
+    A carrier that leans (a car's body roll, a bicycle) turns the wheel about the
+    direction of travel, which the gyro reads across the axle and ⊥ the yaw's
+    direction: along R (−sin ϑ, cos ϑ, 0) (:func:`refined_axle`).  What the gyro's own
+    errors put there is for :func:`lean_change_rad` and :func:`lean_in_turns` to take out.
+    """
+    t = np.asarray(time_s, dtype=float)
     rate_hz = 1.0 / float(np.median(np.diff(t)))
     across = axle.across(np.asarray(gyro_radps, dtype=float))
-    return rate_hz, _lowpass(np.sum(across * _side(theta_rad, rotation), axis=1), rate_hz, 1.0)
+    return _lowpass(np.sum(across * _side(theta_rad, rotation), axis=1), rate_hz, 1.0)
 
 
 #: The lean rate is regressed at this spacing (its low-pass keeps ≲ 1 Hz: about independent).
@@ -230,24 +243,22 @@ LEAN_STEP_S = 0.5
 
 def lean_in_turns(
     time_s: np.ndarray,
-    gyro_radps: np.ndarray,
-    axle: GyroAxle,
+    lean_rate: np.ndarray,
     theta_rad: np.ndarray,
-    rotation: np.ndarray,
     yaw_radps: np.ndarray,
     lateral_mps2: np.ndarray,
 ) -> LeanInTurns:
     """How much of the camber follows the lateral acceleration (a body's roll in its turns).
 
-    The lean rate (:func:`lean_change_rad`'s, low-passed) regressed on the lateral
-    acceleration's rate d(ρ ω y)/dt, with what the gyro's own errors put there (bias,
-    y, y sin 2ϑ, y cos 2ϑ: :func:`lean_change_rad`), every ``LEAN_STEP_S``.  A
-    carrier that rolls in its turns has k ≠ 0 far beyond its σ; the range of the lean
-    is then |k| times the lateral acceleration's — free of the gyro's walk, which the
-    detrended track of :func:`lean_change_rad` carries (0.02–0.56° without lean).
+    The lean rate (:func:`lean_rate_radps`) regressed on the lateral acceleration's
+    rate d(ρ ω y)/dt, with what the gyro's own errors put there (bias, y, y sin 2ϑ,
+    y cos 2ϑ: :func:`lean_change_rad`), every ``LEAN_STEP_S``.  A carrier that
+    rolls in its turns has k ≠ 0 far beyond its σ; the range of the lean is then |k|
+    times the lateral acceleration's — free of the gyro's walk, which the detrended
+    track of :func:`lean_change_rad` carries (0.02–0.56° without lean).
     """
     t = np.asarray(time_s, dtype=float)
-    rate_hz, lean_rate = _lean_rate(t, gyro_radps, axle, theta_rad, rotation)
+    rate_hz = 1.0 / float(np.median(np.diff(t)))
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
     lateral = np.asarray(lateral_mps2, dtype=float)
     design = np.column_stack(
@@ -260,7 +271,7 @@ def lean_in_turns(
         ]
     )
     rows = np.arange(0, t.size, max(1, round(LEAN_STEP_S * rate_hz)))
-    x, y = design[rows], lean_rate[rows]
+    x, y = design[rows], np.asarray(lean_rate, dtype=float)[rows]
     coef, *_ = np.linalg.lstsq(x, y, rcond=None)
     dof = rows.size - x.shape[1]
     if dof <= 0:
@@ -273,25 +284,17 @@ def lean_in_turns(
 
 
 def lean_change_rad(
-    time_s: np.ndarray,
-    gyro_radps: np.ndarray,
-    axle: GyroAxle,
-    theta_rad: np.ndarray,
-    rotation: np.ndarray,
-    yaw_radps: np.ndarray,
+    time_s: np.ndarray, lean_rate: np.ndarray, theta_rad: np.ndarray, yaw_radps: np.ndarray
 ) -> float:
     """How far the wheel's camber changes during the drive (2–98 % range, rad), from the gyro.
 
-    A carrier that leans (a car's body roll, a bicycle) turns the wheel about the
-    direction of travel, which the gyro reads across the axle and ⊥ the yaw's
-    direction: along R (−sin ϑ, cos ϑ, 0) (:func:`refined_axle`).  Its integral, low-passed,
-    is the lean — less what the gyro's own errors put there: a constant and a
-    drift (bias and noise), the heading ∫y (its axes' misalignment about the axle),
-    and ∫y sin 2ϑ, ∫y cos 2ϑ (the scale difference of its axes across the axle, which
-    a robot turning on the spot does not average out).
+    The lean rate's integral (:func:`lean_rate_radps`) is the lean — less what the
+    gyro's own errors put there: a constant and a drift (bias and noise), the heading
+    ∫y (its axes' misalignment about the axle), and ∫y sin 2ϑ, ∫y cos 2ϑ (the scale
+    difference of its axes across the axle, which a robot turning on the spot does
+    not average out).
     """
     t = np.asarray(time_s, dtype=float)
-    _, lean_rate = _lean_rate(t, gyro_radps, axle, theta_rad, rotation)
     dt = np.gradient(t)
     lean = np.cumsum(lean_rate * dt)
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
