@@ -179,3 +179,19 @@ def test_a_given_gyro_window_across_a_day_long_gap_is_refused_in_bounded_memory(
     finally:
         tracemalloc.stop()
     assert peak_bytes < 50e6
+
+
+def test_the_drive_is_cut_where_the_rate_is_missing_but_one_row_is_bridged():
+    from wheelcal.session.window import angle_stretches
+
+    for rate_hz in (10.0, 100.0, 400.0):
+        t = np.arange(0.0, 20.0, 1.0 / rate_hz)
+        gyro = np.ones((t.size, 3))
+        gyro[t.size // 3] = np.nan  # one glitch row: bridged at any rate
+        assert angle_stretches(t, gyro) == [slice(0, t.size)]
+        hole = (t > 12.0) & (t < 12.3)  # 0.3 s clipped: cut
+        gyro[hole] = np.nan
+        first, last = np.flatnonzero(hole)[[0, -1]]
+        assert angle_stretches(t, gyro) == [slice(0, first), slice(last + 1, t.size)]
+        kept = ~hole  # … and so is a gap in the stamps (rows dropped)
+        assert angle_stretches(t[kept], gyro[kept]) == [slice(0, first), slice(first, kept.sum())]

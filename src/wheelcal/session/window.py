@@ -447,8 +447,8 @@ def find_drive_window(
     t = recording.time_s
     rate = _smoothed_gyro_rate(recording, search)
     moving = np.flatnonzero(rate > search.min_rate_radps)
-    stretches = contiguous_stretches(t, recording.rate_hz)
-    stretches, holes = _split_at_angle_holes(t, recording.gyro_radps, stretches)
+    stretches = angle_stretches(t, recording.gyro_radps)  # gaps in the stamps included
+    holes = len(stretches) - 1
     bounds = (float(t[0]), float(t[-1]))
     if len(stretches) > 1 and moving.size:  # the drive: the stretch that moves most
         most = max(stretches, key=lambda p: np.sum((moving >= p.start) & (moving < p.stop)))
@@ -483,29 +483,21 @@ def find_drive_window(
 
 
 #: The wheel angle, the gyro's integral, is not carried across a hole in the rate (gyro
-#: rows left out or dropped: clipped, a logger's gap) longer than this: the wheel's speed
-#: peaks inside a clipped stretch, and the rate drawn straight across it leaves
-#: ≈ ω̇ h²/4 in the angle (0.006 rad at 10 rad/s²; an isolated glitch row is bridged).
+#: rows left out or dropped: clipped, a logger's gap) longer than this (or than 2.5
+#: sample periods, so that one missing row is always bridged): the wheel's speed peaks
+#: inside a clipped stretch, and the rate drawn straight across it leaves ≈ ω̇ h²/4 in
+#: the angle (0.006 rad at 10 rad/s²; an isolated glitch row is bridged).
 MAX_ANGLE_BRIDGE_S = 0.05
 
 
-def _split_at_angle_holes(
-    time_s: np.ndarray, gyro_radps: np.ndarray, stretches: list[slice]
-) -> tuple[list[slice], int]:
-    """``stretches`` cut at the rate's holes longer than ``MAX_ANGLE_BRIDGE_S``; their count."""
+def angle_stretches(time_s: np.ndarray, gyro_radps: np.ndarray) -> list[slice]:
+    """The runs of samples between the rate's holes longer than ``MAX_ANGLE_BRIDGE_S``."""
     valid = np.flatnonzero(np.all(np.isfinite(gyro_radps), axis=1))
-    cuts = np.flatnonzero(np.diff(time_s[valid]) > MAX_ANGLE_BRIDGE_S)
-    if cuts.size == 0:
-        return stretches, 0
-    out = []
-    for part in stretches:
-        begin = part.start
-        for k in cuts:
-            before, after = valid[k] + 1, valid[k + 1]  # the hole: rows before … after − 1
-            if part.start < before <= part.stop:
-                if before > begin:
-                    out.append(slice(begin, before))
-                begin = max(begin, min(after, part.stop))
-        if begin < part.stop:
-            out.append(slice(begin, part.stop))
-    return out, int(cuts.size)
+    if valid.size < 2:
+        return [slice(0, time_s.size)]
+    steps = np.diff(time_s[valid])
+    limit = max(MAX_ANGLE_BRIDGE_S, 2.5 * float(np.median(np.diff(time_s))))
+    cuts = np.flatnonzero(steps > limit)
+    starts = [0, *(valid[cuts + 1]).tolist()]
+    stops = [*(valid[cuts] + 1).tolist(), time_s.size]
+    return [slice(a, b) for a, b in zip(starts, stops, strict=True)]
