@@ -15,7 +15,8 @@ gravity component by g sinα·ω·0.1 s ≫ the noise between blocks, even at
 1.5 rad/s).  Runs of still blocks lasting ``min_duration_s`` outside the
 free-spin window, trimmed by one block at each end, are rests.  With a gyroscope a
 still block must also show a wheel that does not turn: a car's wheel spinning fast
-and steadily has steady block means too (``REST_MAX_RATE_RADPS``).
+and steadily has steady block means too (``REST_MAX_RATE_RADPS``).  A block with
+samples left out inside it (clipped: a wheel at rest never clips) is no rest either.
 """
 
 from __future__ import annotations
@@ -83,6 +84,7 @@ def find_rests(
     limit = STILL_FACTOR * np.sqrt(2.0 / block) * np.maximum(stds[1:], stds[:-1])
     step_ok = np.all(np.abs(np.diff(means, axis=0)) <= limit + 1e-12, axis=1)
     still = np.concatenate([step_ok[:1], step_ok])  # block b vs block b − 1
+    still &= _without_holes(t, block, n_blocks)
     gyro = getattr(recording, "gyro_radps", None)
     if gyro is not None:
         still &= _gyro_quiet(gyro, block, n_blocks)
@@ -110,6 +112,12 @@ def find_rests(
             continue
         segments.append(_segment(t[i0:i1], v[i0:i1], rate, None if gyro is None else gyro[i0:i1]))
     return tuple(segments)
+
+
+def _without_holes(t: np.ndarray, block: int, n_blocks: int) -> np.ndarray:
+    """Per block: no sample left out inside it (a clipped one: a wheel at rest never clips)."""
+    stamps = t[: n_blocks * block].reshape(n_blocks, block)
+    return np.diff(stamps, axis=1).max(axis=1) <= 1.5 * float(np.median(np.diff(t)))
 
 
 def _gyro_quiet(gyro_radps: np.ndarray, block: int, n_blocks: int) -> np.ndarray:
