@@ -274,7 +274,10 @@ def accumulate_fitting_noise(
             params, t_s, accel_mps2, layout, extra, extra_size
         )
         noise = noise_of(np.negative(residual))
-        return _whitened_normal(buf, residual, noise), noise
+        # With the effects' priors, as accumulate has them: without, stage 2 started
+        # from a Hessian that left a gyro's G free (a step of 10³ σ along it) and a cost
+        # Σ (x/σ)² below every later pass's, so that no step could lower it ("stalled").
+        return _with_priors(_whitened_normal(buf, residual, noise), params, layout), noise
     output = None
     if one_chunk:
         output = evaluate(params, t_s, layout)
