@@ -26,6 +26,7 @@ import wheelcal
 from wheelcal.estimate.joint.crlb import cramer_rao_bound
 from wheelcal.model import BenchParams
 from wheelcal.recording import CalibrationRefused, RecordingError
+from wheelcal.session.gates import Gates
 from wheelcal.simulate import (
     bench_spin,
     car_drive,
@@ -196,8 +197,8 @@ def test_a_car_whose_gyro_clips_is_calibrated_between_the_clippings(tmp_path, ac
 
 def test_the_gyros_stated_sensitivity_to_acceleration_reaches_the_field_fit():
     # --gyro-g-sensitivity had reached only the bench's fit: the field fit's prior stayed at
-    # 0.1 °/s/g, and with it (in the sandwich's meat) a factory IMU's camber σ 1.6× its
-    # spread over 40 cars; stated as 0.02 (the simulated IMU's class), 1.18×.
+    # 0.1 °/s/g whatever was stated.  A tighter prior narrows the camber's σ (which trades
+    # with G): 0.025° against 0.029° on this car.
     rng = np.random.default_rng(5)
     sim = simulate_field(car_drive(rng), rng)
     sigma = {}
@@ -207,7 +208,7 @@ def test_the_gyros_stated_sensitivity_to_acceleration_reaches_the_field_fit():
         expected = np.deg2rad(stated) / 9.80665
         np.testing.assert_allclose(angle.prior_std_values()[-3:], expected, rtol=1e-12)
         sigma[stated] = cal.result.std_of("tilt_deg")
-    assert sigma[0.02] < 0.8 * sigma[0.1], sigma
+    assert sigma[0.02] < 0.9 * sigma[0.1], sigma
 
 
 def _leans_in_turns(warnings) -> bool:
@@ -290,6 +291,23 @@ def test_a_simulated_rolling_car_from_the_command_line_is_refused_as_lean(tmp_pa
     stand = tmp_path / "stand.mcap"
     assert main(["simulate", str(stand), "--preset", "stand", "--body-roll-deg-per-mps2", "1"]) == 2
     assert "needs a rolling wheel" in capsys.readouterr().err and not stand.exists()
+
+
+def test_a_gyro_sensitive_to_gravity_is_not_read_as_a_lean():
+    # G's in-plane cross terms (0.3 °/s/g, a poor MEMS part) turn gravity into
+    # a rate along the direction of travel: constant while the wheel turns, set by its angle
+    # while it stands.  Read as a lean, it walks over the stops (0.6° here, against 0.4° with
+    # gravity's cos 2ϑ, sin 2ϑ in the lean's regressions; study cars with G drawn at
+    # 0.1 °/s/g were refused as "lean" at 1.1–1.2°).  The exact check is in test_field_model.
+    rng = np.random.default_rng(1009)
+    scenario = car_drive(rng, camber_deg=1.0)
+    g_sens = ((0.0, 0.3, 0.0), (0.3, 0.0, 0.0), (0.0, 0.0, 0.0))
+    gyro = dataclasses.replace(scenario.gyro, g_sensitivity_dps_per_g=g_sens)
+    sim = simulate_field(dataclasses.replace(scenario, gyro=gyro), rng)
+    gates = Gates(max_lean_change_deg=0.5)
+    cal = wheelcal.calibrate(sim.recording, gates=gates)
+    assert cal.session.geometry == "rolling"
+    _assert_within_the_bound(cal, sim.truth)
 
 
 def test_the_session_says_where_its_geometry_came_from():
@@ -409,7 +427,7 @@ def test_study_every_parameter_within_5_sigma_crlb_of_the_truth(study, kind):
 @pytest.mark.parametrize("kind", sorted(DRIVES))
 def test_study_reported_sigma_matches_the_spread(study, kind):
     done = [d for d in study if d.kind == kind and d.refused is None]
-    for name in SENSOR:
+    for name in CHECKED:
         z = np.array([d.z_reported[name] for d in done if name in d.z_reported])
         if z.size < 20:
             continue

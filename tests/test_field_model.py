@@ -186,3 +186,58 @@ def test_tilt_and_radius_are_free_together_only_with_an_effect_that_measures_the
     vertical = Rolling(t, np.zeros_like(t))
     with pytest.raises(ValueError, match="null space"):
         ParameterLayout(fit_tilt=True, fit_radius=True, effects=(vertical,))
+
+
+def test_gravity_through_the_gyros_g_sensitivity_is_no_lean():
+    # A wheel that stops at three angles: the gyro's cross terms across the axle read
+    # gravity as g·(c0 + c1 cos 2ϑ + c2 sin 2ϑ) along the direction of travel; no lean.
+    from wheelcal.estimate.field.gyro_axle import _lowpass, lean_change_rad, lean_in_turns
+
+    rate_hz = 100.0
+    t = np.arange(0.0, 90.0, 1.0 / rate_hz)
+    omega = np.where((t % 30.0) < 22.0, 20.0, 0.0)  # 22 s at 20 rad/s, then 8 s stopped
+    theta = np.cumsum(omega) / rate_hz + 0.4
+    g_rate = np.deg2rad(0.15)  # 0.15 °/s/g at 1 g
+    raw = g_rate * (0.8 + 0.5 * np.cos(2 * theta) - 0.7 * np.sin(2 * theta))
+    lean_rate = _lowpass(raw, rate_hz, 1.0)
+    yaw = np.zeros_like(t)
+    assert np.rad2deg(lean_change_rad(t, lean_rate, theta, yaw)) < 0.01
+    turns = lean_in_turns(t, lean_rate, theta, yaw, np.sin(0.3 * t))
+    assert turns.range_rad < np.deg2rad(0.01)
+
+
+def test_every_pass_of_the_fit_carries_the_priors():
+    # A gyro's G under its prior, at 2 σ of it: the stage-2 start (accumulate_fitting_noise),
+    # the Jacobian pass (accumulate), the gradient pass and the cost-only pass must give one
+    # cost, gradient and Hessian.  The start had none of the prior: its step went 10³ σ along
+    # G and its cost sat Σ (x/σ)² below every later pass ("stalled" wheelchair hubs).
+    from wheelcal.estimate.joint.fit import _LastResidual, _residual_fn
+    from wheelcal.estimate.joint.noise_model import NoiseModel
+    from wheelcal.estimate.joint.normal_equations import (
+        accumulate,
+        accumulate_fitting_noise,
+        gradient_pass,
+    )
+    from wheelcal.model import evaluate
+
+    t = np.linspace(-15.0, 15.0, 1201)
+    rate, rate_dot, _, _ = _series(t)
+    force = np.column_stack([np.sin(t), np.cos(0.7 * t), 9.0 + 0.0 * t])
+    angle = GyroAngle(t, rate, rate_dot, accel_mps2=force, g_prior_std=1e-3)
+    params = _field_params(72.0, {angle.name: [1.01, 2e-3, -1e-3, 5e-4]})
+    layout = ParameterLayout(spin_degree=0, fit_tilt=True, fit_radius=True, effects=(angle,))
+    rng = np.random.default_rng(0)
+    data = evaluate(params, t, layout).predicted_mps2 + rng.normal(0.0, 0.02, (t.size, 3))
+    noise = NoiseModel.white(np.full(3, 0.02))
+    start, _ = accumulate_fitting_noise(params, t, data, layout, lambda r: noise)
+    full = accumulate(params, t, data, layout, noise, jacobian=True)
+    grad = gradient_pass(params, t, data, layout, noise)
+    cost_only = _LastResidual(_residual_fn(t, data, layout, noise), t, data, layout, noise)
+    residual = data - evaluate(params, t, layout).predicted_mps2
+    prior = 2.0**2 + 1.0**2 + 0.5**2  # G at (2, −1, 0.5) σ
+    assert full.cost - np.sum((residual / 0.02) ** 2) == pytest.approx(prior, rel=1e-6)
+    for other in (start, grad, cost_only(params, False)):
+        assert other.cost == pytest.approx(full.cost, rel=1e-12)
+    for other in (start, grad):
+        np.testing.assert_allclose(other.gradient[: layout.size], full.gradient[: layout.size])
+    np.testing.assert_allclose(start.hessian, full.hessian, rtol=1e-10, atol=1e-12)

@@ -201,22 +201,32 @@ MEMS_IMU = _Device(0.05, 0.5, (0.02, 0.06), "mems")
 BENCH_IMU = _Device(0.05, 0.5, (0.03, 0.08), "mems")
 
 
+#: σ of each entry of a drawn gyro's g-sensitivity matrix, °/s/g.
+G_SENSITIVITY_CLASS_DPS_PER_G = 0.1
+
+
 def _gyro(rng: np.random.Generator, grade: Literal["factory", "mems"]) -> GyroSpec:
     """A gyro with drawn errors: a factory-calibrated IMU (Xsens DOT, NGIMU) or a bare MEMS part.
 
     The factory grade has no range limit here: a DOT's ±2000 °/s clips a car's
     wheel above ~10 m/s, which the drives would lose (pass a GyroSpec to model it).
+    The sensitivity to linear acceleration is drawn per device, every entry of the
+    3×3 matrix normal with σ :data:`G_SENSITIVITY_CLASS_DPS_PER_G` for both grades:
+    a factory calibration leaves it (the MEMS parts inside, e.g. a BMI160, state
+    0.1 °/s/g), and it is the class the fit's default prior describes.
     """
     if grade == "factory":
-        bias, scale, misalign, density, g_sens, full_scale = 0.005, 0.003, 0.3, 0.007, 0.02, None
+        bias, scale, misalign, density, full_scale = 0.005, 0.003, 0.3, 0.007, None
     else:
-        bias, scale, misalign, density, g_sens, full_scale = 0.03, 0.02, 1.5, 0.01, 0.1, 2000.0
+        bias, scale, misalign, density, full_scale = 0.03, 0.02, 1.5, 0.01, 2000.0
     return GyroSpec(
         noise_density_dps_rthz=density,
         bias_radps=tuple(rng.uniform(-bias, bias, 3)),
         scale_error=tuple(rng.uniform(-scale, scale, 3)),
         misalignment_deg=tuple(rng.uniform(-misalign, misalign, 3)),
-        g_sensitivity_dps_per_g=g_sens,
+        g_sensitivity_dps_per_g=tuple(
+            map(tuple, rng.normal(0.0, G_SENSITIVITY_CLASS_DPS_PER_G, (3, 3)))
+        ),
         full_scale_dps=full_scale,
     )
 

@@ -237,6 +237,20 @@ def lean_rate_radps(
     return _lowpass(np.sum(across * _side(theta_rad, rotation), axis=1), rate_hz, 1.0)
 
 
+def _gravity_through_g(t: np.ndarray, theta_rad: np.ndarray, rate_hz: float) -> np.ndarray:
+    """(N, 2): cos 2ϑ and sin 2ϑ, low-passed like the lean rate.
+
+    The gyro's sensitivity to linear acceleration G (~0.1 °/s/g) turns gravity, which
+    rotates in the sensor's frame, into rates; read along the direction of travel they
+    are g·[c₀ + c₁ cos 2ϑ + c₂ sin 2ϑ] (from G's entries across the axle).  Moving, the
+    low-pass averages the 2ϑ terms out and c₀ is a constant rate; stopped, the wheel's
+    angle makes them a rate that depends on where it stopped — read as a lean that walks
+    during every stop (1.1–1.2° over a car's drive at 0.1 °/s/g) unless taken out.
+    """
+    twice = 2.0 * np.asarray(theta_rad, dtype=float)
+    return _lowpass(np.column_stack([np.cos(twice), np.sin(twice)]), rate_hz, 1.0)
+
+
 #: The lean rate is regressed at this spacing (its low-pass keeps ≲ 1 Hz: about independent).
 LEAN_STEP_S = 0.5
 
@@ -251,8 +265,8 @@ def lean_in_turns(
     """How much of the camber follows the lateral acceleration (a body's roll in its turns).
 
     The lean rate (:func:`lean_rate_radps`) regressed on the lateral acceleration's
-    rate d(ρ ω y)/dt, with what the gyro's own errors put there (bias, y, y sin 2ϑ,
-    y cos 2ϑ: :func:`lean_change_rad`), every ``LEAN_STEP_S``.  A carrier that
+    rate d(ρ ω y)/dt, with what the gyro's own errors put there (bias, gravity through G,
+    y, y sin 2ϑ, y cos 2ϑ: :func:`lean_change_rad`), every ``LEAN_STEP_S``.  A carrier that
     rolls in its turns has k ≠ 0 far beyond its σ; the range of the lean is then |k|
     times the lateral acceleration's — free of the gyro's walk, which the detrended
     track of :func:`lean_change_rad` carries (0.02–0.56° without lean).
@@ -264,6 +278,7 @@ def lean_in_turns(
     design = np.column_stack(
         [
             np.ones_like(t),
+            _gravity_through_g(t, theta_rad, rate_hz),
             yaw_radps,
             yaw_radps * np.sin(twice),
             yaw_radps * np.cos(twice),
@@ -289,7 +304,8 @@ def lean_change_rad(
     """How far the wheel's camber changes during the drive (2–98 % range, rad), from the gyro.
 
     The lean rate's integral (:func:`lean_rate_radps`) is the lean — less what the
-    gyro's own errors put there: a constant and a drift (bias and noise), the heading
+    gyro's own errors put there: a constant and a drift (bias and noise), gravity
+    through its g-sensitivity (:func:`_gravity_through_g`), the heading
     ∫y (its axes' misalignment about the axle), and ∫y sin 2ϑ, ∫y cos 2ϑ (the scale
     difference of its axes across the axle, which a robot turning on the spot does
     not average out).
@@ -298,10 +314,13 @@ def lean_change_rad(
     dt = np.gradient(t)
     lean = np.cumsum(lean_rate * dt)
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
+    rate_hz = 1.0 / float(np.median(np.diff(t)))
+    gravity = np.cumsum(_gravity_through_g(t, theta_rad, rate_hz) * dt[:, None], axis=0)
     design = np.column_stack(
         [
             np.ones_like(t),
             t - t.mean(),
+            gravity,
             np.cumsum(yaw_radps * dt),
             np.cumsum(yaw_radps * np.sin(twice) * dt),
             np.cumsum(yaw_radps * np.cos(twice) * dt),
