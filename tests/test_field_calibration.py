@@ -224,9 +224,15 @@ def test_a_car_that_rolls_a_little_in_its_turns_is_calibrated_with_a_warning():
     cal = wheelcal.calibrate(simulate_field(rolled, rng).recording)
     turns = cal.session.assessment.warnings
     assert _leans_in_turns(turns), turns
+    lean = cal.to_dict()["bench"]["lean"]  # the figures, in the calibration JSON
+    assert 0.10 <= lean["in_turns_deg_per_mps2"] <= 0.16, lean
+    assert lean["in_turns_deg_per_mps2"] > 5 * lean["in_turns_std_deg_per_mps2"], lean
+    assert 0.2 <= lean["in_turns_deg"] < lean["change_deg"] + 0.5, lean
     rng = np.random.default_rng(1001)
     cal = wheelcal.calibrate(simulate_field(car_drive(rng), rng).recording)
     assert not _leans_in_turns(cal.session.assessment.warnings)
+    lean = cal.to_dict()["bench"]["lean"]
+    assert abs(lean["in_turns_deg_per_mps2"]) < 0.02 and lean["change_deg"] < 1.0, lean
 
 
 def test_a_car_that_rolls_in_its_turns_is_refused_by_name():
@@ -327,6 +333,7 @@ def test_the_session_says_where_its_geometry_came_from():
     assert document["bench"]["radius_source"] == "fitted"
     assert document["bench"]["radius_std_m"] > 0
     assert document["fit"]["model"] == "field"
+    assert 0.0 <= document["bench"]["lean"]["change_deg"] < 1.0  # the `lean` gate's measure
 
 
 def _without_radius(sim):
@@ -358,6 +365,7 @@ def test_a_bench_spin_with_its_radius_stays_the_bench_fit():
     cal = wheelcal.calibrate(sim.recording)
     assert (cal.session.geometry, cal.session.geometry_source) == ("bench", "detected")
     assert cal.session.model != "field"
+    assert "lean" not in cal.to_dict()["bench"]  # a fixed axle has no lean to report
 
 
 # --- the study (slow) -----------------------------------------------------------------

@@ -133,6 +133,7 @@ def _bench_block(session: SessionResult, std: dict) -> dict:
         "misalignment_euler_deg": _vec(params.bench.misalignment.euler_deg()),
         "misalignment_euler_std_deg": [_num(std[f"euler_{k}_deg"]) for k in (1, 2, 3)],
         "euler_convention": EULER_CONVENTION,
+        **({"lean": _clean(session.lean)} if session.lean is not None else {}),
     }
 
 

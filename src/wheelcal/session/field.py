@@ -68,8 +68,20 @@ def calibrate_field(
         model="field",
         geometry_source="detected",
         geometry_reason=reason,
+        lean=_lean(field) if field.geometry.kind == "rolling" else None,
     )
     return session, field
+
+
+def _lean(field: FieldResult) -> dict:
+    """The camber's change over the drive, and the part that follows the turns (degrees)."""
+    out = {"change_deg": float(field.geometry.lean_change_deg)}
+    turns = field.geometry.lean_in_turns
+    if turns is not None and np.isfinite(turns.std_rad):
+        out["in_turns_deg_per_mps2"] = float(np.rad2deg(turns.per_lateral_mps2_rad))
+        out["in_turns_std_deg_per_mps2"] = float(np.rad2deg(turns.std_rad))
+        out["in_turns_deg"] = float(np.rad2deg(turns.range_rad))
+    return out
 
 
 def _refuse_a_lean(source: str, field: FieldResult, gates: Gates) -> None:

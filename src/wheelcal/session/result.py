@@ -48,6 +48,10 @@ class SessionResult:
     geometry_source: str = "given"
     #: Why the geometry is what it is, when detected.
     geometry_reason: str = ""
+    #: A rolling wheel's camber as the gyro reads it over the drive (field fits only):
+    #: ``change_deg`` (2–98 % range, the ``lean`` gate's measure) and, when measured, the
+    #: part that follows the turns, ``in_turns_deg_per_mps2`` with its σ and ``in_turns_deg``.
+    lean: dict | None = None
 
     @property
     def undetermined(self) -> tuple[str, ...]:
