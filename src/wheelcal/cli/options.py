@@ -59,7 +59,7 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="DPS_PER_G",
         help="the gyro's typical sensitivity to linear acceleration, °/s per g (default 0.1, "
         "MPU-9250 class): the σ of its prior, so that it cannot absorb an unbalanced wheel's "
-        "rate ripple (bench and field fits; state a factory-calibrated IMU's smaller value)",
+        "rate ripple (bench and field fits; state a gyro's measured value when you know it)",
     )
     m = parser.add_argument_group("geometry")
     m.add_argument(

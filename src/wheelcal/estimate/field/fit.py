@@ -133,7 +133,7 @@ class FieldFit:
     fit_cross: bool = True
     fit_g_sensitivity: bool = True
     #: The prior on the gyro's sensitivity to acceleration, °/s/g (``--gyro-g-sensitivity``:
-    #: MPU-9250 class 0.1; a factory-calibrated IMU less).  Its information joins the
+    #: MPU-9250 class 0.1; a factory calibration usually leaves it).  Its information joins the
     #: sandwich's meat as a prior whose mean is off by this much (``robust``), so a prior
     #: wider than the gyro widens σ.
     gyro_g_prior_dps_per_g: float = G_SENSITIVITY_PRIOR_DPS_PER_G
@@ -265,8 +265,9 @@ class FieldFit:
         accel = smoothed_accel(tc, window.accel_mps2) if self.fit_g_sensitivity else None
         frame = (float(window.time_s[0]), float(window.time_s[-1]))
 
+        g_prior = np.deg2rad(self.gyro_g_prior_dps_per_g) / STANDARD_GRAVITY_MPS2
+
         def angle_of(axle):
-            g_prior = np.deg2rad(self.gyro_g_prior_dps_per_g) / STANDARD_GRAVITY_MPS2
             return GyroAngle(
                 tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel, g_prior
             )
