@@ -241,3 +241,43 @@ def test_every_pass_of_the_fit_carries_the_priors():
     for other in (start, grad):
         np.testing.assert_allclose(other.gradient[: layout.size], full.gradient[: layout.size])
     np.testing.assert_allclose(start.hessian, full.hessian, rtol=1e-10, atol=1e-12)
+
+
+def test_an_effect_with_another_yaw_is_the_effect_built_with_it():
+    # with_yaw (the field fit's propagation of the gyro's G across the axle) against
+    # the effects built from scratch with the new yaw: the same prediction and Jacobian,
+    # and the effect it came from unchanged.
+    t = np.linspace(-15.0, 15.0, 1201)
+    rate, rate_dot, yaw, yaw_dot = _series(t)
+    other, other_dot = 0.8 * yaw + 0.02 * np.cos(2.1 * t), 0.8 * yaw_dot - 0.042 * np.sin(2.1 * t)
+    theta = 9.0 * t
+
+    def cross(y):
+        return np.vstack([y * np.cos(theta), y * np.sin(theta)])
+
+    force = np.column_stack([np.sin(t), np.cos(0.7 * t), 9.0 + 0.0 * t])
+
+    def built(y, y_dot):
+        angle = GyroAngle(t, rate, rate_dot, y, y_dot, cross(y), force, g_prior_std=1e-3)
+        return angle, Rolling(t, y, y_dot, yaw_across_axle=True, yaw_scale_prior_std=0.01)
+
+    angle, rolling = built(yaw, yaw_dot)
+    values = [1.01, 2e-3, -1e-3, 1e-3, -2e-3, 5e-4]
+    params = _field_params(72.0, {angle.name: values, rolling.name: [0.3, 1.02, 1e-3]})
+
+    def evaluated(effects):
+        layout = ParameterLayout(spin_degree=0, fit_tilt=True, fit_radius=True, effects=effects)
+        return evaluate(params, t, layout, jacobian=True)
+
+    before = evaluated((angle, rolling))
+    moved = evaluated(
+        (angle.with_yaw(other, other_dot, cross(other)), rolling.with_yaw(other, other_dot))
+    )
+    fresh = evaluated(built(other, other_dot))
+    np.testing.assert_allclose(moved.predicted_mps2, fresh.predicted_mps2, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(moved.jacobian, fresh.jacobian, rtol=0, atol=1e-10)
+    assert np.abs(moved.predicted_mps2 - before.predicted_mps2).max() > 1e-3  # the yaw matters
+    again = evaluated((angle, rolling))  # the originals keep their own yaw
+    np.testing.assert_array_equal(again.predicted_mps2, before.predicted_mps2)
+    with pytest.raises(ValueError, match="cross"):
+        angle.with_yaw(other, other_dot)

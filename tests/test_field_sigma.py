@@ -13,7 +13,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from wheelcal.estimate.field.gyro_axle import rate_noise_density
-from wheelcal.estimate.field.robust import angle_walk_covariance, block_meat
+from wheelcal.estimate.field.robust import angle_walk_covariance, block_meat, robust_result
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.model import (
     BenchParams,
@@ -125,3 +125,37 @@ def test_the_meat_with_lags_follows_anti_correlated_blocks():
         np.testing.assert_allclose(np.diag(meat), expected, rtol=0.03)
         assert abs(meat[0, 1]) < 0.02
         assert np.linalg.eigvalsh(block_meat(sums[:, :7], lags=lags)).min() >= -1e-12
+
+
+def test_a_nuisance_held_joins_the_covariance_as_the_refit_moves():
+    # robust_result(shifts=(Δ,)) adds δp δpᵀ, δp the fit's answer to the prediction
+    # shifted by Δ (what one σ of a nuisance the fit holds does).  Oracle: scipy's
+    # least squares refitted to the clean samples plus Δ, against the clean samples.
+    rng = np.random.default_rng(5)
+    t = np.linspace(-30.0, 30.0, 6001)
+    rate, rate_dot = _rate(t)
+    layout = _walked_layout(t, rate, rate_dot, np.zeros_like(t))
+    truth = _truth(layout.effects[0])
+    clean = evaluate(truth, t, layout).predicted_mps2
+    noisy = clean + 1e-3 * rng.standard_normal(clean.shape)
+    fit = JointFit(spin_degree=0, geometry="radius", coloured_noise=False, effects=layout.effects)
+    result = fit.fit(Recording(t, noisy, SessionInfo(radius_m=0.2)), initial=truth)
+    # a slow rate error's share of the prediction: once per turn, growing with time
+    shift = np.column_stack(
+        [
+            2e-3 * np.cos(0.9 * t) * (1 + t / 30.0),
+            1e-3 * np.sin(0.3 * t),
+            5e-4 * np.ones_like(t),
+        ]
+    )
+    held = robust_result(result, noisy)
+    joined = robust_result(result, noisy, shifts=(shift,))
+    added = np.sqrt(np.maximum(np.diag(joined.covariance) - np.diag(held.covariance), 0.0))
+    moved = _refit(t, clean + shift, layout, truth) - _refit(t, clean, layout, truth)
+    names = list(layout.names)
+    for name in SAME:
+        expected = abs(moved[names.index(name)])
+        found = added[result.names.index(name)]
+        print(f"{name:18s} refit moved {expected:.3e}  propagated {found:.3e}")
+        assert abs(found - expected) <= 0.05 * expected + 1e-9, (name, found, expected)
+    assert max(abs(moved[names.index(n)]) for n in SAME) > 1e-4  # the shift does move the fit

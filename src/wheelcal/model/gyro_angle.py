@@ -47,6 +47,8 @@ effect adds s g·∫a dt with g fitted under a prior of that size (the effect's
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, SpinDelta, _SpinEffect
@@ -135,6 +137,39 @@ class GyroAngle(_SpinEffect):
 
     def _series(self, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return _integral(self.time_s, rate), rate, np.gradient(rate, self.time_s)
+
+    def with_yaw(
+        self,
+        yaw_across_radps: np.ndarray,
+        yaw_across_dot_radps2: np.ndarray,
+        cross_radps: np.ndarray | None = None,
+    ) -> GyroAngle:
+        """The same effect with another yaw across the axle (and its ``cross`` series).
+
+        Everything else — the axle rate, the accelerometer's series, the priors — is
+        kept: what a change of the gyro's reading across the axle alone does.
+        """
+        t = self.time_s
+        yaw = np.asarray(yaw_across_radps, dtype=float)
+        yaw_dot = np.asarray(yaw_across_dot_radps2, dtype=float)
+        if yaw.shape != t.shape or yaw_dot.shape != t.shape:
+            raise ValueError("one yaw and one yaw rate of change per time")
+        out = copy.copy(self)
+        out.yaw, out.yaw_dot, out.yaw_angle = yaw, yaw_dot, _integral(t, yaw)
+        rows = {}
+        if cross_radps is not None:
+            rows = dict(zip(("cross_x", "cross_y"), np.asarray(cross_radps), strict=True))
+        fits_cross = any(name in ("cross_x", "cross_y") for name, _, _ in self.terms)
+        if fits_cross != (cross_radps is not None):
+            raise ValueError("cross_radps exactly when the effect fits the cross terms")
+        out.terms = [
+            (name, self._series(np.asarray(rows[name], dtype=float)), prior)
+            if name in rows
+            else (name, series, prior)
+            for name, series, prior in self.terms
+        ]
+        out._stacked = None
+        return out
 
     def prior_std_values(self) -> np.ndarray | None:
         """σ of the priors on the parameters (∞: none), or None without any."""

@@ -72,6 +72,7 @@ score-test the effect at a fit that did not declare it.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -204,6 +205,16 @@ class Rolling(Effect):
     def __hash__(self) -> int:
         """Identity hash (see :meth:`__eq__`)."""
         return id(self)
+
+    def with_yaw(self, yaw_rate_radps: np.ndarray, yaw_accel_radps2: np.ndarray) -> Rolling:
+        """The same effect with another yaw series (its settings and priors kept)."""
+        rate = np.asarray(yaw_rate_radps, dtype=float)
+        accel = np.asarray(yaw_accel_radps2, dtype=float)
+        if rate.shape != self.time_s.shape or accel.shape != self.time_s.shape:
+            raise ValueError("one yaw rate and one yaw acceleration per time")
+        out = copy.copy(self)
+        out.yaw_rate_radps, out.yaw_accel_radps2 = rate, accel
+        return out
 
     def yaw(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """ψ̇_gyro and ψ̈_gyro at centred times ``t_s``."""

@@ -22,6 +22,9 @@ and the accelerometer's model is eq. (1) plus the rolling wheel's forces
    turns turn gravity's phase by ψ̇ sin γ, which measures γ = 90° − α, and with
    it r (both are free only then).
 
+The σ are the sandwich's, with the gyro's angle walk and its G across the axle (held at
+zero, its prior propagated) added (:mod:`wheelcal.estimate.field.robust`).
+
 The answer's geometry (:class:`FieldGeometry`) says which it was — a rolling
 wheel (vertical or cambered, with γ) or a fixed axle — and why.
 """
@@ -49,7 +52,7 @@ from wheelcal.estimate.field.robust import robust_result
 from wheelcal.estimate.field.start import field_start
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import CalibrationParams, Rotation, SpinParams
+from wheelcal.model import CalibrationParams, Rotation, SpinParams, evaluate
 from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, CrossAxis
 from wheelcal.model.forward import wheel_kinematics
 from wheelcal.model.gyro_angle import GyroAngle
@@ -135,7 +138,8 @@ class FieldFit:
     #: The prior on the gyro's sensitivity to acceleration, °/s/g (``--gyro-g-sensitivity``:
     #: MPU-9250 class 0.1; a factory calibration usually leaves it).  Its information joins the
     #: sandwich's meat as a prior whose mean is off by this much (``robust``), so a prior
-    #: wider than the gyro widens σ.
+    #: wider than the gyro widens σ.  Across the axle G is held at zero and this prior is
+    #: propagated into σ (:func:`_across_g_shifts`; 0: not propagated).
     gyro_g_prior_dps_per_g: float = G_SENSITIVITY_PRIOR_DPS_PER_G
     #: σ from the sandwich and the gyro's angle walk (:mod:`~wheelcal.estimate.field.robust`).
     robust_sigma: bool = True
@@ -258,11 +262,13 @@ class FieldFit:
         params = _plausible_gains(travelled.params)
         theta = wheel_kinematics(params, tc, travelled.layout.effects).theta_rad
         rotation = params.bench.misalignment.matrix
-        axle = refined_axle(window.gyro_radps, axle, theta, rotation)
+        guessed = axle
+        axle = refined_axle(window.gyro_radps, guessed, theta, rotation)
         y, y_dot = yaw_across(tc, window.gyro_radps, axle, theta, rotation)
         scale = float(params.effect("gyro_angle", 1)[0])
-        cross = np.vstack([y * np.cos(theta), y * np.sin(theta)]) if self.fit_cross else None
-        accel = smoothed_accel(tc, window.accel_mps2) if self.fit_g_sensitivity else None
+        cross = _cross(y, theta) if self.fit_cross else None
+        smoothed = smoothed_accel(tc, window.accel_mps2)
+        accel = smoothed if self.fit_g_sensitivity else None
         frame = (float(window.time_s[0]), float(window.time_s[-1]))
 
         g_prior = np.deg2rad(self.gyro_g_prior_dps_per_g) / STANDARD_GRAVITY_MPS2
@@ -326,7 +332,79 @@ class FieldFit:
             result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=twin)
         if not self.robust_sigma:
             return result
-        return robust_result(result, window.accel_mps2, rate_noise_density(tc, axle.rate_radps))
+        shifts = ()
+        if self.gyro_g_prior_dps_per_g > 0:
+            yaw_of = _YawOf(window.gyro_radps, tc, guessed, theta, rotation)
+            shifts = _across_g_shifts(result, yaw_of, smoothed, g_prior, with_cross=self.fit_cross)
+        density = rate_noise_density(tc, axle.rate_radps)
+        return robust_result(result, window.accel_mps2, density, shifts)
+
+
+def _cross(yaw_radps: np.ndarray, theta_rad: np.ndarray) -> np.ndarray:
+    """(2, N): y cos ϑ and y sin ϑ, the series of the axle reading's response across it."""
+    return np.vstack([yaw_radps * np.cos(theta_rad), yaw_radps * np.sin(theta_rad)])
+
+
+@dataclass(frozen=True, eq=False)
+class _YawOf:
+    """The yaw series the turns' pass reads from a gyro: its axle refined, then demodulated."""
+
+    gyro_radps: np.ndarray
+    centred_time_s: np.ndarray
+    axle: GyroAxle  # before its refinement
+    theta_rad: np.ndarray
+    rotation: np.ndarray
+
+    def __call__(self, gyro_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        axle = refined_axle(gyro_radps, self.axle, self.theta_rad, self.rotation)
+        return yaw_across(self.centred_time_s, gyro_radps, axle, self.theta_rad, self.rotation)
+
+
+def _across_g_shifts(
+    result: CalibrationResult,
+    yaw_of: _YawOf,
+    accel_mps2: np.ndarray,
+    g_std_radps_per_mps2: float,
+    *,
+    with_cross: bool,
+) -> tuple[np.ndarray, ...]:
+    """What one σ of each entry of the gyro's G across the axle changes in the prediction.
+
+    The gyro across the axle reads G⊥ a besides the yaw: gravity turning in the
+    sensor's frame, the hub's forces.  On a fast wheel the low-pass of the yaw
+    (:func:`yaw_across`) averages it to a steady rate, which ε takes; on a slow one
+    (a wheelchair's 0.4 Hz) its once- and twice-per-turn parts pass into the yaw
+    series, and through the turns' forces and the wheel angle (ψ̇ cot α) into the
+    parameters — the hubs' radius spread 1.3× its σ.  The yaw is not fitted for
+    them (6 entries, one of them a steady yaw); each entry's one σ (the prior of
+    ``gyro_g_prior_dps_per_g``) is run through the same demodulation and model
+    instead, at the fitted parameters, for :func:`robust_result` to propagate.
+    """
+    params, layout = result.params, result.layout
+    t = result.centred_time_s
+    axis = refined_axle(yaw_of.gyro_radps, yaw_of.axle, yaw_of.theta_rad, yaw_of.rotation).axis
+    first = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    first /= np.linalg.norm(first)
+    base = evaluate(params, t, layout).predicted_mps2
+    shifts = []
+    for across in (first, np.cross(axis, first)):
+        for column in np.asarray(accel_mps2, dtype=float).T:
+            gyro = yaw_of.gyro_radps + g_std_radps_per_mps2 * np.outer(column, across)
+            y, y_dot = yaw_of(gyro)
+            cross = _cross(y, yaw_of.theta_rad) if with_cross else None
+            effects = tuple(_with_yaw(e, y, y_dot, cross) for e in layout.effects)
+            moved = dataclasses.replace(layout, effects=effects)
+            shifts.append(evaluate(params, t, moved).predicted_mps2 - base)
+    return tuple(shifts)
+
+
+def _with_yaw(effect, y: np.ndarray, y_dot: np.ndarray, cross: np.ndarray | None):
+    """``effect`` reading the yaw series y (the gyro's angle and the rolling forces)."""
+    if isinstance(effect, GyroAngle):
+        return effect.with_yaw(y, y_dot, cross)
+    if isinstance(effect, Rolling):
+        return effect.with_yaw(y, y_dot)
+    return effect
 
 
 def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tuple:

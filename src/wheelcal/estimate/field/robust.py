@@ -22,6 +22,13 @@ mean is off the truth by about its σ (a gyro's axes across the axle are 1 ± th
 tolerance), so it adds to the meat as to the bread — without it the robot's gains
 spread 2× their σ.
 
+**Nuisances held.**  What the fit takes as measured but is known only to a prior —
+the gyro's sensitivity to acceleration across the axle, which the yaw series
+carries — is propagated: a shift Δ of the prediction (one σ of the nuisance, at
+the fitted parameters) moves the fit by δp = H⁻¹ Σ_m J̃_mᵀ Δ̃_m, and δp δpᵀ joins
+the covariance for each.  On wheelchair hubs (a slow wheel: the once-per-turn
+rates it puts in the yaw pass its low-pass) the radius spread 1.3× its σ without.
+
 **The gyro's angle walk.**  The wheel angle is the integrated gyro rate, taken as
 measured; its white noise (density q) walks ϑ as a random walk, slow enough
 that no residual block shows it.  Linearised, the fit answers an angle error
@@ -62,9 +69,12 @@ class _Pieces:
     prior_info: np.ndarray
     angle_score: np.ndarray  # (P, M): J̃_mᵀ d̃_m
     dt_s: float
+    shift_score: np.ndarray  # (P, K): Σ_m J̃_mᵀ Δ̃_m of each nuisance's shift Δ
 
 
-def _pieces(result: CalibrationResult, accel_mps2: np.ndarray) -> _Pieces:
+def _pieces(
+    result: CalibrationResult, accel_mps2: np.ndarray, shifts: tuple[np.ndarray, ...] = ()
+) -> _Pieces:
     params, layout, noise = result.params, result.layout, result.noise
     t = result.centred_time_s
     p = noise.order
@@ -76,6 +86,7 @@ def _pieces(result: CalibrationResult, accel_mps2: np.ndarray) -> _Pieces:
     hess = np.zeros((size, size))
     sums = []
     angle = []
+    shift_score = np.zeros((size, len(shifts)))
     for start in range(0, t.size, _CHUNK):
         stop = min(t.size, start + _CHUNK + p)
         out = evaluate(params, t[start:stop], layout, jacobian=True)
@@ -87,13 +98,16 @@ def _pieces(result: CalibrationResult, accel_mps2: np.ndarray) -> _Pieces:
         edges = np.arange(0, score.shape[1], block)
         sums.append(np.add.reduceat(score, edges, axis=1))  # (P, blocks)
         angle.append(np.einsum("pim,im->pm", jw, jw[phase]))
+        for k, shift in enumerate(shifts):
+            shift_w, _ = noise.whiten(shift[start:stop])
+            shift_score[:, k] += np.einsum("pim,im->p", jw, shift_w)
         if stop == t.size:
             break
     prior = effect_priors(params, layout)
     info = np.zeros(size) if prior is None else prior[2]
     hess[np.arange(size), np.arange(size)] += info
     meat = block_meat(np.concatenate(sums, axis=1), lags=round(LAG_S / (block * dt)))
-    return _Pieces(hess, meat, info, np.concatenate(angle, axis=1), dt)
+    return _Pieces(hess, meat, info, np.concatenate(angle, axis=1), dt, shift_score)
 
 
 def block_meat(sums: np.ndarray, lags: int) -> np.ndarray:
@@ -148,16 +162,24 @@ def angle_walk_covariance(
 
 
 def robust_result(
-    result: CalibrationResult, accel_mps2: np.ndarray, gyro_density: float | None = None
+    result: CalibrationResult,
+    accel_mps2: np.ndarray,
+    gyro_density: float | None = None,
+    shifts: tuple[np.ndarray, ...] = (),
 ) -> CalibrationResult:
     """``result`` with the sandwich's covariance plus the gyro's angle walk (module docstring).
 
     ``gyro_density`` q (rad/s/√Hz) of the rate the angle integrates; None: no walk.
+    ``shifts``: each (N, 3), what a nuisance the fit holds (one σ of it) changes in the
+    prediction at the fitted parameters — its covariance joins (module docstring).
     """
-    pieces = _pieces(result, accel_mps2)
+    pieces = _pieces(result, accel_mps2, shifts)
     bread, finite = _bread(pieces)
     cov = _sandwich(pieces, bread)
     if gyro_density is not None and gyro_density > 0:
         cov = cov + _angle_walk(pieces, bread, gyro_density)
+    if shifts:
+        response = bread @ pieces.shift_score  # (P, K): the fit's answer to each shift
+        cov = cov + response @ response.T
     covariance = _in_reported(result, _with_undetermined(cov, finite))
     return dataclasses.replace(result, covariance=covariance)
