@@ -327,6 +327,10 @@ def test_the_session_says_where_its_geometry_came_from():
         "field",
     )
     assert "carrier turning" in session.geometry_reason
+    # the hub's ρ in the reason is the answer's (a leading pass's was 20 % off), near the truth
+    rho = cal.result.value_of("rolling.radius_m")
+    assert f"the hub travels (ρ = {rho:.3f} m" in session.geometry_reason
+    assert abs(rho - sim.truth.rolling_radius_m) < 0.01
     document = cal.to_dict()
     assert document["bench"]["geometry"] == "rolling"
     assert document["bench"]["geometry_source"] == "detected"

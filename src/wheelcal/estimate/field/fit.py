@@ -191,8 +191,9 @@ class FieldFit:
         axle, lean_rad, in_turns = _lean(window, tc, axle, final)
         camber = 90.0 - float(np.rad2deg(final.params.bench.tilt_rad))
         why = []
-        if z > self.travel_z:
-            why.append(f"the hub travels (ρ = {rho:.3f} m, {z:.0f} σ)")
+        if z > self.travel_z:  # ρ as the final fit has it; its size in σ from pass 2
+            rho_final = float(final.params.effect("rolling", 1)[0])
+            why.append(f"the hub travels (ρ = {rho_final:.3f} m, {z:.0f} σ)")
         if axle.yaw_rms_radps > self.yaw_rms_radps:
             why.append(f"the carrier turns (yaw {axle.yaw_rms_radps:.3g} rad/s rms)")
         geometry = FieldGeometry(
