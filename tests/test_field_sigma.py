@@ -68,17 +68,23 @@ def _refit(t, accel, layout, truth) -> np.ndarray:
     return least_squares(residual, layout.pack(truth), jac=jacobian, method="lm").x
 
 
-def test_the_angle_walk_matches_the_spread_of_refits():
-    rng = np.random.default_rng(3)
+def _fitted_drive(rng: np.random.Generator) -> tuple:
+    """A minute's drive without a walk, fitted (white noise, equal on the axes): t, the rate,
+    its derivative, the layout, the truth, the clean and the noisy samples, the result."""
     t = np.linspace(-30.0, 30.0, 6001)
     rate, rate_dot = _rate(t)
     layout = _walked_layout(t, rate, rate_dot, np.zeros_like(t))
     truth = _truth(layout.effects[0])
     clean = evaluate(truth, t, layout).predicted_mps2
-    # the propagated σ at a fit of the clean samples (white, equal noise on the axes)
     noisy = clean + 1e-3 * rng.standard_normal(clean.shape)
     fit = JointFit(spin_degree=0, geometry="radius", coloured_noise=False, effects=layout.effects)
     result = fit.fit(Recording(t, noisy, SessionInfo(radius_m=0.2)), initial=truth)
+    return t, rate, rate_dot, layout, truth, clean, noisy, result
+
+
+def test_the_angle_walk_matches_the_spread_of_refits():
+    rng = np.random.default_rng(3)
+    t, rate, rate_dot, layout, truth, clean, noisy, result = _fitted_drive(rng)
     walk_sd = np.sqrt(np.diag(angle_walk_covariance(result, noisy, DENSITY_RADPS_RTHZ)))
     sigma_rate = DENSITY_RADPS_RTHZ * np.sqrt(RATE_HZ)
     values = []
@@ -131,15 +137,7 @@ def test_a_nuisance_held_joins_the_covariance_as_the_refit_moves():
     # robust_result(shifts=(Δ,)) adds δp δpᵀ, δp the fit's answer to the prediction
     # shifted by Δ (what one σ of a nuisance the fit holds does).  Oracle: scipy's
     # least squares refitted to the clean samples plus Δ, against the clean samples.
-    rng = np.random.default_rng(5)
-    t = np.linspace(-30.0, 30.0, 6001)
-    rate, rate_dot = _rate(t)
-    layout = _walked_layout(t, rate, rate_dot, np.zeros_like(t))
-    truth = _truth(layout.effects[0])
-    clean = evaluate(truth, t, layout).predicted_mps2
-    noisy = clean + 1e-3 * rng.standard_normal(clean.shape)
-    fit = JointFit(spin_degree=0, geometry="radius", coloured_noise=False, effects=layout.effects)
-    result = fit.fit(Recording(t, noisy, SessionInfo(radius_m=0.2)), initial=truth)
+    t, _, _, layout, truth, clean, noisy, result = _fitted_drive(np.random.default_rng(5))
     # a slow rate error's share of the prediction: once per turn, growing with time
     shift = np.column_stack(
         [
