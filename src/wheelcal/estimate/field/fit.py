@@ -39,6 +39,7 @@ import numpy as np
 from wheelcal.estimate.field.gyro_axle import (
     GyroAxle,
     LeanInTurns,
+    across_basis,
     gyro_axle,
     lean_change_rad,
     lean_in_turns,
@@ -336,7 +337,9 @@ class FieldFit:
         shifts = ()
         if self.gyro_g_prior_dps_per_g > 0:
             yaw_of = _YawOf(window.gyro_radps, tc, guessed, theta, rotation)
-            shifts = _across_g_shifts(result, yaw_of, smoothed, g_prior, with_cross=self.fit_cross)
+            shifts = _across_g_shifts(
+                result, yaw_of, axle.axis, smoothed, g_prior, with_cross=self.fit_cross
+            )
         density = rate_noise_density(tc, axle.rate_radps)
         return robust_result(result, window.accel_mps2, density, shifts)
 
@@ -364,6 +367,7 @@ class _YawOf:
 def _across_g_shifts(
     result: CalibrationResult,
     yaw_of: _YawOf,
+    axis: np.ndarray,
     accel_mps2: np.ndarray,
     g_std_radps_per_mps2: float,
     *,
@@ -380,15 +384,13 @@ def _across_g_shifts(
     them (6 entries, one of them a steady yaw); each entry's one σ (the prior of
     ``gyro_g_prior_dps_per_g``) is run through the same demodulation and model
     instead, at the fitted parameters, for :func:`robust_result` to propagate.
+    ``axis``: the gyro's refined axle, across which G's rows are taken.
     """
     params, layout = result.params, result.layout
     t = result.centred_time_s
-    axis = refined_axle(yaw_of.gyro_radps, yaw_of.axle, yaw_of.theta_rad, yaw_of.rotation).axis
-    first = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
-    first /= np.linalg.norm(first)
     base = evaluate(params, t, layout).predicted_mps2
     shifts = []
-    for across in (first, np.cross(axis, first)):
+    for across in across_basis(axis):
         for column in np.asarray(accel_mps2, dtype=float).T:
             gyro = yaw_of.gyro_radps + g_std_radps_per_mps2 * np.outer(column, across)
             y, y_dot = yaw_of(gyro)

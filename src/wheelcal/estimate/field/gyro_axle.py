@@ -119,6 +119,13 @@ def _side(theta_rad: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     return np.column_stack([-s, c, np.zeros_like(c)]) @ rotation.T
 
 
+def across_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors ⊥ ``axis`` (a unit vector) and to each other: the plane across it."""
+    first = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    first /= np.linalg.norm(first)
+    return first, np.cross(axis, first)
+
+
 def refined_axle(
     gyro_radps: np.ndarray, axle: GyroAxle, theta_rad: np.ndarray, rotation: np.ndarray
 ) -> GyroAxle:
@@ -134,9 +141,7 @@ def refined_axle(
     """
     gyro = np.asarray(gyro_radps, dtype=float)
     a = axle.axis
-    e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a, e1)
+    e1, e2 = across_basis(a)
     # in the gyro's own plane ⊥ ŵ: its axes and the accelerometer's differ by a degree or
     # two, which a side direction with a share along ŵ would read as the axle's error
     side = _side(theta_rad, rotation)
