@@ -282,6 +282,38 @@ def test_without_matplotlib_the_report_says_why_there_is_no_png(bundled, monkeyp
     assert f"Overview PNG not drawn: {note}." in md
 
 
+def test_a_dense_batch_draws_each_residual_as_its_median_and_band(bundled):
+    """Over DENSE_SESSIONS sessions: a band of the 5–95 % of the profiles, the median line."""
+    from matplotlib.figure import Figure
+
+    _, _, sessions = bundled
+    rng = np.random.default_rng(7)
+    centres = np.arange(5.0, 360.0, 10.0)
+    curves = [
+        np.column_stack([centres, rng.normal(0.0, 1e-3, centres.size)])
+        for _ in range(batch_png.DENSE_SESSIONS + 1)
+    ]
+    ax = Figure().subplots()
+    assert batch_png._band(ax, curves, "C0")
+    values = np.stack([c[:, 1] for c in curves])
+    (line,) = ax.get_lines()
+    np.testing.assert_allclose(line.get_ydata(), np.median(values, axis=0))
+    (band,) = ax.collections
+    y = band.get_paths()[0].vertices[:, 1]
+    assert y.min() == pytest.approx(np.percentile(values, 5, axis=0).min())
+    assert y.max() == pytest.approx(np.percentile(values, 95, axis=0).max())
+    # profiles on other bins are not pooled into one band
+    assert not batch_png._band(ax, [*curves, curves[0][:-1]], "C0")
+    # the points: one bar per session from value − σ to value + σ
+    ax = Figure().subplots()
+    batch_png._dense_points(ax, [1, 2], [1.0, 2.0], [0.1, 0.3], "C0")
+    segments = ax.collections[0].get_segments()
+    np.testing.assert_allclose([s[:, 1] for s in segments], [[0.9, 1.1], [1.7, 2.3]])
+    many = [sessions[0]] * (batch_png.DENSE_SESSIONS + 1)
+    png, note = batch_png.overview_png(many)
+    assert png is not None and png.startswith(b"\x89PNG"), note
+
+
 @pytest.mark.parametrize("tty", [False, True])
 def test_progress_lines_carry_the_notes(tty):
     stream = io.StringIO()

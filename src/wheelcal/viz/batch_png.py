@@ -6,7 +6,9 @@ mean (per sensor and mounting) as a dashed line, and, for offsets and gains,
 the sensor's pooled value with its ±σ band.  Then one panel per axis: the
 residual's mean per bin of the wheel angle ϑ (``fit.residual_by_wheel_angle``
 of each calibration), every session a line — a pattern that repeats every
-turn is an effect the model lacks (an imbalance, a nonlinearity).
+turn is an effect the model lacks (an imbalance, a nonlinearity).  A group of
+more than :data:`DENSE_SESSIONS` sessions is drawn denser: uncapped bars and,
+for the residuals, the group's median with its 5–95 % band.
 
 If the points scatter much more than their bars, σ does not cover something
 that varies between sessions (remounting, temperature); ``report.md`` says by
@@ -44,6 +46,10 @@ _POOLED = {
     **{f"offset_{a}_mps2": ("offset_mps2", "offset_std_mps2", k) for k, a in enumerate("xyz")},
 }
 _COLUMNS = 4
+#: Above this many sessions in a group, points lose their caps and the residual
+#: panel draws the group's median and 5–95 % band instead of one line per session:
+#: a thousand capped bars or lines are one blob (and most of the drawing time).
+DENSE_SESSIONS = 150
 
 
 def _number(x) -> float:
@@ -125,7 +131,10 @@ def _parameter_panel(ax, name, calibrations, groups, colours, numbers, pooled) -
         if not xs:
             continue
         bars = [e if math.isfinite(e) else 0.0 for e in es]
-        ax.errorbar(xs, ys, yerr=bars, fmt="o", ms=3.5, capsize=2, color=colours[key], lw=1)
+        if len(xs) > DENSE_SESSIONS:
+            _dense_points(ax, xs, ys, bars, colours[key])
+        else:
+            ax.errorbar(xs, ys, yerr=bars, fmt="o", ms=3.5, capsize=2, color=colours[key], lw=1)
         finite = [y for y in ys if math.isfinite(y)]
         if finite:
             mean = sum(finite) / len(finite)
@@ -159,7 +168,9 @@ def _residual_panel(ax, k, axis, calibrations, groups, colours) -> None:
                 continue
             values = [_number(row[k]) for row in profile["mean_mps2"]]
             curves.append(np.column_stack([np.asarray(profile["centres_deg"], float), values]))
-        if curves:
+        if len(curves) > DENSE_SESSIONS and _band(ax, curves, colours[key]):
+            drawn += len(curves)
+        elif curves:
             ax.add_collection(LineCollection(curves, colors=colours[key], lw=0.8, alpha=0.6))
             drawn += len(curves)
     if drawn:
@@ -183,6 +194,30 @@ def _residual_panel(ax, k, axis, calibrations, groups, colours) -> None:
         )
 
 
+def _dense_points(ax, xs, ys, bars, colour: str) -> None:
+    """Points with thin uncapped bars, as one collection (``errorbar`` builds them one by one)."""
+    from matplotlib.collections import LineCollection
+
+    x, y, e = (np.asarray(v, dtype=float) for v in (xs, ys, bars))
+    segments = np.stack([np.column_stack([x, y - e]), np.column_stack([x, y + e])], axis=1)
+    ax.add_collection(LineCollection(segments, colors=colour, lw=0.4, alpha=0.35))
+    ax.plot(x, y, "o", ms=1.5, color=colour)
+
+
+def _band(ax, curves: list[np.ndarray], colour: str) -> bool:
+    """The curves' median and 5–95 % band, if they share their bins (else False)."""
+    centres = curves[0][:, 0]
+    if any(c.shape != curves[0].shape or not np.array_equal(c[:, 0], centres) for c in curves):
+        return False
+    values = np.stack([c[:, 1] for c in curves])
+    if not np.isfinite(values).any():
+        return False
+    low, mid, high = np.nanpercentile(values, [5.0, 50.0, 95.0], axis=0)
+    ax.fill_between(centres, low, high, color=colour, alpha=0.25, lw=0)
+    ax.plot(centres, mid, color=colour, lw=1.0)
+    return True
+
+
 def _legend_panel(ax, groups, colours) -> None:
     ax.set_axis_off()
     lines = ["Groups (sensor / mounting):"]
@@ -191,6 +226,11 @@ def _legend_panel(ax, groups, colours) -> None:
     lines += [
         "",
         "points: estimate ± σ (statistical)",
+        *(
+            ["residual: median, 5–95 % band"]
+            if any(len(m) > DENSE_SESSIONS for m in groups.values())
+            else []
+        ),
         "dashed: group mean",
         "band: the sensor's pooled value ± σ",
     ]
