@@ -123,7 +123,9 @@ def bound_in(session, result) -> Bound:
     if any(e.stage == "gyro" for e in result.layout.effects):
         spec = session.scenario.gyro
         gyro_noise = NoiseModel.white(max(spec.noise_std_radps(session.scenario.rate_hz), 1e-9))
-        return cramer_rao_bound_with_gyro(params, tc, noise, result.layout, gyro_noise)
+        return cramer_rao_bound_with_gyro(
+            params, tc, noise, result.layout, gyro_noise, result.gyro_rests
+        )
     return cramer_rao_bound(params, tc, noise, result.layout)
 
 

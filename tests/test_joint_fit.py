@@ -203,7 +203,8 @@ def _fits_of_three_pushes():
 
 def test_goodness_of_fit_is_the_whitened_cost_at_the_result():
     # χ² is taken from the iterations' last cost (no extra pass): it must be the
-    # whitened residual's squared norm at the reported parameters, every stream.
+    # whitened residual's squared norm at the reported parameters, every stream (the
+    # gyro's readings at the rests included).
     from wheelcal.estimate.joint.fit import gyro_samples
     from wheelcal.estimate.joint.gyro_equations import accumulate_gyro
 
@@ -212,7 +213,9 @@ def test_goodness_of_fit_is_the_whitened_cost_at_the_result():
         entries = 3 * (r.residual_mps2.shape[0] - r.noise.order)
         if r.gyro_noise is not None:
             gyro_t, rates = gyro_samples(window, window.time_s - r.centre_s)
-            part = accumulate_gyro(r.params, gyro_t, rates, r.layout, r.gyro_noise, False)
+            part = accumulate_gyro(
+                r.params, gyro_t, rates, r.layout, r.gyro_noise, False, rests=r.gyro_rests
+            )
             chi2, entries = chi2 + part.cost, entries + part.entries
         assert r.chi2 == pytest.approx(chi2, rel=1e-9)
         assert r.entries == entries

@@ -224,6 +224,17 @@ MUTATIONS: tuple[Mutation, ...] = (
             ),
         ),
     ),
+    Mutation(
+        "gyro_rest_frame",
+        "a rest's force taken through R instead of Rᵀ (the gyro's static readings)",
+        (
+            Replacement(
+                "src/wheelcal/estimate/joint/gyro_rests.py",
+                "return relative @ params.bench.misalignment.matrix  #",
+                "return relative @ params.bench.misalignment.matrix.T  #",
+            ),
+        ),
+    ),
 )
 
 

@@ -81,11 +81,15 @@ class ClosedLoop:
         )
         # A wheel rolling on the ground (a gyro-aided fit of a vertical wheel): yaw from the gyro.
         candidates += rolling_candidates(base, recording)
-        gyro = gyro_stream(base, recording, self.fit.gyro_reading())
+        # The gyro's readings at the rests join its stream wherever it is fitted or screened.
+        gyro_rests = self.fit.rests_of(rests)
+        gyro = gyro_stream(base, recording, self.fit.gyro_reading(), gyro_rests)
         fit, frame = _motion_fit(self.fit, base, with_gyro=gyro is not None)
+        if gyro is not None:
+            fit = dataclasses.replace(fit, gyro_rests=gyro_rests)
         for _ in range(self.max_steps):
             if current is not base:
-                gyro = gyro_stream(current, recording, self.fit.gyro_reading())
+                gyro = gyro_stream(current, recording, self.fit.gyro_reading(), gyro_rests)
             tests, rest_tests = screen(
                 current,
                 recording,

@@ -33,6 +33,7 @@ from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_scor
 from wheelcal.estimate.joint.fisher_quadrature import quadrature_rows, stride_for
 from wheelcal.estimate.joint.fit import gyro_samples
 from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect
+from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.information import scaled_pinv
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import (
@@ -135,14 +136,20 @@ class GyroStream:
     layout: ParameterLayout
     params: CalibrationParams
     noise: NoiseModel
+    #: The gyro's readings at the rests, fitted or regressed on with the stream.
+    rests: GyroRests | None = None
 
 
 def gyro_stream(
-    fit: CalibrationResult, recording: Recording, reading: GyroReading | None = None
+    fit: CalibrationResult,
+    recording: Recording,
+    reading: GyroReading | None = None,
+    rests: GyroRests | None = None,
 ) -> GyroStream | None:
     """The gyro stream of ``recording`` at ``fit``, or None (no usable gyroscope).
 
-    ``reading``: the gyro's reading model (its prior on G) when the fit has none.
+    ``reading``: the gyro's reading model (its prior on G) when the fit has none;
+    ``rests``: the gyro's readings at the rests (the fit's own when it fitted them).
     """
     gyro = getattr(recording, "gyro_radps", None)
     if gyro is None or int(np.sum(np.all(np.isfinite(gyro), axis=1))) < 100:
@@ -150,9 +157,9 @@ def gyro_stream(
     tc = recording.time_s - fit.centre_s
     gyro_t, samples = gyro_samples(recording, tc, fit.layout.effects)
     if gyro_effect(fit.layout) is not None:
-        return GyroStream(gyro_t, samples, fit.layout, fit.params, fit.gyro_noise)
-    fitted = regress_gyro(fit, gyro_t, samples, reading=reading)
-    return GyroStream(gyro_t, samples, fitted.layout, fitted.params, fitted.noise)
+        return GyroStream(gyro_t, samples, fit.layout, fit.params, fit.gyro_noise, fit.gyro_rests)
+    fitted = regress_gyro(fit, gyro_t, samples, reading=reading, rests=rests)
+    return GyroStream(gyro_t, samples, fitted.layout, fitted.params, fitted.noise, rests)
 
 
 def score_contributions(
@@ -337,7 +344,9 @@ def _add_gyro(
     layout = dataclasses.replace(nuisance, effects=(*others, *spin, reading))
     values = {**gyro.params.effects, **{c.name: np.zeros(c.size) for c in spin}}
     params = gyro.params.with_changes(effects=values)
-    normal = accumulate_gyro(params, gyro.time_s, gyro.samples_radps, layout, gyro.noise)
+    normal = accumulate_gyro(
+        params, gyro.time_s, gyro.samples_radps, layout, gyro.noise, rests=gyro.rests
+    )
     offsets, row = {}, size
     for cand in candidates:
         offsets[cand.name] = row

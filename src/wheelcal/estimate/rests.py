@@ -57,6 +57,10 @@ class RestSegment:
     allan: AllanSums | None = None
     #: The gyroscope's noise std per axis over the rest (rad/s), when there is a gyro.
     gyro_noise_std_radps: np.ndarray | None = None
+    #: The gyroscope's mean per axis over the rest (rad/s) and its σ (noise std / √n):
+    #: a static reading of its bias and G·a (:mod:`wheelcal.estimate.joint.gyro_rests`).
+    gyro_mean_radps: np.ndarray | None = None
+    gyro_mean_std_radps: np.ndarray | None = None
 
     @property
     def mid_s(self) -> float:
@@ -157,16 +161,26 @@ def _segment(
         noise_std_mps2=np.array([np.std(row, ddof=1) for row in centred]),
         noise_dof=float(n * np.min(noise.effective_sample_fraction)),
         allan=AllanSums.of(v, rate_hz or float(1.0 / np.median(np.diff(t)))),
-        gyro_noise_std_radps=_gyro_std(gyro),
+        **_gyro_statistics(gyro),
     )
 
 
-def _gyro_std(gyro: np.ndarray | None) -> np.ndarray | None:
-    """The gyro's std per axis over a rest's rows (None: no gyro, or too few valid rows)."""
+def _gyro_statistics(gyro: np.ndarray | None) -> dict:
+    """The gyro's std, mean and σ of the mean per axis over a rest's valid rows.
+
+    Empty (the fields stay None) without a gyro or with fewer than 10 valid rows.
+    """
     if gyro is None:
-        return None
+        return {}
     valid = gyro[np.all(np.isfinite(gyro), axis=1)]
-    return np.std(valid, axis=0, ddof=1) if valid.shape[0] >= 10 else None
+    if valid.shape[0] < 10:
+        return {}
+    std = np.std(valid, axis=0, ddof=1)
+    return {
+        "gyro_noise_std_radps": std,
+        "gyro_mean_radps": valid.mean(axis=0),
+        "gyro_mean_std_radps": std / np.sqrt(valid.shape[0]),
+    }
 
 
 def pooled_noise_std(rests: tuple[RestSegment, ...]) -> tuple[np.ndarray, float] | None:

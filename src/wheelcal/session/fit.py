@@ -184,7 +184,12 @@ class SessionFit:
         tc = window.time_s - 0.5 * (window.time_s[0] + window.time_s[-1])
         gyro_t, gyro = gyro_samples(window, tc)
         knots = choose_knot_spacing(gyro_t, gyro)
-        fitter = dataclasses.replace(self.fitter, use_gyro=True, spline_spacing_s=knots.spacing_s)
+        fitter = dataclasses.replace(
+            self.fitter,
+            use_gyro=True,
+            spline_spacing_s=knots.spacing_s,
+            gyro_rests=self.fitter.rests_of(rests),
+        )
         guess = fitter.start(window)
         _check_implied_radius(guess, window, gates)
         result = fit_window(fitter, window, guess=guess)

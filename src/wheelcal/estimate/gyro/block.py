@@ -19,6 +19,7 @@ uncertainty is far smaller).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,6 +60,9 @@ class GyroCalibration:
     once_per_turn_radps: np.ndarray | None = None
     #: σ of the prior on G (rad/s per m/s²), when there is one.
     g_prior_std: float | None = None
+    #: How many rests' gyro readings the joint fit used (estimate/joint/gyro_rests.py);
+    #: None for a regression on the fitted rate.
+    rests_used: int | None = None
 
     def to_dict(self) -> dict:
         """The calibration JSON's ``gyro`` block."""
@@ -97,6 +101,7 @@ class GyroCalibration:
                 if self.g_prior_std is not None
                 else {}
             ),
+            **({"rests_used": self.rests_used} if self.rests_used is not None else {}),
             "source": self.source,
             "calibrated": "scale along the wheel axis, the axis direction, the three biases",
             "note": "u is free: it tilts from −R·e_Z by the gyro's own misalignment and "
@@ -165,7 +170,7 @@ def gyro_from_fit(
     residual = gyro - gyro_prediction(result.params, gyro_t, result.layout)
     rotation = result.params.bench.misalignment.matrix
     theta = wheel_kinematics(result.params, gyro_t, result.layout.effects).theta_rad
-    return _calibration(
+    block = _calibration(
         values,
         cov,
         rotation,
@@ -175,6 +180,8 @@ def gyro_from_fit(
         theta,
         effect,
     )
+    rests = getattr(result, "gyro_rests", None)
+    return dataclasses.replace(block, rests_used=0 if rests is None else rests.count)
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,13 +201,15 @@ def regress_gyro(
     gyro: np.ndarray,
     max_ar_order: int = 10,
     reading: GyroReading | None = None,
+    rests=None,
 ) -> GyroRegression:
     """The gyro's reading (w, b, G with its prior) by regression on the fitted ω(t).
 
     The start is the least-squares regression
     (:func:`~wheelcal.estimate.joint.fit.with_gyro_start`), then one Gauss–Newton step of
     the whitened problem with the prior on G (the problem is linear in the reading's
-    parameters).
+    parameters).  ``rests``: the gyro's readings at the rests
+    (:class:`~wheelcal.estimate.joint.gyro_rests.GyroRests`), regressed on too.
     """
     from wheelcal.estimate.joint.fit import with_gyro_start
 
@@ -214,7 +223,7 @@ def regress_gyro(
     params = with_gyro_start(result.params, layout, gyro_t, gyro)
     residual = gyro - gyro_prediction(params, gyro_t, layout)
     noise = NoiseModel.estimate(residual, max_ar_order)
-    normal = accumulate_gyro(params, gyro_t, gyro, layout, noise)
+    normal = accumulate_gyro(params, gyro_t, gyro, layout, noise, rests=rests)
     block = layout.blocks[f"effect:{reading.name}"]
     cov = scaled_pinv(normal.hessian[block, block])
     values = params.effect(reading.name, reading.size) - cov @ normal.gradient[block]

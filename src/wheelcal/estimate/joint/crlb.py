@@ -77,12 +77,14 @@ def cramer_rao_bound_with_gyro(
     noise: NoiseModel,
     layout: ParameterLayout,
     gyro_noise: NoiseModel,
+    gyro_rests=None,
 ) -> Bound:
     """CRLB when the gyroscope is fitted too: the two streams' informations add.
 
     ``layout`` holds a :class:`~wheelcal.model.effects.GyroReading` (and
     usually a spline of the wheel angle); ``params`` carry its true values.
-    Both streams are sampled at ``t_s``.
+    Both streams are sampled at ``t_s``; ``gyro_rests``: the gyro's readings at
+    the rests (:class:`~wheelcal.estimate.joint.gyro_rests.GyroRests`), if fitted.
     """
     from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_prediction
     from wheelcal.estimate.joint.information import covariance_from_fisher
@@ -91,7 +93,8 @@ def cramer_rao_bound_with_gyro(
     exact = evaluate(params, t_s, layout).predicted_mps2  # zero residual: H = J̃ᵀJ̃
     fisher = accumulate(params, t_s, exact, layout, noise).hessian
     gyro = gyro_prediction(params, t_s, layout)
-    fisher = fisher + accumulate_gyro(params, t_s, gyro, layout, gyro_noise).hessian
+    rate = accumulate_gyro(params, t_s, gyro, layout, gyro_noise, rests=gyro_rests)
+    fisher = fisher + rate.hessian
     names, values, g = report_transform(params, layout)
     cov = transform_covariance(g, covariance_from_fisher(fisher))
     return Bound(names=names, values=values, covariance=cov, fisher=fisher)

@@ -42,6 +42,7 @@ import numpy as np
 from wheelcal.estimate.joint.columns import difference_stds
 from wheelcal.estimate.joint.decimation import thinning_stride
 from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, combined, gyro_prediction
+from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.identifiability import Identifiability, check_identifiability
 from wheelcal.estimate.joint.information import covariance_from_fisher
 from wheelcal.estimate.joint.initial import InitialGuess, initial_guess
@@ -142,6 +143,9 @@ class JointFit:
     #: σ of the prior on the gyro's sensitivity to linear acceleration, °/s/g
     #: (:class:`~wheelcal.model.effects.GyroReading`; None: no prior).
     gyro_g_prior_dps_per_g: float | None = G_SENSITIVITY_PRIOR_DPS_PER_G
+    #: The gyro's static readings at the rests around the window (:mod:`.gyro_rests`),
+    #: fitted with its stream (None: none).
+    gyro_rests: GyroRests | None = None
 
     def __post_init__(self) -> None:
         if self.spline_spacing_s is not None and not self.spline_spacing_s > 0:
@@ -191,6 +195,10 @@ class JointFit:
     def gyro_reading(self) -> GyroReading:
         """The gyroscope's reading with this configuration's prior on G."""
         return GyroReading(g_sensitivity=True, g_prior_dps_per_g=self.gyro_g_prior_dps_per_g)
+
+    def rests_of(self, rests) -> GyroRests | None:
+        """The gyro's readings at ``rests`` (RestSegments) for this fit's reading, or None."""
+        return GyroRests.of(rests, self.gyro_reading().g_prior_std_radps_per_mps2)
 
     def _fixed_tilt_rad(self) -> float | None:
         if self.geometry in ("vertical", "rolling", "free"):
@@ -330,7 +338,9 @@ class JointFit:
             gyro_std0 = np.maximum(np.std(np.diff(gyro, axis=0), axis=0) / np.sqrt(2), 1e-9)
             gyro1 = (w.gyro_t[::stride], gyro[::stride], NoiseModel.white(gyro_std0))
         out = levenberg_marquardt(
-            _residual_fn(tc[::stride], v[::stride], layout, white0, gyro=gyro1),
+            _residual_fn(
+                tc[::stride], v[::stride], layout, white0, gyro=gyro1, gyro_rests=self.gyro_rests
+            ),
             initial,
             layout,
             self.max_iterations,
@@ -398,7 +408,9 @@ class JointFit:
         if gyro is not None:
             gyro_noise = self._noise_model(gyro - gyro_prediction(start, w.gyro_t, layout))
             gyro2 = (w.gyro_t, gyro, gyro_noise)
-        normal_fn = _residual_fn(tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2)
+        normal_fn = _residual_fn(
+            tc, v, layout, noise, nuisance_columns(layout), gyro=gyro2, gyro_rests=self.gyro_rests
+        )
         last_residual = _LastResidual(normal_fn, tc, v, layout, noise) if gyro is None else None
         out = levenberg_marquardt(
             last_residual or normal_fn,
@@ -434,9 +446,9 @@ class JointFit:
         normal = out.normal
         if not _same_point(params, out.params):  # the other twin: new Jacobian
             nuisances = nuisance_columns(layout)
-            normal = _residual_fn(tc, v, layout, stage2.noise, nuisances, gyro=stage2.gyro)(
-                params, True
-            )
+            normal = _residual_fn(
+                tc, v, layout, stage2.noise, nuisances, gyro=stage2.gyro, gyro_rests=self.gyro_rests
+            )(params, True)
         size = layout.size
         cov_x = covariance_from_fisher(normal.hessian[:size, :size])
         names, values, g = report_transform(params, layout)
@@ -512,6 +524,7 @@ class JointFit:
             # Stage 2: the noise models, how the iterations ended, χ² (N entries).
             noise=stage2.noise,
             gyro_noise=stage2.gyro_noise,
+            gyro_rests=self.gyro_rests if w.gyro is not None else None,
             converged=out.converged,
             iterations=out.iterations,
             chi2=float(chi2),
@@ -670,10 +683,12 @@ def _residual_fn(
     noise: NoiseModel,
     nuisances: list[str] | None = None,
     gyro: tuple | None = None,
+    gyro_rests: GyroRests | None = None,
 ):
     """Whitened normal equations of (model − data), for the LM (nuisances as extra columns).
 
-    ``gyro`` = (times, samples, noise model) adds the gyroscope's stream.
+    ``gyro`` = (times, samples, noise model) adds the gyroscope's stream, and
+    ``gyro_rests`` its static readings at the rests (:mod:`.gyro_rests`).
     """
     extra = nuisance_extra(nuisances) if nuisances else None
     # The accelerometer does not see the gyro's reading: its stream is accumulated
@@ -687,7 +702,9 @@ def _residual_fn(
         if gyro is None:
             return acc
         gyro_t, gyro_v, gyro_noise = gyro
-        rate = accumulate_gyro(params, gyro_t, gyro_v, layout, gyro_noise, want_jacobian)
+        rate = accumulate_gyro(
+            params, gyro_t, gyro_v, layout, gyro_noise, want_jacobian, rests=gyro_rests
+        )
         return combined(acc, rate, accel_layout.size)
 
     return normal

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import NormalEquations, add_gram, chunking, local_view
 from wheelcal.model import CalibrationParams, ParameterLayout
@@ -79,11 +80,13 @@ def accumulate_gyro(
     noise: NoiseModel,
     jacobian: bool = True,
     chunk: int | None = None,
+    rests: GyroRests | None = None,
 ) -> NormalEquations:
     """Cost, H and g of the whitened gyro residual (model − data) over ``layout``.
 
     ``t_s`` and ``gyro_radps`` hold the valid gyro samples only (rows left
-    out — clipped, missing — are simply absent).
+    out — clipped, missing — are simply absent).  ``rests``: the gyro's static
+    readings at the rests, three more rows each (:mod:`.gyro_rests`).
     """
     effect = gyro_effect(layout)
     n = t_s.size
@@ -124,6 +127,15 @@ def accumulate_gyro(
             g_rows = np.arange(layout.blocks[gyro_name].start + 6, layout.blocks[gyro_name].stop)
             hess[g_rows, g_rows] += weight
             grad[g_rows] += prior_grad
+    if rests is not None:  # the rests' means: b + G·a_rest, three rows each
+        rest_cost, rest_grad, rest_gram = rests.normal_terms(params, values, effect.g_sensitivity)
+        cost += rest_cost
+        entries += 3 * rests.count
+        if jacobian:
+            block = layout.blocks[gyro_name]
+            rows = np.arange(block.start, block.stop)
+            hess[np.ix_(rows, rows)] += rest_gram
+            grad[rows] += rest_grad
     return NormalEquations(cost=cost, hessian=hess, gradient=grad, entries=entries)
 
 

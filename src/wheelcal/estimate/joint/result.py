@@ -78,6 +78,9 @@ class CalibrationResult:
     chi2: float = math.nan
     #: N, the whitened residual entries behind :attr:`chi2`.
     entries: int = 0
+    #: The gyro's static readings at the rests that the fit used with its stream
+    #: (:mod:`~wheelcal.estimate.joint.gyro_rests`; None: none, or no gyro fitted).
+    gyro_rests: object | None = None
 
     @property
     def dof(self) -> int:
