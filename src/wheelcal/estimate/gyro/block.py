@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect, gyro_prediction
+from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.information import scaled_pinv
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.result import CalibrationResult
@@ -180,7 +181,7 @@ def gyro_from_fit(
         theta,
         effect,
     )
-    rests = getattr(result, "gyro_rests", None)
+    rests = result.gyro_rests
     return dataclasses.replace(block, rests_used=0 if rests is None else rests.count)
 
 
@@ -201,7 +202,7 @@ def regress_gyro(
     gyro: np.ndarray,
     max_ar_order: int = 10,
     reading: GyroReading | None = None,
-    rests=None,
+    rests: GyroRests | None = None,
 ) -> GyroRegression:
     """The gyro's reading (w, b, G with its prior) by regression on the fitted ω(t).
 

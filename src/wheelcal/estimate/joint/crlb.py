@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.information import covariance_from_fisher, fisher_covariance
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import effect_priors
@@ -77,7 +78,7 @@ def cramer_rao_bound_with_gyro(
     noise: NoiseModel,
     layout: ParameterLayout,
     gyro_noise: NoiseModel,
-    gyro_rests=None,
+    gyro_rests: GyroRests | None = None,
 ) -> Bound:
     """CRLB when the gyroscope is fitted too: the two streams' informations add.
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.joint.columns import column_rms
+from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.identifiability import Identifiability
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.systematic import SystematicBudget
@@ -80,7 +81,7 @@ class CalibrationResult:
     entries: int = 0
     #: The gyro's static readings at the rests that the fit used with its stream
     #: (:mod:`~wheelcal.estimate.joint.gyro_rests`; None: none, or no gyro fitted).
-    gyro_rests: object | None = None
+    gyro_rests: GyroRests | None = None
 
     @property
     def dof(self) -> int:
