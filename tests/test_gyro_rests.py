@@ -8,6 +8,7 @@ the model's code.
 from __future__ import annotations
 
 import dataclasses
+import re
 from types import SimpleNamespace
 
 import numpy as np
@@ -121,6 +122,10 @@ def test_a_calibration_uses_the_rests_and_says_so_unless_the_bias_moved(unbalanc
     gyro[after] += np.deg2rad([0.0, 0.2, 0.0])
     moved = wheelcal.calibrate(dataclasses.replace(rec, gyro_radps=gyro))
     assert moved["gyro"]["rests_used"] == 0 and moved.result.gyro_rests is None
+    (warning,) = [w for w in moved.document["fit"]["warnings"] if "bias moved" in w]
+    found = re.search(r"differs by ([0-9.]+) °/s on its y axis between the rests", warning)
+    assert found and float(found.group(1)) == pytest.approx(0.2, abs=0.02), warning
+    assert not any("bias moved" in w for w in cal.document["fit"]["warnings"])
     z = sigmas_from_truth(session, moved.result)
     assert max(abs(v) for v in z.values()) < 5.0, z
 

@@ -363,6 +363,25 @@ def noise_warnings(
 G_FINDING_SIGMAS = 3.0
 
 
+def _bias_moved_between_rests(block, rests: tuple) -> str:
+    """A warning when the joint fit left the rests' gyro readings out: they disagreed.
+
+    (:class:`~wheelcal.estimate.joint.gyro_rests.GyroRests` drops rests whose gyro
+    means differ beyond their σ and G's prior: the bias moved between them.)
+    """
+    means = [r.gyro_mean_radps for r in rests if r.gyro_mean_radps is not None]
+    if block.rests_used != 0 or len(means) < 2:
+        return ""
+    spread = np.ptp(np.array(means), axis=0)
+    axis = int(np.argmax(spread))
+    return (
+        f"the gyro's mean differs by {np.rad2deg(spread[axis]):.3g} °/s on its {AXES[axis]} "
+        "axis between the rests, beyond its noise and its sensitivity to acceleration: its "
+        "bias moved (a warm-up?), so the rests were not used to pin its bias and G — their σ "
+        "are the spin's alone"
+    )
+
+
 def gyro_findings(source: str, block, rests: tuple, gates: Gates) -> list[str]:
     """The gyro stream's gate against its own noise floor (the rests), and G's finding.
 
@@ -384,6 +403,9 @@ def gyro_findings(source: str, block, rests: tuple, gates: Gates) -> list[str]:
             "(--gyro-g-sensitivity): the rate ripples once per turn beyond the model — an "
             "unbalanced wheel, or a gyro more sensitive to acceleration than assumed"
         )
+    moved = _bias_moved_between_rests(block, rests)
+    if moved:
+        out.append(moved)
     floors = [r.gyro_noise_std_radps for r in rests if r.gyro_noise_std_radps is not None]
     if not floors:
         return out
