@@ -226,12 +226,12 @@ MUTATIONS: tuple[Mutation, ...] = (
     ),
     Mutation(
         "gyro_rest_frame",
-        "a rest's force taken through R instead of Rᵀ (the gyro's static readings)",
+        "a rest's force taken through R instead of Rᵀ (the gyro's and the screen's rests)",
         (
             Replacement(
-                "src/wheelcal/estimate/joint/gyro_rests.py",
-                "return relative @ params.bench.misalignment.matrix  #",
-                "return relative @ params.bench.misalignment.matrix.T  #",
+                "src/wheelcal/model/parameters.py",
+                "return relative @ self.bench.misalignment.matrix  #",
+                "return relative @ self.bench.misalignment.matrix.T  #",
             ),
         ),
     ),

@@ -62,9 +62,7 @@ def _static_layout(layout: ParameterLayout) -> ParameterLayout:
 
 def _closed_form_angle(params: CalibrationParams, rest: RestSegment) -> float:
     """The rest's wheel angle from its mean seen in the bench frame: a = Rᵀ Γ⁻¹ (m − o)."""
-    gain = params.sensor.gain
-    rot = params.bench.misalignment.matrix
-    bench = rot.T @ ((rest.mean_mps2 - params.sensor.offset_mps2) / gain)
+    bench = params.static_force_mps2(rest.mean_mps2)
     return float(np.arctan2(bench[1], bench[0]))
 
 

@@ -171,3 +171,13 @@ class CalibrationParams:
         """Values of one effect; zeros (= absent) when it is not present."""
         values = self.effects.get(name)
         return np.zeros(size) if values is None else values
+
+    def static_force_mps2(self, reading_mps2: np.ndarray) -> np.ndarray:
+        """The force in the wheel frame that still readings show: a = Rᵀ Γ⁻¹ (v − o).
+
+        ``reading_mps2``: (3,) or (k, 3) sensor readings (e.g. a rest's mean); the base
+        sensor model only (effects are not inverted).
+        """
+        sensor = self.sensor
+        relative = (np.asarray(reading_mps2, dtype=float) - sensor.offset_mps2) / sensor.gain
+        return relative @ self.bench.misalignment.matrix  # rows: (Rᵀ x)ᵀ = xᵀ R

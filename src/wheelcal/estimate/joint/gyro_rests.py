@@ -89,9 +89,7 @@ class GyroRests:
 
     def forces_mps2(self, params: CalibrationParams) -> np.ndarray:
         """The force a = Rᵀ Γ⁻¹ (v̄ − o) of each rest in the wheel frame, (k, 3), at ``params``."""
-        sensor = params.sensor
-        relative = (self.accel_mps2 - np.asarray(sensor.offset_mps2)) / np.asarray(sensor.gain)
-        return relative @ params.bench.misalignment.matrix  # rows: (Rᵀ x)ᵀ = xᵀ R
+        return params.static_force_mps2(self.accel_mps2)
 
     def normal_terms(
         self, params: CalibrationParams, values: np.ndarray, g_sensitivity: bool
