@@ -281,3 +281,110 @@ def test_an_effect_with_another_yaw_is_the_effect_built_with_it():
     np.testing.assert_array_equal(again.predicted_mps2, before.predicted_mps2)
     with pytest.raises(ValueError, match="cross"):
         angle.with_yaw(other, other_dot)
+
+
+def _track_series(t):
+    """A camber's change (rad) and two basis series, smooth and zero at t = 0."""
+    track = 0.06 * np.sin(0.2 * t) + 0.02 * (1 - np.cos(0.5 * t))
+    basis = {"drift_radps": t.copy(), "heading": 0.1 * np.sin(0.4 * t)}
+    return track, basis
+
+
+@pytest.mark.parametrize("yaw_free", [False, True])
+@pytest.mark.parametrize("tilt_deg", [72.0, 88.0])
+def test_the_camber_tracks_jacobian_is_exact(tilt_deg, yaw_free):
+    # The rolling wheel with a camber track (gravity turned by Δγ(t), the turns at Γ(t))
+    # and the gyro angle's ψ̇ sin γ(t): every column against central differences.
+    t = np.linspace(-15.0, 15.0, 1201)
+    rate, rate_dot, yaw, yaw_dot = _series(t)
+    track, basis = _track_series(t)
+    angle = GyroAngle(t, rate, rate_dot, yaw, yaw_dot, camber_track_rad=track)
+    rolling = Rolling(
+        t,
+        yaw,
+        yaw_dot,
+        yaw_scale_free=yaw_free,
+        yaw_across_axle=True,
+        camber_track_rad=track,
+        camber_basis=basis,
+    )
+    assert rolling.camber_names == ("camber_drift_radps", "camber_heading")
+    values = [0.3, 0.97, 0.01] if yaw_free else [0.3]
+    params = _field_params(tilt_deg, {angle.name: [1.013], rolling.name: [*values, 2e-3, 0.05]})
+    layout = ParameterLayout(
+        spin_degree=0, fit_tilt=True, fit_radius=True, effects=(angle, rolling)
+    )
+    _fd_check(params, t, layout)
+
+
+def test_a_camber_track_of_zeros_is_one_camber():
+    t = np.linspace(-15.0, 15.0, 601)
+    rate, rate_dot, yaw, yaw_dot = _series(t)
+    flat = Rolling(t, yaw, yaw_dot, yaw_across_axle=True)
+    zero = Rolling(
+        t,
+        yaw,
+        yaw_dot,
+        yaw_across_axle=True,
+        camber_track_rad=np.zeros_like(t),
+        camber_basis={"drift_radps": t.copy()},
+    )
+    params = _field_params(80.0, {"rolling": [0.3, 0.99, 0.002]})
+    with_track = params.with_changes(effects={"rolling": [0.3, 0.99, 0.002, 0.0]})
+    a = predict(params, t, ParameterLayout(spin_degree=0, effects=(flat,)))
+    b = predict(with_track, t, ParameterLayout(spin_degree=0, effects=(zero,)))
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    # a drift of 1 mrad/s turns the camber by 15 mrad at the window's ends: g·0.015 on a_Z
+    drifting = with_track.with_changes(effects={"rolling": [0.3, 0.99, 0.002, 1e-3]})
+    c = predict(drifting, t, ParameterLayout(spin_degree=0, effects=(zero,)))
+    assert np.abs(c - b).max() > 0.1
+
+
+@pytest.mark.parametrize("roll", [0.4, 0.8])
+def test_a_camber_that_changes_is_the_rolling_model_with_its_track(roll):
+    # The oracle (the simulator's world-frame kinematics) with a camber that follows the
+    # turns (a body's roll, γ(t) = γ₀ + k·v ψ̇): the model with the true track l(t) = γ(t) −
+    # γ(0) reproduces the specific force (to the finite differences of the sampled track
+    # that give its rate λ and λ̇: ≤ 5 mm/s²; without the roll's own terms, 2 r ω λ, it was
+    # 0.21 m/s² off); one camber misses it by g·Δγ on a_Z.
+    make_car = car_drive
+    rng = np.random.default_rng(21)
+    scenario = dataclasses.replace(make_car(rng, camber_deg=2.0), body_roll_deg_per_mps2=roll)
+    truth = simulate_field(scenario, rng).truth
+    m = truth.motion
+    t = truth.time_s
+    camber = _true_camber(truth, scenario)
+    centre = int(np.argmin(np.abs(t - 0.5 * (t[0] + t[-1]))))
+    track = camber - camber[centre]
+    assert np.ptp(np.rad2deg(track)) > 1.0, "the camber changes"
+    across = m.yaw_rate_radps * np.cos(camber)  # y = ψ̇ cos γ(t), what the gyro reads
+    across_dot = np.gradient(across, t)
+    rolling = Rolling(
+        t,
+        across,
+        across_dot,
+        yaw_scale_free=False,
+        yaw_across_axle=True,
+        camber_track_rad=track,
+        camber_basis={},
+    )
+    bench = dataclasses.replace(truth.bench, tilt_rad=np.pi / 2 - camber[centre])
+    params = truth.params().with_changes(
+        bench=bench, effects={rolling.name: np.array([truth.rolling_radius_m])}
+    )
+    kin = truth.kinematics()
+    model = evaluate(params, t, effects=(rolling,), kinematics=kin).predicted_mps2
+    assert np.abs(model - truth.clean_accel_mps2).max() < 1e-2
+    flat = Rolling(t, across, across_dot, yaw_scale_free=False, yaw_across_axle=True)
+    one = evaluate(params, t, effects=(flat,), kinematics=kin).predicted_mps2
+    assert np.abs(one - truth.clean_accel_mps2).max() > 0.1
+
+
+def _true_camber(truth, scenario) -> np.ndarray:
+    """γ(t) of a simulated drive whose carrier rolls with its lateral acceleration."""
+    from wheelcal.simulate.field_record import _leaning
+
+    m = truth.motion
+    wheel = scenario.wheel
+    _, lean = _leaning(m, wheel, np.deg2rad(scenario.body_roll_deg_per_mps2), truth.time_s)
+    return lean.camber_rad

@@ -225,7 +225,9 @@ def candidate_columns(
         w3 = _layout_w(params, t, layout, out)
         r = params.bench.radius_m
         tilt = params.bench.tilt_rad
-        d = candidate.force_delta(np.zeros(candidate.size), t, out.kinematics, r, True, tilt)
+        d = candidate.force_delta(
+            np.zeros(candidate.size), t, out.kinematics, r, True, tilt, params.gravity_mps2
+        )
         return np.stack([_through_w(w3, column) for column in d.d_own])
     force = out.force
     rows = candidate.own_rows(t, out.kinematics, force.sin_theta, force.cos_theta)
@@ -374,7 +376,13 @@ def evaluate(
         if effect.stage == "force":  # Δa of the bench frame (e.g. a rolling wheel's hub)
             values = params.effect(effect.name, effect.size)
             term = effect.force_delta(
-                values, t, kin, params.bench.radius_m, jacobian, params.bench.tilt_rad
+                values,
+                t,
+                kin,
+                params.bench.radius_m,
+                jacobian,
+                params.bench.tilt_rad,
+                params.gravity_mps2,
             )
             force_terms.append((effect, term))
     if force_terms:

@@ -37,6 +37,12 @@ spot (ψ̇ large, ω small) would read it as a camber of ≈ m.  With ``cross``
 series (y cos ϑ, y sin ϑ at a previous fit's ϑ) the effect adds
 s (m_x C_x + m_y C_y), C = ∫ y (cos ϑ, sin ϑ) dt, and fits m (``cross_x``, ``cross_y``).
 
+**A camber that changes.**  The yaw's share ψ̇ sin γ turns the wheel on its
+carrier with the camber of the moment: with a camber track l(t) (the camber's
+change, :mod:`wheelcal.model.rolling`) cot α becomes cot(α − l) ≈ cot α + l / sin²α,
+and the effect adds s (Ψ_l, y l, (y l)˙) / sin²α, Ψ_l = ∫ y l dt (a 5° banked
+curve at 0.03 rad/s of yaw turns the angle by 0.05 rad in 20 s).
+
 **Its sensitivity to acceleration.**  A MEMS gyro reads ~0.1 °/s per g of
 specific force.  A robot's hub sensor at 2 g of centripetal force, or the
 lateral force of a turn, would turn that into an angle drift of the turn's
@@ -86,6 +92,8 @@ class GyroAngle(_SpinEffect):
         (N, 3): the specific force in the sensor's frame (the accelerometer, smoothed) —
         the axle reading's sensitivity to it, g = (``g_x``, ``g_y``, ``g_z``), is fitted
         under the prior ``g_prior_std`` (rad/s per m/s²; a MEMS gyro's ~0.1 °/s/g).
+    camber_track_rad:
+        l(t), the camber's change (rad; module docstring), or ``None`` (a constant camber).
     """
 
     name = "gyro_angle"
@@ -105,6 +113,7 @@ class GyroAngle(_SpinEffect):
         cross_radps: np.ndarray | None = None,
         accel_mps2: np.ndarray | None = None,
         g_prior_std: float = G_PRIOR_RADPS_PER_MPS2,
+        camber_track_rad: np.ndarray | None = None,
     ) -> None:
         t = np.asarray(time_s, dtype=float)
         if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
@@ -117,6 +126,13 @@ class GyroAngle(_SpinEffect):
         self.rate, self.rate_dot, self.yaw, self.yaw_dot = series
         self.angle = _integral(t, self.rate)
         self.yaw_angle = _integral(t, self.yaw)
+        self.camber_track_rad = None
+        if camber_track_rad is not None:
+            track = np.asarray(camber_track_rad, dtype=float)
+            if track.shape != t.shape or not np.all(np.isfinite(track)):
+                raise ValueError("camber_track_rad must be finite, one value per time")
+            self.camber_track_rad = track
+        self._set_lean()
         # Further rates the axle reading sees, each with a fitted coefficient:
         # (name, (∫x dt, x, ẋ), prior σ).
         self.terms: list[tuple[str, tuple, float]] = []
@@ -138,16 +154,30 @@ class GyroAngle(_SpinEffect):
     def _series(self, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return _integral(self.time_s, rate), rate, np.gradient(rate, self.time_s)
 
+    def _set_lean(self) -> None:
+        """(Ψ_l, y l, (y l)˙): the yaw times the camber track (zeros without a track)."""
+        if self.camber_track_rad is None:
+            zero = np.zeros_like(self.time_s)
+            self.lean_series = (zero, zero, zero)
+        else:
+            product = self.yaw * self.camber_track_rad
+            integral = _integral(self.time_s, product)
+            self.lean_series = (integral, product, self.yaw_dot * self.camber_track_rad)
+            # (y l)˙ = ẏ l + y l̇; l̇ (the roll rate) times a yaw of 0.03 rad/s is below
+            # what ω̇ resolves, and the low-passed ẏ l is the part the motion shows.
+
     def with_yaw(
         self,
         yaw_across_radps: np.ndarray,
         yaw_across_dot_radps2: np.ndarray,
         cross_radps: np.ndarray | None = None,
+        camber_track_rad: np.ndarray | None = None,
     ) -> GyroAngle:
         """The same effect with another yaw across the axle (and its ``cross`` series).
 
         Everything else — the axle rate, the accelerometer's series, the priors — is
         kept: what a change of the gyro's reading across the axle alone does.
+        ``camber_track_rad``: another camber track (an effect with one only).
         """
         t = self.time_s
         yaw = np.asarray(yaw_across_radps, dtype=float)
@@ -156,6 +186,14 @@ class GyroAngle(_SpinEffect):
             raise ValueError("one yaw and one yaw rate of change per time")
         out = copy.copy(self)
         out.yaw, out.yaw_dot, out.yaw_angle = yaw, yaw_dot, _integral(t, yaw)
+        if camber_track_rad is not None:
+            if self.camber_track_rad is None:
+                raise ValueError("a camber track replaces one: this effect has none")
+            track = np.asarray(camber_track_rad, dtype=float)
+            if track.shape != t.shape:
+                raise ValueError("one camber-track value per time")
+            out.camber_track_rad = track
+        out._set_lean()
         rows = {}
         if cross_radps is not None:
             rows = dict(zip(("cross_x", "cross_y"), np.asarray(cross_radps), strict=True))
@@ -189,12 +227,13 @@ class GyroAngle(_SpinEffect):
         return id(self)
 
     def _rows_at(self, t: np.ndarray) -> np.ndarray:
-        """Every series at times ``t`` (linear interpolation), (3 + 3 + 3·terms, N).
+        """Every series at times ``t`` (linear interpolation), (3 + 3 + 3 + 3·terms, N).
 
         One search of the grid serves every series (they share ``time_s``).
         """
         if self._stacked is None:
             series = [self.angle, self.rate, self.rate_dot, self.yaw_angle, self.yaw, self.yaw_dot]
+            series += list(self.lean_series)
             series += [x for _, triple, _ in self.terms for x in triple]
             self._stacked = np.vstack(series)
         grid = self.time_s
@@ -207,16 +246,19 @@ class GyroAngle(_SpinEffect):
         """Δϑ, Δω, Δω̇ at centred times ``t_s`` and tilt α (module docstring)."""
         t = np.asarray(t_s, dtype=float)
         scale = float(values[0])
-        cot = float(np.cos(tilt_rad) / np.sin(tilt_rad))
+        sin_tilt = float(np.sin(tilt_rad))
+        cot = float(np.cos(tilt_rad)) / sin_tilt
+        csc2 = 1.0 / (sin_tilt * sin_tilt)  # ∂ cot(α − l)/∂l at l = 0
         rows = self._rows_at(t)
-        base, yaw = list(rows[0:3]), list(rows[3:6])
-        total = [b + cot * y for b, y in zip(base, yaw, strict=True)]
-        cross = [list(rows[6 + 3 * k : 9 + 3 * k]) for k in range(len(self.terms))]
+        base, yaw, lean = list(rows[0:3]), list(rows[3:6]), list(rows[6:9])
+        total = [b + cot * y + csc2 * m for b, y, m in zip(base, yaw, lean, strict=True)]
+        cross = [list(rows[9 + 3 * k : 12 + 3 * k]) for k in range(len(self.terms))]
         for m, series in zip(values[1:], cross, strict=True):
             total = [x + float(m) * c for x, c in zip(total, series, strict=True)]
         if not jacobian:
             return SpinDelta(*(scale * x for x in total))
-        d_cot = -1.0 / np.sin(tilt_rad) ** 2  # ∂ cot α / ∂α
+        d_cot = -csc2  # ∂ cot α / ∂α
+        d_csc2 = -2.0 * cot * csc2  # ∂ (1 / sin²α) / ∂α
         own = [
             np.vstack([x[None]] + [scale * c[k][None] for c in cross]) for k, x in enumerate(total)
         ]
@@ -225,5 +267,5 @@ class GyroAngle(_SpinEffect):
             d_own_theta=own[0],
             d_own_omega=own[1],
             d_own_omega_dot=own[2],
-            by_tilt=tuple(scale * d_cot * y for y in yaw),
+            by_tilt=tuple(scale * (d_cot * y + d_csc2 * m) for y, m in zip(yaw, lean, strict=True)),
         )

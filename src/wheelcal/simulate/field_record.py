@@ -186,11 +186,20 @@ class FieldTruth:
     glitch_rows: GlitchRows
     window_s: tuple[float, float]
     free_spin: SpinParams | None = None
+    #: γ(t) per sample where the camber changes during the drive (a lean), else None.
+    camber_series_rad: np.ndarray | None = None
 
     @property
     def tilt_deg(self) -> float:
-        """α in degrees."""
+        """α in degrees (a leaning wheel's at rest: see :meth:`tilt_at_deg`)."""
         return self.bench.tilt_deg
+
+    def tilt_at_deg(self, time_s: float) -> float:
+        """α at ``time_s`` (recording seconds): 90° − γ(t) of a leaning wheel, else α."""
+        if self.camber_series_rad is None:
+            return self.tilt_deg
+        gamma = float(np.interp(time_s, self.time_s, self.camber_series_rad))
+        return 90.0 - float(np.rad2deg(gamma))
 
     @property
     def camber_deg(self) -> float | None:
@@ -353,6 +362,7 @@ def simulate_field(scenario: FieldScenario, rng: np.random.Generator) -> FieldSi
         vibration_envelope=envelope[keep],
         glitch_rows=rows,
         window_s=_window(scenario, t, state.speed_mps),
+        camber_series_rad=None if lean is None else lean.camber_rad[keep],
         **{name: getattr(scenario, name) for name in _SPECS},
     )
     return FieldSimulation(
