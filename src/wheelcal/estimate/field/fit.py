@@ -37,9 +37,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.field.gyro_axle import (
+    CAMBER_TRACK_MIN_RAD,
+    CamberChoice,
+    CamberTrack,
     GyroAxle,
     LeanInTurns,
     across_basis,
+    camber_track,
     gyro_axle,
     lean_change_rad,
     lean_in_turns,
@@ -49,7 +53,8 @@ from wheelcal.estimate.field.gyro_axle import (
     smoothed_accel,
     yaw_across,
 )
-from wheelcal.estimate.field.robust import robust_result
+from wheelcal.estimate.field.lean_check import LeanCheck, camber_extension, lean_check
+from wheelcal.estimate.field.robust import robust_result_with
 from wheelcal.estimate.field.start import field_start
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
@@ -96,6 +101,10 @@ class FieldGeometry:
     lean_change_deg: float = 0.0
     #: The part of it that follows the turns (:func:`~.gyro_axle.lean_in_turns`), rolling only.
     lean_in_turns: LeanInTurns | None = None
+    #: Whether the camber follows the gyro's track (rolling only).
+    camber: CamberChoice | None = None
+    #: What a camber free to move would change (:mod:`~.lean_check`; rolling only).
+    lean_check: LeanCheck | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,6 +155,13 @@ class FieldFit:
     robust_sigma: bool = True
     #: The final fit lets the sensor's axes be non-orthogonal (:class:`CrossAxis`).
     fit_cross_axis: bool = True
+    #: The camber follows the track the gyro measures (:mod:`wheelcal.model.rolling`);
+    #: ``False``: one camber for the whole drive.
+    camber_track: bool = True
+    #: … where its part beyond the gyro's own errors spans this much (rad; ``CamberChoice``).
+    camber_track_min_rad: float = CAMBER_TRACK_MIN_RAD
+    #: Whether to test a camber free to move against the fitted one (:mod:`~.lean_check`).
+    check_lean: bool = True
 
     def fit(self, window: Recording) -> FieldResult:
         """Calibrate ``window`` (a drive, stops included; its gyro on the same rows).
@@ -188,7 +204,7 @@ class FieldFit:
                 axle.yaw_rms_radps,
             )
             return FieldResult(first, geometry, axle)
-        final = self._turns(window, lead, tc, axle, second, radius, stride)
+        final, camber_choice, check = self._turns(window, lead, tc, axle, second, radius, stride)
         axle, lean_rad, in_turns = _lean(window, tc, axle, final)
         camber = 90.0 - float(np.rad2deg(final.params.bench.tilt_rad))
         why = []
@@ -202,11 +218,14 @@ class FieldFit:
             camber,
             "a rolling wheel: "
             + " and ".join(why)
-            + f"; camber {camber:.2f}° from the data, changing by {np.rad2deg(lean_rad):.2f}°",
+            + f"; camber {camber:.2f}° from the data, changing by {np.rad2deg(lean_rad):.2f}°"
+            + f" ({camber_choice.reason})",
             float(z),
             axle.yaw_rms_radps,
             float(np.rad2deg(lean_rad)),
             in_turns,
+            camber_choice,
+            check,
         )
         return FieldResult(final, geometry, axle)
 
@@ -251,73 +270,78 @@ class FieldFit:
 
     def _turns(
         self, window, lead, tc, axle, travelled: CalibrationResult, radius_m, stride: int
-    ) -> CalibrationResult:
+    ) -> tuple[CalibrationResult, CamberChoice, LeanCheck | None]:
         """Pass 3: the yaw across the axle, the tilt free (module docstring).
 
         The yaw is first taken as the gyro's axes across the axle read it (their
-        nominal scale); then its scale κ is fitted too, under its prior
-        (``yaw_scale_prior_std``): a robot on a hub sensor turns the axle axis's
-        forces by κ × its gain alone, and κ taken as exact left that gain biased by
-        the gyro's 1–2 % scale errors at ten times its σ.  Both on the thinned
-        samples (``lead``); the chosen model is then fitted to every sample.
+        nominal scale) with one camber; then, with the wheel angle that pass gives (the
+        track's demodulation needs it to a few mrad: pass 2's, off by more, turns the
+        gyro's bias into a roll), the camber's track is read and joins; then the yaw's
+        scale κ is fitted too, under its prior (``yaw_scale_prior_std``): a robot on a
+        hub sensor turns the axle axis's forces by κ × its gain alone, and κ taken as
+        exact left that gain biased by the gyro's 1–2 % scale errors at ten times its σ.
+        All on the thinned samples (``lead``); the chosen model is then fitted to every
+        sample.
         """
         params = _plausible_gains(travelled.params)
-        theta = wheel_kinematics(params, tc, travelled.layout.effects).theta_rad
-        rotation = params.bench.misalignment.matrix
-        guessed = axle
-        axle = refined_axle(window.gyro_radps, guessed, theta, rotation)
-        y, y_dot = yaw_across(tc, window.gyro_radps, axle, theta, rotation)
-        scale = float(params.effect("gyro_angle", 1)[0])
-        cross = _cross(y, theta) if self.fit_cross else None
         smoothed = smoothed_accel(tc, window.accel_mps2)
-        accel = smoothed if self.fit_g_sensitivity else None
         frame = (float(window.time_s[0]), float(window.time_s[-1]))
-
         g_prior = np.deg2rad(self.gyro_g_prior_dps_per_g) / STANDARD_GRAVITY_MPS2
+        accel = smoothed if self.fit_g_sensitivity else None
+        build = _Build(tc, accel, g_prior, self.fit_cross)
+        series = build.series(window.gyro_radps, axle, params, travelled.layout.effects)
+        joint = self._joint(radius_m, True, ())
 
-        def angle_of(axle):
-            return GyroAngle(
-                tc, axle.rate_radps, axle.rate_dot_radps2, y, y_dot, cross, accel, g_prior
-            )
+        def held_fit(series: _Series, initial: CalibrationParams, track: bool, before):
+            """The turns with κ = 1 (and the camber's track, if ``track``); Z made to point up."""
+            angle, held = build.angle(series, track), build.rolling(series, track, held=True)
+            effects = {**initial.effects, angle.name: _angle_start(initial, angle)}
+            effects[held.name] = _rolling_start(initial, held, before)
+            fit = dataclasses.replace(joint, effects=(angle, held))
+            result = fit.fit(lead, initial=initial.with_changes(effects=effects), frame=frame)
+            if result.params.bench.tilt_rad > np.pi / 2:
+                # Z came out pointing down (the start cannot tell up from down on a nearly
+                # vertical wheel): the same physics with the frame turned 180° about X —
+                # α → 180° − α, R → R·diag(1, −1, −1), ϑ → −ϑ (the gyro's axle from its
+                # other end), and the camber's change γ → −γ.
+                series = series.flipped()
+                angle, held = build.angle(series, track), build.rolling(series, track, held=True)
+                fit = dataclasses.replace(joint, effects=(angle, held))
+                twin = _turned(result.params, angle.name, held.name)
+                result = fit.fit(lead, initial=twin, frame=frame)
+            return result, (angle, held), series
 
-        angle = angle_of(axle)
-        # The yaw as the gyro's axes across the axle read it: their scale is their own
-        # (nominal ± the sensor's tolerance), not the axle's s.
-        held = Rolling(tc, y, y_dot, yaw_scale_free=False, yaw_across_axle=True)
-        effects = {
-            angle.name: [scale] + [0.0] * (angle.size - 1),
-            held.name: [float(params.effect(held.name, 1)[0])],
-        }
-        model = (angle, held)
-        result = self._joint(radius_m, True, model).fit(
-            lead, initial=params.with_changes(effects=effects), frame=frame
+        result, model, series = held_fit(series, params, False, None)
+        # the track read again at this pass's angle and R, in its frame
+        series = build.series(
+            window.gyro_radps, series.oriented, result.params, result.layout.effects
         )
-        if result.params.bench.tilt_rad > np.pi / 2:
-            # Z came out pointing down (the start cannot tell up from down on a nearly
-            # vertical wheel): the same physics with the frame turned 180° about X —
-            # α → 180° − α, R → R·diag(1, −1, −1), ϑ → −ϑ (the gyro's axle from its other end).
-            angle = angle_of(axle.flipped())
-            model = (angle, held)
-            twin = _turned(result.params, angle.name)
-            result = self._joint(radius_m, True, model).fit(lead, initial=twin, frame=frame)
+        choice = series.track.choice(self.camber_track_min_rad)
+        if not self.camber_track:
+            choice = dataclasses.replace(choice, used=False, reason="one camber (as asked)")
+        track = choice.used
+        if track:
+            result, model, series = held_fit(series, result.params, True, model[1])
+            # the wheel angle's ψ̇ sin γ(t) at the camber that pass found
+            series = dataclasses.replace(series, angle_track_rad=_fitted_change(result))
+            model = (build.angle(series, track), model[1])
         if self.fit_yaw_scale:
             # κ free under its prior: where the data do not pin it (a vertical wheel's
             # turns scale the axle axis's forces by κ × its gain), the gain's σ carries
             # the gyro's tolerance instead of a κ = 1 taken as exact.
-            free = Rolling(
-                tc,
-                y,
-                y_dot,
-                yaw_across_axle=True,
-                yaw_offset_free=self.fit_yaw_offset,
-                yaw_scale_prior_std=self.yaw_scale_prior_std,
+            angle, held = model
+            free = build.rolling(
+                series,
+                track,
+                held=False,
+                offset_free=self.fit_yaw_offset,
+                scale_prior_std=self.yaw_scale_prior_std,
             )
-            rho = float(result.params.effect(held.name, 1)[0])
-            effects = {**result.params.effects, free.name: [rho, 1.0, 0.0][: free.size]}
+            start = _rolling_start(result.params, free, held)
+            effects = {**result.params.effects, free.name: start}
             freed = result.params.with_changes(effects=effects)
-            refined = self._joint(radius_m, True, (angle, free)).fit(
-                lead, initial=freed, frame=frame
-            )
+            fit = dataclasses.replace(joint, effects=(angle, free))
+            refined = fit.fit(lead, initial=freed, frame=frame)
             if refined.params.bench.tilt_rad <= np.pi / 2:
                 result, model = refined, (angle, free)
         initial = result.params
@@ -333,15 +357,152 @@ class FieldFit:
             twin = _half_turned(result.params)
             result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=twin)
         if not self.robust_sigma:
-            return result
+            return result, choice, None
         shifts = ()
         if self.gyro_g_prior_dps_per_g > 0:
-            yaw_of = _YawOf(window.gyro_radps, tc, guessed, theta, rotation)
+            yaw_of = _YawOf(window.gyro_radps, build, series)
             shifts = _across_g_shifts(
-                result, yaw_of, axle.axis, smoothed, g_prior, with_cross=self.fit_cross
+                result, yaw_of, series.axle.axis, smoothed, g_prior, with_cross=self.fit_cross
             )
-        density = rate_noise_density(tc, axle.rate_radps)
-        return robust_result(result, window.accel_mps2, density, shifts)
+        density = rate_noise_density(tc, series.axle.rate_radps)
+        wider = camber_extension(result) if self.check_lean else None
+        extension, spacing = wider if wider is not None else (None, 0.0)
+        robust, extended = robust_result_with(result, window.accel_mps2, density, shifts, extension)
+        check = None if extended is None else lean_check(result, extension, extended, spacing)
+        return robust, choice, check
+
+
+@dataclass(frozen=True, eq=False)
+class _Series:
+    """What the turns' passes read from the gyro at one fit's wheel angle and R.
+
+    ``guessed`` is the axle before its refinement, ``theta_rad`` and ``rotation`` the
+    angle and R it was read at (in that fit's frame); ``axle``, ``track`` and
+    ``sign`` as the model now uses them (``sign`` −1 once the frame was turned about X:
+    the axle seen from its other end and the camber's change turned, y and ``cross``
+    kept, as :func:`_turned` turns the parameters).
+    """
+
+    guessed: GyroAxle
+    axle: GyroAxle
+    theta_rad: np.ndarray
+    rotation: np.ndarray
+    yaw_radps: np.ndarray
+    yaw_dot_radps2: np.ndarray
+    cross: np.ndarray | None
+    track: CamberTrack
+    sign: float = 1.0
+    #: The camber's change the gyro angle's ψ̇ sin γ(t) takes: the fitted one of a pass
+    #: before (κ l + Σ c_k N_k), not the raw track, whose gyro errors the basis holds.
+    angle_track_rad: np.ndarray | None = None
+
+    @property
+    def oriented(self) -> GyroAxle:
+        """The unrefined axle as the current frame sees it."""
+        return self.guessed if self.sign > 0 else self.guessed.flipped()
+
+    def flipped(self) -> _Series:
+        """The frame turned 180° about X (see the class docstring)."""
+        angle_track = None if self.angle_track_rad is None else -self.angle_track_rad
+        return dataclasses.replace(
+            self,
+            axle=self.axle.flipped(),
+            track=self.track.flipped(),
+            sign=-self.sign,
+            angle_track_rad=angle_track,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class _Build:
+    """The turns' effects, from :class:`_Series` (the field fit's settings carried)."""
+
+    centred_time_s: np.ndarray
+    accel_mps2: np.ndarray | None  # the axle reading's g-sensitivity, or None
+    g_prior: float
+    fit_cross: bool
+
+    def series(self, gyro_radps, axle: GyroAxle, params, effects) -> _Series:
+        """The yaw, the cross series and the camber's track at ``params``' ϑ and R."""
+        theta = wheel_kinematics(params, self.centred_time_s, effects).theta_rad
+        return self.series_at(gyro_radps, axle, theta, params.bench.misalignment.matrix)
+
+    def series_at(self, gyro_radps, axle: GyroAxle, theta, rotation) -> _Series:
+        """:meth:`series` at a given wheel angle ϑ and R (bench → sensor)."""
+        tc = self.centred_time_s
+        refined = refined_axle(gyro_radps, axle, theta, rotation)
+        y, y_dot = yaw_across(tc, gyro_radps, refined, theta, rotation)
+        track = camber_track(tc, gyro_radps, refined, theta, rotation, y)
+        cross = _cross(y, theta) if self.fit_cross else None
+        return _Series(axle, refined, theta, rotation, y, y_dot, cross, track)
+
+    def angle(self, series: _Series, track: bool) -> GyroAngle:
+        axle = series.axle
+        return GyroAngle(
+            self.centred_time_s,
+            axle.rate_radps,
+            axle.rate_dot_radps2,
+            series.yaw_radps,
+            series.yaw_dot_radps2,
+            series.cross,
+            self.accel_mps2,
+            self.g_prior,
+            camber_track_rad=series.angle_track_rad if track else None,
+        )
+
+    def rolling(
+        self,
+        series: _Series,
+        track: bool,
+        *,
+        held: bool,
+        offset_free: bool = True,
+        scale_prior_std: float | None = None,
+    ) -> Rolling:
+        """The rolling wheel: the yaw taken as read (``held``: κ = 1) or scaled by κ."""
+        return Rolling(
+            self.centred_time_s,
+            series.yaw_radps,
+            series.yaw_dot_radps2,
+            yaw_scale_free=not held,
+            yaw_across_axle=True,
+            yaw_offset_free=offset_free,
+            yaw_scale_prior_std=None if held else scale_prior_std,
+            camber_track_rad=series.track.track_rad if track else None,
+            camber_basis=series.track.basis if track else None,
+        )
+
+
+def _fitted_change(result: CalibrationResult) -> np.ndarray:
+    """The camber's change κ l + Σ c_k N_k a fit found (rad, on its effect's grid)."""
+    rolling = next(e for e in result.layout.effects if isinstance(e, Rolling))
+    values = result.params.effect(rolling.name, rolling.size)
+    return rolling.camber_change(values, rolling.time_s)
+
+
+def _angle_start(params: CalibrationParams, angle: GyroAngle) -> np.ndarray:
+    """The gyro angle's start: the scale s the passes before found, the cross terms kept."""
+    values = np.zeros(angle.size)
+    before = np.asarray(params.effects.get(angle.name, [1.0]), dtype=float)
+    values[: min(before.size, angle.size)] = before[: angle.size]
+    return values
+
+
+def _rolling_start(
+    params: CalibrationParams, rolling: Rolling, before: Rolling | None
+) -> np.ndarray:
+    """The rolling effect's start: what ``before`` (the pass before's) fitted, by name.
+
+    ρ always; κ, ε and the camber's c_k where ``before`` had them (κ = 1, the rest 0
+    where not).
+    """
+    values = rolling.initial_values(float(params.effect(rolling.name, 1)[0]))
+    if before is not None and rolling.name in params.effects:
+        fitted = dict(zip(before.param_names, params.effect(before.name, before.size), strict=True))
+        for k, name in enumerate(rolling.param_names):
+            if name in fitted:
+                values[k] = fitted[name]
+    return values
 
 
 def _cross(yaw_radps: np.ndarray, theta_rad: np.ndarray) -> np.ndarray:
@@ -351,17 +512,22 @@ def _cross(yaw_radps: np.ndarray, theta_rad: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class _YawOf:
-    """The yaw series the turns' pass reads from a gyro: its axle refined, then demodulated."""
+    """The series the turns' pass reads from a gyro: its axle refined, then demodulated."""
 
     gyro_radps: np.ndarray
-    centred_time_s: np.ndarray
-    axle: GyroAxle  # before its refinement
-    theta_rad: np.ndarray
-    rotation: np.ndarray
+    build: _Build
+    series: _Series  # the fit's, read from ``gyro_radps``
 
-    def __call__(self, gyro_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        axle = refined_axle(gyro_radps, self.axle, self.theta_rad, self.rotation)
-        return yaw_across(self.centred_time_s, gyro_radps, axle, self.theta_rad, self.rotation)
+    @property
+    def theta_rad(self) -> np.ndarray:
+        return self.series.theta_rad
+
+    def __call__(self, gyro_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray, CamberTrack]:
+        """y, ẏ and the camber track (in the fit's frame) from ``gyro_radps``."""
+        read = self.series
+        again = self.build.series_at(gyro_radps, read.guessed, read.theta_rad, read.rotation)
+        track = again.track if read.sign > 0 else again.track.flipped()
+        return again.yaw_radps, again.yaw_dot_radps2, track
 
 
 def _across_g_shifts(
@@ -393,18 +559,22 @@ def _across_g_shifts(
     for across in across_basis(axis):
         for column in np.asarray(accel_mps2, dtype=float).T:
             gyro = yaw_of.gyro_radps + g_std_radps_per_mps2 * np.outer(column, across)
-            y, y_dot = yaw_of(gyro)
+            y, y_dot, track = yaw_of(gyro)
             cross = _cross(y, yaw_of.theta_rad) if with_cross else None
-            effects = tuple(_with_yaw(e, y, y_dot, cross) for e in layout.effects)
+            effects = tuple(_with_yaw(e, y, y_dot, cross, track) for e in layout.effects)
             moved = dataclasses.replace(layout, effects=effects)
             shifts.append(evaluate(params, t, moved).predicted_mps2 - base)
     return tuple(shifts)
 
 
-def _with_yaw(effect, y: np.ndarray, y_dot: np.ndarray, cross: np.ndarray | None):
-    """``effect`` reading the yaw series y (the gyro's angle and the rolling forces)."""
+def _with_yaw(effect, y: np.ndarray, y_dot: np.ndarray, cross: np.ndarray | None, track):
+    """``effect`` reading the yaw series y and camber track (the gyro's angle, the forces)."""
     if isinstance(effect, GyroAngle):
-        return effect.with_yaw(y, y_dot, cross)
+        return effect.with_yaw(
+            y, y_dot, cross, track.track_rad if effect.camber_track_rad is not None else None
+        )
+    if isinstance(effect, Rolling) and effect.has_camber_track:
+        return effect.with_yaw(y, y_dot, track.track_rad, track.basis)
     if isinstance(effect, Rolling):
         return effect.with_yaw(y, y_dot)
     return effect
@@ -413,8 +583,9 @@ def _with_yaw(effect, y: np.ndarray, y_dot: np.ndarray, cross: np.ndarray | None
 def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tuple:
     """The axle refined at the final fit's ϑ and R, the camber's change and its turns' part.
 
-    The change is :func:`lean_change_rad` (rad); the part that follows the turns is a
-    :class:`LeanInTurns`.
+    The change is the fitted camber track's 2–98 % range (rad; κ l(t) + δ τ(t),
+    :mod:`wheelcal.model.rolling`), or :func:`lean_change_rad` from the gyro where the
+    model has no track; the part that follows the turns is a :class:`LeanInTurns`.
     """
     params = final.params
     kin = wheel_kinematics(params, tc, final.layout.effects)
@@ -422,7 +593,13 @@ def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tu
     axle = refined_axle(window.gyro_radps, axle, kin.theta_rad, rotation)
     yaw, _ = yaw_across(tc, window.gyro_radps, axle, kin.theta_rad, rotation)
     lean_rate = lean_rate_radps(tc, window.gyro_radps, axle, kin.theta_rad, rotation)
-    change = lean_change_rad(tc, lean_rate, kin.theta_rad, yaw)
+    rolling = next(e for e in final.layout.effects if isinstance(e, Rolling))
+    if rolling.has_camber_track:
+        values = params.effect(rolling.name, rolling.size)
+        low, high = np.percentile(rolling.camber_change(values, tc), [2.0, 98.0])
+        change = float(high - low)
+    else:
+        change = lean_change_rad(tc, lean_rate, kin.theta_rad, yaw)
     rho = float(params.effect("rolling", 1)[0])
     lateral = rho * kin.omega_radps * yaw  # v ψ̇, up to its sign
     in_turns = lean_in_turns(tc, lean_rate, kin.theta_rad, yaw, lateral)
@@ -460,8 +637,14 @@ def _plausible_gains(params: CalibrationParams) -> CalibrationParams:
     return params.with_changes(sensor=sensor)
 
 
-def _turned(params: CalibrationParams, angle_name: str) -> CalibrationParams:
-    """The frame turned 180° about X: α → π − α, R → R·D, ϑ₀, ω₀ → −ϑ₀, −ω₀ (s kept, m → −m)."""
+def _turned(
+    params: CalibrationParams, angle_name: str, rolling_name: str | None
+) -> CalibrationParams:
+    """The frame turned 180° about X: α → π − α, R → R·D, ϑ₀, ω₀ → −ϑ₀, −ω₀ (s kept, m → −m).
+
+    The camber track's coefficients c_k (the rolling effect's, with a track) restart at
+    zero: the track turns sign with the camber, its basis keeps the first frame's ϑ.
+    """
     bench = params.bench
     flip = np.diag([1.0, -1.0, -1.0])
     bench = dataclasses.replace(
@@ -474,6 +657,10 @@ def _turned(params: CalibrationParams, angle_name: str) -> CalibrationParams:
     angle = np.array(effects[angle_name], dtype=float)
     angle[1:] = -angle[1:]  # the axle's response across it, seen from its other end
     effects[angle_name] = angle
+    if rolling_name is not None and rolling_name in effects:
+        rolling = np.array(effects[rolling_name], dtype=float)
+        rolling[1:] = 0.0  # the held rolling's (ρ, c_k)
+        effects[rolling_name] = rolling
     return params.with_changes(bench=bench, spin=spin, effects=effects)
 
 

@@ -182,30 +182,161 @@ def yaw_across(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The gyro across the axle as a yaw rate: y = k ψ̇ cos γ, and ẏ.
 
-    Its size needs no angle: |q|² of the gyro across the axle, low-passed, less
-    its noise (the gyro's while the wheel rests), is (k ψ̇ cos γ)² whatever the
-    wheel's angle (an error of R or ϑ, which the passes leading the way may still
-    carry, cannot scale it).  Its sign does: the yaw's share turns with the wheel as R u(ϑ),
-    u = (cos ϑ, sin ϑ, 0) (R bench → sensor, the accelerometer's: the gyro's axes
-    lie within a degree or two of it on one chip), so the sign of the
-    projection on R u(ϑ), low-passed, is the yaw's.
+    The yaw's share turns with the wheel as R u(ϑ), u = (cos ϑ, sin ϑ, 0) (R bench →
+    sensor, the accelerometer's: the gyro's axes lie within a degree or two of it on
+    one chip), so y is the gyro across the axle projected on R u(ϑ), low-passed to
+    ``YAW_BAND_HZ``.  An error δ of ϑ scales it by cos δ only (the fit's ϑ is within
+    a few mrad of the truth).  Its size is *not* taken from the power across the axle:
+    on a road that power holds the wheel's own rotations — the knuckle's pitch and roll
+    as the tyre and the suspension shake, 10–20 Hz, which squaring folds down into
+    the band — and on measured car drives it read 0.07–0.1 rad/s of yaw where the car
+    body's own gyro read 0–0.03 (the fit's axle-axis gain then came out 0.02–0.6 for
+    a factory-calibrated sensor).
     """
     t = np.asarray(time_s, dtype=float)
-    gyro = np.asarray(gyro_radps, dtype=float)
-    across = axle.across(gyro)
-    c, s = np.cos(theta_rad), np.sin(theta_rad)
-    up = np.column_stack([c, s, np.zeros_like(c)]) @ rotation.T
+    across = axle.across(np.asarray(gyro_radps, dtype=float))
     rate_hz = 1.0 / float(np.median(np.diff(t)))
-    signed = _lowpass(np.sum(across * up, axis=1), rate_hz, YAW_BAND_HZ)
-    power = np.sum(across * across, axis=1)
-    resting = np.abs(axle.rate_radps) < RESTING_RADPS  # the gyro's noise power, where known
-    noise = 0.0
-    if np.count_nonzero(resting) >= 50:
-        rest = across[resting]
-        noise = float(np.mean(np.sum((rest - rest.mean(axis=0)) ** 2, axis=1)))
-    size = np.sqrt(np.maximum(_lowpass(power, rate_hz, YAW_BAND_HZ) - noise, 0.0))
-    y = np.sign(signed) * size
+    y = _lowpass(np.sum(across * _up(theta_rad, rotation), axis=1), rate_hz, YAW_BAND_HZ)
     return y, np.gradient(_lowpass(y, rate_hz, YAW_BAND_HZ), t)
+
+
+def _up(theta_rad: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """R (cos ϑ, sin ϑ, 0): the in-plane up, along which the yaw's share turns."""
+    c, s = np.cos(theta_rad), np.sin(theta_rad)
+    return np.column_stack([c, s, np.zeros_like(c)]) @ rotation.T
+
+
+#: Corner of the camber track's low-pass (Hz): a road's camber changes over metres.
+CAMBER_BAND_HZ = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class CamberTrack:
+    """The camber's change l(t) from the gyro, and the shapes its own errors take.
+
+    ``basis`` (name → series): what the gyro's errors add to l while the wheel turns
+    (:func:`camber_track`); the fit takes each with a coefficient of its own, which
+    the accelerometer's gravity along the axle pins.  All zero at the window's centre
+    (t = 0) and held where the wheel rests.
+    """
+
+    track_rad: np.ndarray
+    basis: dict[str, np.ndarray]
+
+    def flipped(self) -> CamberTrack:
+        """The same track in the frame turned 180° about X (γ → −γ; the basis is kept)."""
+        return CamberTrack(-self.track_rad, self.basis)
+
+    @property
+    def range_rad(self) -> float:
+        """The track's 2–98 % range (rad)."""
+        return _range(self.track_rad)
+
+    def unexplained_rad(self) -> np.ndarray:
+        """L less its least-squares fit by the basis: what the gyro's own errors cannot make."""
+        basis = np.column_stack(list(self.basis.values()))
+        coef, *_ = np.linalg.lstsq(basis, self.track_rad, rcond=None)
+        return self.track_rad - basis @ coef
+
+    def choice(self, min_change_rad: float) -> CamberChoice:
+        """Whether the fit should follow this track (:class:`CamberChoice`)."""
+        unexplained = _range(self.unexplained_rad())
+        used = unexplained >= min_change_rad
+        total, part = np.rad2deg(self.range_rad), np.rad2deg(unexplained)
+        limit = np.rad2deg(min_change_rad)
+        if used:
+            reason = (
+                f"the gyro reads the camber changing by {total:.2f}°, {part:.2f}° of it "
+                "beyond what its own errors make: the camber follows that track"
+            )
+        else:
+            reason = (
+                f"the gyro's roll across the axle ({total:.2f}°) is what its own errors make "
+                f"but for {part:.2f}° (below {limit:g}°): one camber for the drive"
+            )
+        return CamberChoice(used, float(self.range_rad), float(unexplained), reason)
+
+
+def _range(x: np.ndarray) -> float:
+    low, high = np.percentile(x, [2.0, 98.0])
+    return float(high - low)
+
+
+#: A camber track whose part beyond the gyro's own errors spans less than this (rad)
+#: is not followed: 0.5° moves the axle's share of gravity by 0.09 m/s², and a track
+#: made of the gyro's errors alone (simulated drives: ≤ 0.16°) only costs information.
+CAMBER_TRACK_MIN_RAD = float(np.deg2rad(0.5))
+
+
+@dataclass(frozen=True)
+class CamberChoice:
+    """Whether the camber follows the gyro's track, and the evidence (a decision, a value)."""
+
+    used: bool
+    #: The track's 2–98 % range and that of its part the gyro's errors cannot make (rad).
+    track_range_rad: float
+    unexplained_range_rad: float
+    reason: str
+
+
+def _held_integral(t: np.ndarray, rate: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """∫ rate dt over the samples where the wheel moves, zero at t = 0."""
+    x = rate * moving
+    out = np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(t))])
+    return out - np.interp(0.0, t, out)
+
+
+def camber_track(
+    time_s: np.ndarray,
+    gyro_radps: np.ndarray,
+    axle: GyroAxle,
+    theta_rad: np.ndarray,
+    rotation: np.ndarray,
+    yaw_radps: np.ndarray,
+) -> CamberTrack:
+    """The camber's change during the drive, from the gyro (:mod:`wheelcal.model.rolling`).
+
+    A wheel rolls about its direction of travel as the road's cross-slope changes, in
+    a banked curve, as its caster turns it when steered or its carrier rolls: the gyro
+    reads that rate across the axle, ⊥ the yaw's direction, along R (−sin ϑ, cos ϑ, 0)
+    (:func:`refined_axle`).  Low-passed to ``CAMBER_BAND_HZ`` and integrated, it is the
+    camber's change l(t).  Where the wheel rests the gyro's bias and its g-sensitivity
+    read as a roll that is not there (0.1 °/s/g: a degree in a 10 s stop), so l is
+    held there — a car at a standstill does not roll.  While the wheel turns the
+    gyro's own errors leave (``basis``, each integrated like l):
+
+    * ``drift_radps``: a steady rate (G's share of gravity along the travel, a bias left);
+    * ``heading``: y, the yaw (the gyro's axes turned about the axle against the
+      accelerometer's: the side direction sees a share of the yaw);
+    * ``heading_sin2``, ``heading_cos2``: y sin 2ϑ, y cos 2ϑ (its two axes across the
+      axle of different scale: a robot turning on the spot does not average it out);
+    * ``gravity_cos2_radps``, ``gravity_sin2_radps``: cos 2ϑ, sin 2ϑ low-passed like the
+      rate (G's entries across the axle turn gravity, which rotates in the sensor's
+      frame, into rates at 2ϑ that a slow wheel's band lets through).
+
+    The fit takes l with the yaw's scale κ and each of these with a coefficient; the
+    accelerometer's gravity along the axle (g sin γ) anchors them: a real roll moves it,
+    the gyro's errors do not.  ``time_s`` centred (the window's centre at 0);
+    ``yaw_radps``: :func:`yaw_across`'s y.
+    """
+    t = np.asarray(time_s, dtype=float)
+    rate_hz = 1.0 / float(np.median(np.diff(t)))
+    across = axle.across(np.asarray(gyro_radps, dtype=float))
+    rate = _lowpass(np.sum(across * _side(theta_rad, rotation), axis=1), rate_hz, CAMBER_BAND_HZ)
+    moving = (np.abs(axle.rate_radps) > RESTING_RADPS).astype(float)
+    twice = 2.0 * np.asarray(theta_rad, dtype=float)
+    y = np.asarray(yaw_radps, dtype=float)
+    gravity = _lowpass(np.column_stack([np.cos(twice), np.sin(twice)]), rate_hz, CAMBER_BAND_HZ)
+    rates = {
+        "drift_radps": np.ones_like(t),
+        "heading": y,
+        "heading_sin2": y * np.sin(twice),
+        "heading_cos2": y * np.cos(twice),
+        "gravity_cos2_radps": gravity[:, 0],
+        "gravity_sin2_radps": gravity[:, 1],
+    }
+    basis = {name: _held_integral(t, x, moving) for name, x in rates.items()}
+    return CamberTrack(_held_integral(t, rate, moving), basis)
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,7 @@ from wheelcal.estimate.joint.information import covariance_from_fisher
 from wheelcal.estimate.joint.normal_equations import effect_priors
 from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import evaluate
+from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
 
 #: The score is summed over blocks of this many seconds …
 BLOCK_S = 1.0
@@ -62,7 +62,11 @@ _CHUNK = 20_000
 
 @dataclasses.dataclass(frozen=True)
 class _Pieces:
-    """One pass over the window: H (priors in), M, Λ and the angle's response per sample."""
+    """One pass over the window: H (priors in), M, Λ and the angle's response per sample.
+
+    With an extended model (:class:`Extension`) also ``extended``: H, g and the meat over
+    its parameters (priors in).
+    """
 
     hess: np.ndarray
     meat: np.ndarray
@@ -70,10 +74,41 @@ class _Pieces:
     angle_score: np.ndarray  # (P, M): J̃_mᵀ d̃_m
     dt_s: float
     shift_score: np.ndarray  # (P, K): Σ_m J̃_mᵀ Δ̃_m of each nuisance's shift Δ
+    extended: WideNormal | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class WideNormal:
+    """H, g and the sandwich's meat (priors in) of a wider model, in its parameters' order."""
+
+    hess: np.ndarray
+    grad: np.ndarray
+    meat: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Extension:
+    """The fit's model with more parameters, all at zero (the result's prediction kept).
+
+    ``index[k]`` is the extended vector's position of the fit's parameter k; the
+    extension's own parameters are the rest, in order.
+    """
+
+    params: CalibrationParams
+    layout: ParameterLayout
+    index: np.ndarray
+
+    @property
+    def added(self) -> np.ndarray:
+        """Positions of the extension's own parameters."""
+        return np.setdiff1d(np.arange(self.layout.size), self.index)
 
 
 def _pieces(
-    result: CalibrationResult, accel_mps2: np.ndarray, shifts: tuple[np.ndarray, ...] = ()
+    result: CalibrationResult,
+    accel_mps2: np.ndarray,
+    shifts: tuple[np.ndarray, ...] = (),
+    extension: Extension | None = None,
 ) -> _Pieces:
     params, layout, noise = result.params, result.layout, result.noise
     t = result.centred_time_s
@@ -84,19 +119,34 @@ def _pieces(
     size = layout.size
     phase = layout.blocks["spin"].start  # ϑ₀: its column is ∂prediction/∂ϑ at each sample
     hess = np.zeros((size, size))
-    sums = []
+    wide = extension.layout.size if extension is not None else 0
+    hess_ext, grad_ext = np.zeros((wide, wide)), np.zeros(wide)
+    sums, sums_ext = [], []
     angle = []
     shift_score = np.zeros((size, len(shifts)))
     for start in range(0, t.size, _CHUNK):
         stop = min(t.size, start + _CHUNK + p)
-        out = evaluate(params, t[start:stop], layout, jacobian=True)
+        if extension is None:
+            out = evaluate(params, t[start:stop], layout, jacobian=True)
+        else:  # the extension's columns besides the fit's (its prediction is the fit's)
+            out = evaluate(extension.params, t[start:stop], extension.layout, jacobian=True)
         residual = out.predicted_mps2 - accel_mps2[start:stop]
-        rw, jw = noise.whiten(residual, out.jacobian)  # (3, M), (P, 3, M)
-        flat = jw.reshape(size, -1)
-        hess += flat @ flat.T
-        score = np.einsum("pim,im->pm", jw, rw)  # per whitened sample
+        rw, jw_all = noise.whiten(residual, out.jacobian)  # (3, M), (P, 3, M)
+        flat_all = jw_all.reshape(jw_all.shape[0], -1)
+        gram = flat_all @ flat_all.T
+        score = np.einsum("pim,im->pm", jw_all, rw)  # per whitened sample
         edges = np.arange(0, score.shape[1], block)
-        sums.append(np.add.reduceat(score, edges, axis=1))  # (P, blocks)
+        block_sums = np.add.reduceat(score, edges, axis=1)  # (P, blocks)
+        if extension is not None:
+            hess_ext += gram
+            grad_ext += score.sum(axis=1)
+            sums_ext.append(block_sums)
+            index = extension.index
+            jw, gram, block_sums = jw_all[index], gram[np.ix_(index, index)], block_sums[index]
+        else:
+            jw = jw_all
+        hess += gram
+        sums.append(block_sums)
         angle.append(np.einsum("pim,im->pm", jw, jw[phase]))
         for k, shift in enumerate(shifts):
             shift_w, _ = noise.whiten(shift[start:stop])
@@ -106,8 +156,18 @@ def _pieces(
     prior = effect_priors(params, layout)
     info = np.zeros(size) if prior is None else prior[2]
     hess[np.arange(size), np.arange(size)] += info
-    meat = block_meat(np.concatenate(sums, axis=1), lags=round(LAG_S / (block * dt)))
-    return _Pieces(hess, meat, info, np.concatenate(angle, axis=1), dt, shift_score)
+    lags = round(LAG_S / (block * dt))
+    meat = block_meat(np.concatenate(sums, axis=1), lags=lags)
+    extended = None
+    if extension is not None:
+        meat_ext = block_meat(np.concatenate(sums_ext, axis=1), lags=lags)
+        prior = effect_priors(extension.params, extension.layout)
+        if prior is not None:
+            hess_ext[np.arange(wide), np.arange(wide)] += prior[2]
+            grad_ext += prior[1]
+            meat_ext[np.arange(wide), np.arange(wide)] += prior[2]
+        extended = WideNormal(hess_ext, grad_ext, meat_ext)
+    return _Pieces(hess, meat, info, np.concatenate(angle, axis=1), dt, shift_score, extended)
 
 
 def block_meat(sums: np.ndarray, lags: int) -> np.ndarray:
@@ -173,7 +233,22 @@ def robust_result(
     ``shifts``: each (N, 3), what a nuisance the fit holds (one σ of it) changes in the
     prediction at the fitted parameters — its covariance joins (module docstring).
     """
-    pieces = _pieces(result, accel_mps2, shifts)
+    return robust_result_with(result, accel_mps2, gyro_density, shifts)[0]
+
+
+def robust_result_with(
+    result: CalibrationResult,
+    accel_mps2: np.ndarray,
+    gyro_density: float | None = None,
+    shifts: tuple[np.ndarray, ...] = (),
+    extension: Extension | None = None,
+) -> tuple[CalibrationResult, WideNormal | None]:
+    """:func:`robust_result`, and H and g of a wider model from the same pass.
+
+    ``extension``: the wider model (returned second: its :class:`WideNormal`; None
+    without one), for a Hausman check of what it would move.
+    """
+    pieces = _pieces(result, accel_mps2, shifts, extension)
     bread, finite = _bread(pieces)
     cov = _sandwich(pieces, bread)
     if gyro_density is not None and gyro_density > 0:
@@ -182,4 +257,4 @@ def robust_result(
         response = bread @ pieces.shift_score  # (P, K): the fit's answer to each shift
         cov = cov + response @ response.T
     covariance = _in_reported(result, _with_undetermined(cov, finite))
-    return dataclasses.replace(result, covariance=covariance)
+    return dataclasses.replace(result, covariance=covariance), pieces.extended
