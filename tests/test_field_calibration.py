@@ -58,19 +58,22 @@ Z_MAX = 5.0
 STUDY_DRIVES = int(os.environ.get("WHEELCAL_FIELD_STUDY_DRIVES", "100"))
 
 
-def _truth_value(truth, name: str) -> float:
+def _truth_value(truth, name: str, centre_s: float) -> float:
+    """The truth of a reported parameter; the tilt at the window's centre (a camber that
+    changes is reported there, as the CONTRACT has drifting quantities)."""
     if name.startswith("gain_"):
         return float(truth.sensor.gain["xyz".index(name[-1])])
     if name.startswith("offset_"):
         return float(truth.sensor.offset_mps2["xyz".index(name[7])])
-    return {"radius_m": truth.radius_m, "tilt_deg": truth.tilt_deg}[name]
+    return {"radius_m": truth.radius_m, "tilt_deg": truth.tilt_at_deg(centre_s)}[name]
 
 
 def _crlb_at_truth(calibration, truth) -> dict[str, float]:
     """σ_CRLB of each reported parameter with the truth's sensor, radius and tilt."""
     r = calibration.result
     fitted = r.params.bench
-    bench = BenchParams(truth.bench.tilt_rad, truth.radius_m, fitted.misalignment)
+    tilt = np.deg2rad(truth.tilt_at_deg(r.centre_s))
+    bench = BenchParams(tilt, truth.radius_m, fitted.misalignment)
     at_truth = r.params.with_changes(sensor=truth.sensor, bench=bench)
     bound = cramer_rao_bound(at_truth, r.centred_time_s, r.noise, r.layout)
     return dict(zip(bound.names, bound.std, strict=True))
@@ -82,7 +85,8 @@ def _assert_within_the_bound(calibration, truth) -> None:
     for name in CHECKED:
         if name in dict(calibration.undetermined):
             continue
-        error = calibration.result.value_of(name) - _truth_value(truth, name)
+        truth_value = _truth_value(truth, name, calibration.result.centre_s)
+        error = calibration.result.value_of(name) - truth_value
         assert abs(error / crlb[name]) <= Z_MAX, (name, error / crlb[name])
 
 
@@ -113,7 +117,7 @@ def _calibrate(kind: str, seed: int) -> Drive:
     for name in CHECKED:
         if name in nulls or name not in r.names:
             continue
-        error = r.value_of(name) - _truth_value(sim.truth, name)
+        error = r.value_of(name) - _truth_value(sim.truth, name, r.centre_s)
         z_crlb[name] = error / crlb[name]
         z_rep[name] = error / r.std_of(name)
     warnings = tuple(cal.session.assessment.warnings)
@@ -235,22 +239,21 @@ def test_a_car_that_rolls_a_little_in_its_turns_is_calibrated_with_a_warning():
     assert abs(lean["in_turns_deg_per_mps2"]) < 0.02 and lean["change_deg"] < 1.0, lean
 
 
-def test_a_car_that_rolls_in_its_turns_is_refused_by_name():
-    """A camber that follows the turns (body roll, 0.8°/(m/s²)) is out of scope: the fit
-    put it into offset_x (15 σ off) and the camber (16 σ) with no other gate firing."""
-    rng = np.random.default_rng(3)
+@pytest.mark.parametrize("seed", [3, 4])
+def test_a_car_that_rolls_in_its_turns_is_calibrated_right_or_refused_by_name(seed):
+    """A camber that follows the turns (body roll, 0.8°/(m/s²): 2–3° over the drive).
+
+    With one camber the fit put it into offset_x (15 σ off) and the camber (16 σ), so
+    such drives were refused; the camber now follows the gyro's track, and the answer
+    must be within the bound of the truth (the camber at the window's centre) or be
+    refused by name — never confidently wrong.  These two drives calibrate.
+    """
+    rng = np.random.default_rng(seed)
     scenario = dataclasses.replace(car_drive(rng), body_roll_deg_per_mps2=0.8)
     sim = simulate_field(scenario, rng)
-    with pytest.raises(CalibrationRefused) as refused:
-        wheelcal.calibrate(sim.recording)
-    assert refused.value.gate == "lean"
-    assert "camber changes by" in str(refused.value) and "--max-lean-change-deg" in str(
-        refused.value
-    )
-    # the same drive without the roll is calibrated (and its lean is read as small)
-    rng = np.random.default_rng(3)
-    cal = wheelcal.calibrate(simulate_field(car_drive(rng), rng).recording)
-    assert cal.session.geometry == "rolling"
+    cal = wheelcal.calibrate(sim.recording)
+    assert cal.to_dict()["bench"]["lean"]["track"]["followed"] is True
+    _assert_within_the_bound(cal, sim.truth)
 
 
 def test_a_negative_radius_has_a_twin_with_the_same_forces():
@@ -283,16 +286,22 @@ def test_calibrate_prints_and_writes_the_detected_geometry(tmp_path, capsys):
     assert (bench["geometry"], bench["radius_source"]) == ("rolling", "fitted")
 
 
-def test_a_simulated_rolling_car_from_the_command_line_is_refused_as_lean(tmp_path, capsys):
+def test_a_simulated_rolling_car_from_the_command_line(tmp_path, capsys):
     from wheelcal.cli.main import main
 
     drive, out = tmp_path / "roll.mcap", tmp_path / "cal"
     argv = ["simulate", str(drive), "--preset", "car", "--seed", "3"]
     assert main([*argv, "--body-roll-deg-per-mps2", "0.8"]) == 0
-    assert main(["calibrate", str(drive), "--out", str(out)]) == 1
+    assert main(["calibrate", str(drive), "--out", str(out)]) == 0
+    lean = json.loads((out / "roll.calibration.json").read_text())["bench"]["lean"]
+    assert lean["track"]["followed"] is True and lean["change_deg"] > 1.0
+    assert set(lean["check"]) >= {"statistic", "dof", "p_value", "shift_sigma", "shift_z"}
+    # a limit given on the camber's change refuses it by name
+    out2 = tmp_path / "cal2"
+    assert main(["calibrate", str(drive), "--out", str(out2), "--max-lean-change-deg", "1"]) == 1
     captured = capsys.readouterr()
     assert "refused (lean): the wheel's camber changes by" in captured.out + captured.err
-    assert not list(out.glob("*.calibration.json"))
+    assert not list(out2.glob("*.calibration.json"))
     # a fixed axle cannot lean: a usage error, no file
     stand = tmp_path / "stand.mcap"
     assert main(["simulate", str(stand), "--preset", "stand", "--body-roll-deg-per-mps2", "1"]) == 2

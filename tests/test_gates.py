@@ -135,3 +135,57 @@ def test_rest_check_z_is_standard_normal_on_clean_sessions():
     assert zs.size >= 60
     assert abs(zs.mean()) < 0.5, zs.mean()
     assert 0.75 < zs.std(ddof=1) < 1.25, zs.std(ddof=1)
+
+
+class _Fitted:
+    """What the post-fit gates read of a calibration (the values and σ by name)."""
+
+    def __init__(self, values: dict, stds: dict | None = None, fitted_radius: bool = True):
+        from types import SimpleNamespace
+
+        self._values, self._stds = values, stds or {}
+        self.source, self.converged = "<drive>", True
+        self.params = SimpleNamespace(bench=SimpleNamespace(radius_m=0.15))
+        self.layout = SimpleNamespace(fit_radius=fitted_radius)
+
+    def value_of(self, name: str) -> float:
+        return self._values[name]
+
+    def std_of(self, name: str) -> float:
+        return self._stds.get(name, 0.001)
+
+
+_SOUND = {"gain_x": 1.003, "gain_y": 0.998, "gain_z": 1.01}
+_OFFSETS = {"offset_x_mps2": 0.1, "offset_y_mps2": -0.05, "offset_z_mps2": 0.2}
+
+
+def test_an_axis_implausible_on_its_own_is_null_and_the_rest_calibrated():
+    # A real drive's axle axis: gain_z 0.0151 (σ 0.046, under the datasheet tolerance, so
+    # "determined") while x and y read 1.003, 1.004 — the whole drive was refused as
+    # gain_range; and an offset of 0.35 g on one axis alone likewise.
+    from wheelcal.recording import CalibrationRefused
+    from wheelcal.session.gates import Gates, refuse_implausible
+
+    gates = Gates()
+    fit = _Fitted({**_SOUND, "gain_z": 0.0151, **_OFFSETS}, {"gain_z": 0.046})
+    nulled = dict(refuse_implausible(fit, gates, []))
+    assert set(nulled) == {"gain_z"}
+    assert "0.0151" in nulled["gain_z"] and "x 1.003, y 0.998" in nulled["gain_z"]
+    fit = _Fitted({**_SOUND, **_OFFSETS, "offset_y_mps2": 3.5})
+    assert set(dict(refuse_implausible(fit, gates, []))) == {"offset_y_mps2"}
+    # every gain off by one factor is a radius (or a unit): still refused, and the
+    # message says the radius was fitted, not given
+    fit = _Fitted({"gain_x": 2.6, "gain_y": 2.55, "gain_z": 2.62, **_OFFSETS})
+    with pytest.raises(CalibrationRefused) as refused:
+        refuse_implausible(fit, gates, [])
+    assert refused.value.gate == "gain_range" and "the radius the fit found" in str(refused.value)
+    # a range the user narrowed is theirs: a determined gain outside it refuses
+    fit = _Fitted({**_SOUND, "gain_y": 0.994, **_OFFSETS})
+    with pytest.raises(CalibrationRefused) as refused:
+        refuse_implausible(fit, Gates(gain_range=(0.995, 1.02)), [])
+    assert refused.value.gate == "gain_range"
+    # so are offsets that are all implausible
+    fit = _Fitted({**_SOUND, "offset_x_mps2": 4.0, "offset_y_mps2": -3.5, "offset_z_mps2": 3.3})
+    with pytest.raises(CalibrationRefused) as refused:
+        refuse_implausible(fit, gates, [])
+    assert refused.value.gate == "offset_range"

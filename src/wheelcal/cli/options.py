@@ -108,7 +108,10 @@ GATE_FLAGS = {
     "max_harmonic_ratio": "refuse when the residual at the wheel harmonics exceeds this × "
     "the noise floor (default 5)",
     "max_lean_change_deg": "refuse a drive whose wheel camber changes by more than this, ° "
-    "(default 1)",
+    "(default: no limit — the camber follows the gyro's track and the lean check judges it)",
+    "lean_z": "the lean check: a camber free to move must shift a gain, offset or the radius "
+    "by more than this many σ of the shift's own σ to count (default 4)",
+    "lean_shift_sigma": "… and by more than this many σ of the fit (default 1)",
 }
 
 

@@ -16,9 +16,10 @@ import numpy as np
 
 from wheelcal.estimate.field.fit import FieldFit, FieldResult
 from wheelcal.estimate.rests import find_rests
-from wheelcal.recording import CalibrationRefused, Recording, RecordingError
+from wheelcal.recording import Recording, RecordingError
 from wheelcal.session.fit import assess
 from wheelcal.session.gates import Gates
+from wheelcal.session.lean_gate import judge_the_lean
 from wheelcal.session.result import SessionResult, WindowChoice
 from wheelcal.session.window import find_drive_window
 
@@ -48,10 +49,10 @@ def calibrate_field(
     window = window or field_window(recording)
     drive = window.recording
     field = (fit or FieldFit()).fit(drive)
-    _refuse_a_lean(recording.source, field, gates)
+    nulled = judge_the_lean(recording.source, field, gates)
     span = (float(drive.time_s[0]), float(drive.time_s[-1]))
     rests = find_rests(recording, span)
-    assessment = assess(field.result, rests, gates)
+    assessment = assess(field.result, rests, gates, nulled=nulled)
     turns = _lean_in_turns_warning(field)
     if turns:
         assessment = dataclasses.replace(assessment, warnings=(*assessment.warnings, turns))
@@ -74,30 +75,24 @@ def calibrate_field(
 
 
 def _lean(field: FieldResult) -> dict:
-    """The camber's change over the drive, and the part that follows the turns (degrees)."""
+    """The camber's change over the drive, how it was modelled, and the lean check (degrees)."""
     out = {"change_deg": float(field.geometry.lean_change_deg)}
     turns = field.geometry.lean_in_turns
     if turns is not None and np.isfinite(turns.std_rad):
         out["in_turns_deg_per_mps2"] = float(np.rad2deg(turns.per_lateral_mps2_rad))
         out["in_turns_std_deg_per_mps2"] = float(np.rad2deg(turns.std_rad))
         out["in_turns_deg"] = float(np.rad2deg(turns.range_rad))
+    camber = field.geometry.camber
+    if camber is not None:
+        out["track"] = {
+            "followed": bool(camber.used),
+            "gyro_range_deg": float(np.rad2deg(camber.track_range_rad)),
+            "beyond_gyro_errors_deg": float(np.rad2deg(camber.unexplained_range_rad)),
+            "reason": camber.reason,
+        }
+    if field.geometry.lean_check is not None:
+        out["check"] = field.geometry.lean_check.to_dict()
     return out
-
-
-def _refuse_a_lean(source: str, field: FieldResult, gates: Gates) -> None:
-    """A camber that changes during the drive is out of scope: refused by name ("lean")."""
-    lean = field.geometry.lean_change_deg
-    if field.geometry.kind == "rolling" and lean > gates.max_lean_change_deg:
-        raise CalibrationRefused(
-            source,
-            "lean",
-            f"the wheel's camber changes by {lean:.1f}° during the drive (the gyro reads the "
-            "wheel rolling about the direction of travel: a vehicle's body roll or lean); the "
-            "model has one camber, and a lean that follows the turns would hide in the gains, "
-            "offsets and camber",
-            "calibrate from straight runs or a vehicle that does not lean, or on a bench; "
-            f"--max-lean-change-deg (now {gates.max_lean_change_deg:g}) sets the limit",
-        )
 
 
 #: A lean that follows the turns is named in a warning from this size (2–98 % range, °) …

@@ -444,16 +444,20 @@ def assess(
     motion: MotionCheck | None = None,
     gyro=None,
     reference: NoiseReference | None = None,
+    nulled: tuple[tuple[str, str], ...] = (),
 ) -> Assessment:
     """Apply the post-fit gates to ``result``; return their :class:`Assessment`.
 
     ``reference`` is the noise reference of this very result with these rests,
-    when the caller has it already (the motion check needs it too).
+    when the caller has it already (the motion check needs it too).  ``nulled``:
+    parameters a check before found undetermined, with the reason (the field fit's
+    lean check).
 
     Raises :class:`CalibrationRefused` when the refusal band is hit.
     """
-    undetermined = undetermined_parameters(result, gates)
-    refuse_implausible(result, gates, undetermined)
+    found = undetermined_parameters(result, gates)
+    found += [(name, why) for name, why in nulled if name not in {n for n, _ in found}]
+    undetermined = refuse_implausible(result, gates, found)
     bad = {name for name, _ in undetermined}
     noise = reference or noise_reference(result.residual_mps2, _theta(result), rests)
     refuse_misfit(result.source, noise, gates)

@@ -27,7 +27,11 @@ driven rather than free.  Two bands (defaults justified in the README,
 * ``turns`` — fewer than 10 turns in the window;
 * ``misfit`` — the residual at the wheel's harmonics (what the model should
   have explained) exceeds ``max_harmonic_ratio`` × the independent noise
-  floor: the fit does not describe the data at all, whatever it converged to.
+  floor: the fit does not describe the data at all, whatever it converged to;
+* ``lean`` — a wheel in the field whose camber, freed to move (a spline on top
+  of the gyro's track), would shift an in-plane gain or offset or the radius
+  significantly and by more than its σ (:mod:`wheelcal.estimate.field.lean_check`);
+  shifts of the axle axis's own gain and offset only make those null instead.
 
 **Warn** (exit 0, the warning names the cause and the fix): a gain or offset
 outside datasheet tolerances; the mean gain γ̄ far from 1 (a radius error
@@ -55,6 +59,11 @@ from wheelcal.session.rest_check import RestCheck
 
 #: The fit needs this many wheel turns in the window (paper: ~100 in 90 s).
 MIN_TURNS = 10.0
+#: An axis whose gain lies outside this range while another's lies inside reads what no
+#: accelerometer axis does: the recording does not determine it (reported null).
+PHYSICAL_GAIN_RANGE = (0.5, 2.0)
+#: … and so does one whose offset exceeds this (g) while another's does not.
+PHYSICAL_MAX_OFFSET_G = 0.3
 
 
 @dataclass(frozen=True)
@@ -71,8 +80,14 @@ class Gates:
     min_window_s: float = 20.0
     max_harmonic_ratio: float = 5.0
     #: A wheel in the field: how far its camber may change during the drive (°), from
-    #: the gyro's roll about the direction of travel (the model has one camber).
-    max_lean_change_deg: float = 1.0
+    #: the gyro's roll about the direction of travel — no limit by default: the camber
+    #: follows the gyro's track, and the lean check judges what it does to the answer.
+    max_lean_change_deg: float = float("inf")
+    #: The lean check: a camber free to move may shift a parameter by up to this many σ
+    #: of its own difference (significance) …
+    lean_z: float = 4.0
+    #: … or by up to this many σ of the fit (materiality); beyond both, it moved.
+    lean_shift_sigma: float = 1.0
     # warn
     gain_tolerance: float = 0.05
     offset_tolerance_g: float = 0.1
@@ -96,11 +111,17 @@ class Gates:
             "max_window_s",
             "min_window_s",
             "max_harmonic_ratio",
-            "max_lean_change_deg",
+            "lean_z",
+            "lean_shift_sigma",
         ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value}")
+        if not self.max_lean_change_deg > 0:
+            raise ValueError(
+                f"max_lean_change_deg must be positive (inf: no limit), got "
+                f"{self.max_lean_change_deg}"
+            )
         if not self.unexplained_ratio > 1:
             raise ValueError(f"unexplained_ratio must be > 1, got {self.unexplained_ratio}")
         if not 0 < self.rest_alpha < 1:
@@ -109,8 +130,15 @@ class Gates:
             raise ValueError("min_window_s must be below max_window_s")
 
     def to_dict(self) -> dict:
-        """The thresholds, for the calibration JSON."""
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        """The thresholds, for the calibration JSON (no limit: null)."""
+        out = {}
+        for k, v in self.__dict__.items():
+            if isinstance(v, tuple):
+                v = list(v)
+            elif isinstance(v, float) and not np.isfinite(v):
+                v = None
+            out[k] = v
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,9 +186,22 @@ def undetermined_parameters(result: CalibrationResult, gates: Gates) -> list[tup
     return out
 
 
-def refuse_implausible(result: CalibrationResult, gates: Gates, undetermined: list) -> None:
-    """Raise :class:`CalibrationRefused` for the refusal band's post-fit gates."""
+def refuse_implausible(
+    result: CalibrationResult, gates: Gates, undetermined: list
+) -> list[tuple[str, str]]:
+    """Raise :class:`CalibrationRefused` for the refusal band's post-fit gates.
+
+    Returns ``undetermined`` with the axes that are implausible on their own added
+    (a gain outside :data:`PHYSICAL_GAIN_RANGE` or an offset above
+    :data:`PHYSICAL_MAX_OFFSET_G` while another axis reads a plausible one): such an
+    axis is one the recording does not determine — an axle axis that sees only the
+    turns and a changing camber, say — and it is reported null with the reason, the
+    other axes calibrated.  Then the gates as given (``gain_range``, ``max_offset_g``)
+    judge the axes left: gains off by one factor (a radius or a unit, eq. 9) or
+    offsets beyond the limit refuse the recording.
+    """
     source = result.source
+    undetermined = list(undetermined)
     bad = {name for name, _ in undetermined}
     gains = {a: result.value_of(f"gain_{a}") for a in AXES if f"gain_{a}" not in bad}
     radius = result.params.bench.radius_m
@@ -172,15 +213,29 @@ def refuse_implausible(result: CalibrationResult, gates: Gates, undetermined: li
             "spin the wheel by hand and let it slow down freely for 60–120 s, with the "
             "sensor mounted tilted on the wheel",
         )
+    lo, hi = PHYSICAL_GAIN_RANGE
+    wild = {a: v for a, v in gains.items() if not lo <= v <= hi}
+    sound = {a: v for a, v in gains.items() if a not in wild}
+    if wild and sound:
+        undetermined += _alone(result, "gain", wild, sound, f"outside [{lo:g}, {hi:g}]")
+        gains = sound
     mean_gain = float(np.exp(np.mean(np.log(np.abs(list(gains.values()))))))
     listing = ", ".join(f"gain_{a} = {_g(v)}" for a, v in gains.items())
     lo, hi = gates.gain_range
     if any(not lo <= v <= hi for v in gains.values()):
-        refuse_gain_scale(source, mean_gain, radius, listing, gates)
-    limit = gates.max_offset_g * STANDARD_GRAVITY_MPS2
+        refuse_gain_scale(source, mean_gain, radius, listing, gates, result.layout.fit_radius)
+    bad = {name for name, _ in undetermined}
     offsets = {
         a: result.value_of(f"offset_{a}_mps2") for a in AXES if f"offset_{a}_mps2" not in bad
     }
+    physical = PHYSICAL_MAX_OFFSET_G * STANDARD_GRAVITY_MPS2
+    alone = {a: v for a, v in offsets.items() if abs(v) > physical}
+    plausible = {a: v for a, v in offsets.items() if a not in alone}
+    if alone and plausible:
+        where = f"above {PHYSICAL_MAX_OFFSET_G:g} g"
+        undetermined += _alone(result, "offset", alone, plausible, where)
+        offsets = plausible
+    limit = gates.max_offset_g * STANDARD_GRAVITY_MPS2
     large = {a: v for a, v in offsets.items() if abs(v) > limit}
     if large:
         listing = ", ".join(f"offset_{a} = {_g(v)} m/s²" for a, v in large.items())
@@ -197,10 +252,37 @@ def refuse_implausible(result: CalibrationResult, gates: Gates, undetermined: li
             "the fit did not converge (" + _convergence_text(result) + ")",
             "check the free-spin window (--start-s/--end-s) and the radius",
         )
+    return undetermined
+
+
+def _alone(
+    result: CalibrationResult, kind: str, wild: dict, sound: dict, where: str
+) -> list[tuple[str, str]]:
+    """Null reasons for axes implausible on their own (:func:`refuse_implausible`)."""
+    unit = " m/s²" if kind == "offset" else ""
+    others = ", ".join(f"{a} {_g(v)}{unit}" for a, v in sound.items())
+    out = []
+    for a, v in wild.items():
+        name = f"{kind}_{a}" + ("_mps2" if kind == "offset" else "")
+        std = result.std_of(name)
+        out.append(
+            (
+                name,
+                f"the fit gives {_g(v)}{unit} (σ {_g(std)}), {where}, which no accelerometer "
+                f"axis reads while its others read {others}: this recording does not "
+                "determine this axis (what it sees the model does not describe)",
+            )
+        )
+    return out
 
 
 def refuse_gain_scale(
-    source: str, mean_gain: float, radius_m: float, listing: str, gates: Gates
+    source: str,
+    mean_gain: float,
+    radius_m: float,
+    listing: str,
+    gates: Gates,
+    radius_fitted: bool = False,
 ) -> None:
     """Refuse gains far from 1 (``unit`` or ``gain_range``), naming every likely cause.
 
@@ -218,6 +300,12 @@ def refuse_gain_scale(
         f"radius error scales every gain, and the data would imply {implied:.4g} m only if "
         "the gains were exactly 1"
     )
+    if radius_fitted:
+        radius_text = (
+            f"the gains share a factor of about {mean_gain:.3g} with the radius the fit found "
+            f"({radius_m:.4g} m): by eq. (9) the two trade, and gravity, which should fix "
+            "the gains' scale, did not"
+        )
     measure = (
         "measure the radius (axle centre to the sensor's centre, in metres) and give that "
         "measured value with --radius; do not type the implied radius in: it hides the "
