@@ -54,8 +54,8 @@ MAX_LINE_BYTES = 128 << 10
 MAX_COLUMNS = 256
 #: 10 million samples: 23 h at 120 Hz, 2.8 h at 1 kHz (a calibration needs minutes).
 MAX_ROWS = 10_000_000
-#: Bytes of whole lines parsed at a time.
-BLOCK_BYTES = 4 << 20
+#: Bytes of whole lines parsed at a time (its transients are a few times this).
+BLOCK_BYTES = 1 << 20
 #: Data rows looked at before reading (decimal commas, the number of cells).
 _SAMPLE_ROWS = 50
 #: Lines before the header that may be an exporter's preamble.
@@ -70,6 +70,8 @@ _PREAMBLE = re.compile(r"^[A-Za-z][\w .\-]*:\s*[,;\t]")
 #: A time cell Arrow's decimal parser takes (sign, digits, point, exponent).
 _TIME_NUMBER = r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,3})?$"
 _PICO = 10**12
+_WHITE = np.zeros(256, bool)
+_WHITE[[9, 10, 13, 32]] = True
 
 
 @dataclass(frozen=True)
@@ -344,6 +346,9 @@ def read_table(
     out = GrowingColumns()
     rows = 0
     with open(head.path, "rb") as stream:
+        # A first pass counts the lines (and finds NUL bytes): the columns are made that
+        # long at once and filled, instead of grown (a heap of ever larger copies).
+        out.reserve(min(_count_lines(head.path, stream, head), MAX_ROWS) + 1)
         stream.seek(head.data_offset)
         for block, numbers in _blocks(head.path, stream, head.first_line):
             if rows + numbers.size > MAX_ROWS:
@@ -368,6 +373,18 @@ def read_table(
         groups=columns,
         odd_rows=parser.odd_rows,
     )
+
+
+def _count_lines(path: str, stream, head: TableHead) -> int:
+    """The lines after ``head.data_offset`` (an upper bound of the data rows); NULs refused."""
+    stream.seek(head.data_offset)
+    lines = 0
+    while chunk := stream.read(BLOCK_BYTES):
+        nul = chunk.find(b"\x00")
+        if nul >= 0:
+            raise InputError(path, _binary(head.first_line + lines + chunk[:nul].count(b"\n")))
+        lines += chunk.count(b"\n")
+    return lines + 1
 
 
 def _blocks(path: str, stream, first_line: int):
@@ -403,10 +420,11 @@ def _blocks(path: str, stream, first_line: int):
         too_long = np.flatnonzero(lengths > MAX_LINE_BYTES)
         if too_long.size:
             raise InputError(path, _long_line(number + int(too_long[0])))
-        blank = (data == 32) | (data == 9) | (data == 13) | (data == 10)
-        # Each line's bytes, its newline included, are never empty: reduceat is safe.
-        content = np.logical_or.reduceat(~blank, starts)
-        keep = content & (data[starts] != ord("#"))
+        first = data[starts]  # each line's first byte (its newline, for an empty line)
+        keep = first != ord("#")
+        # A blank line starts with white space; the few that do are looked at one by one.
+        for i in np.flatnonzero(_WHITE[first]).tolist():
+            keep[i] = bool(body[starts[i] : ends[i]].strip())
         numbers = number + np.arange(ends.size)
         number += ends.size
         if not keep.any():
@@ -425,6 +443,8 @@ class _BlockParser:
         import pyarrow as pa
         import pyarrow.csv as pcsv
 
+        # malloc's pool: Arrow's default one (mimalloc) keeps what each block freed.
+        self.pool = pa.system_memory_pool()
         self.head = head
         self.time = time
         self.groups = {k: list(v) for k, v in groups.items()}
@@ -466,12 +486,12 @@ class _BlockParser:
         source = pa.py_buffer(block)
         self._odd.clear()
         try:
-            table = pcsv.read_csv(source, self._read, self._parse, self._typed)
+            table = pcsv.read_csv(source, self._read, self._parse, self._typed, self.pool)
             typed = True
         except pa.ArrowInvalid:
             self._odd.clear()
             try:
-                table = pcsv.read_csv(source, self._read, self._parse, self._as_text)
+                table = pcsv.read_csv(source, self._read, self._parse, self._as_text, self.pool)
             except pa.ArrowInvalid as exc:
                 raise InputError(
                     self.head.path,
@@ -519,15 +539,21 @@ class _BlockParser:
         import pyarrow as pa
         import pyarrow.compute as pc
 
-        text = pc.utf8_trim_whitespace(table.column(f"c{self.time}").combine_chunks())
+        text = pc.utf8_trim_whitespace(
+            table.column(f"c{self.time}").combine_chunks(self.pool), memory_pool=self.pool
+        )
         if self.head.decimal_comma:
-            text = pc.replace_substring(text, ",", ".")
-        valid = pc.match_substring_regex(text, _TIME_NUMBER).to_numpy(zero_copy_only=False)
+            text = pc.replace_substring(text, ",", ".", memory_pool=self.pool)
+        valid = pc.match_substring_regex(text, _TIME_NUMBER, memory_pool=self.pool).to_numpy(
+            zero_copy_only=False
+        )
         whole = np.zeros(valid.size, np.int64)
         pico = np.zeros(valid.size, np.int64)
         if valid.any():
-            numbers = pc.filter(text, pa.array(valid))
-            magnitude = pc.abs(pc.cast(numbers, pa.float64())).to_numpy()
+            numbers = pc.filter(text, pa.array(valid), memory_pool=self.pool)
+            magnitude = pc.abs(
+                pc.cast(numbers, pa.float64(), memory_pool=self.pool), memory_pool=self.pool
+            ).to_numpy()
             if np.any(magnitude > 9.2e18):
                 bad = numbers[int(np.argmax(magnitude > 9.2e18))].as_py()
                 raise InputError(
@@ -535,12 +561,18 @@ class _BlockParser:
                     f"time {bad!r} in column {self._name(self.time)!r} is beyond any clock's "
                     "count (2⁶³)",
                 )
-            exact = pc.cast(numbers, pa.decimal128(37, 12), safe=False)
-            floor = pc.floor(exact)
-            fraction = pc.cast(pc.subtract(exact, floor), pa.decimal128(13, 12))
-            scaled = pc.multiply(fraction, pa.scalar(_PICO, pa.decimal128(13, 0)))
-            whole[valid] = pc.cast(floor, pa.int64()).to_numpy()
-            pico[valid] = pc.cast(scaled, pa.int64()).to_numpy()
+            exact = pc.cast(numbers, pa.decimal128(37, 12), safe=False, memory_pool=self.pool)
+            floor = pc.floor(exact, memory_pool=self.pool)
+            fraction = pc.cast(
+                pc.subtract(exact, floor, memory_pool=self.pool),
+                pa.decimal128(13, 12),
+                memory_pool=self.pool,
+            )
+            scaled = pc.multiply(
+                fraction, pa.scalar(_PICO, pa.decimal128(13, 0)), memory_pool=self.pool
+            )
+            whole[valid] = pc.cast(floor, pa.int64(), memory_pool=self.pool).to_numpy()
+            pico[valid] = pc.cast(scaled, pa.int64(), memory_pool=self.pool).to_numpy()
         return whole, pico, valid
 
     def _text_numbers(self, column, valid, rows, numbers, before, index) -> np.ndarray:
@@ -548,14 +580,20 @@ class _BlockParser:
         import pyarrow as pa
         import pyarrow.compute as pc
 
-        text = pc.utf8_trim_whitespace(column.combine_chunks())
+        text = pc.utf8_trim_whitespace(column.combine_chunks(self.pool), memory_pool=self.pool)
         if self.head.decimal_comma:
-            text = pc.replace_substring(text, ",", ".")
-        missing = pc.is_in(text, value_set=pa.array(_NULLS)).to_numpy(zero_copy_only=False)
+            text = pc.replace_substring(text, ",", ".", memory_pool=self.pool)
+        missing = pc.is_in(text, value_set=pa.array(_NULLS), memory_pool=self.pool).to_numpy(
+            zero_copy_only=False
+        )
         out = np.full(len(text), np.nan)
         use = valid & ~missing
         try:
-            out[use] = pc.cast(pc.filter(text, pa.array(use)), pa.float64()).to_numpy()
+            out[use] = pc.cast(
+                pc.filter(text, pa.array(use), memory_pool=self.pool),
+                pa.float64(),
+                memory_pool=self.pool,
+            ).to_numpy()
         except pa.ArrowInvalid:
             cells = text.to_pylist()
             for i in np.flatnonzero(use).tolist():
