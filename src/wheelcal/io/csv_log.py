@@ -786,8 +786,8 @@ def read_csv_log(plan: CsvPlan, layout: CsvLayout, encoding: str = "json") -> Cs
         lost, places = lost_packets(groups["counter"])
         if lost:
             notes.append(
-                f"{plan.header[counter]} skips {lost} packets in {places} places: samples lost "
-                "on the way (their gaps keep the real times)"
+                f"{plan.header[counter]}: {lost} packet(s) missing in {places} place(s), samples "
+                "lost on the way (their gaps keep their real times)"
             )
     if skipped:
         notes.append(f"skipped {skipped} rows without a numeric time")
