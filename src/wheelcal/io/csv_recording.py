@@ -50,8 +50,13 @@ _ACCELEROMETER = re.compile(r"^(?:a|acc|accel|accelerometer|acceleration)[\s._-]
 
 
 def looks_like_csv(head: bytes) -> bool:
-    """Whether a file's first bytes are a delimited text table (not MCAP, JSON, binary)."""
-    if not head or b"\x00" in head:
+    """Whether a file's first bytes are a delimited text table (not MCAP, JSON, binary).
+
+    Only the bytes before a NUL count: a table followed by a hole (a sparse file) is a
+    CSV, which the CSV reader refuses at its line.
+    """
+    head = head.split(b"\x00", 1)[0]
+    if not head:
         return False
     try:
         text = head.decode("utf-8")

@@ -150,10 +150,10 @@ class _Lines:
         if not raw:
             return None
         self.number += 1
-        if len(raw) > MAX_LINE_BYTES and not raw.endswith(b"\n"):
-            raise InputError(self.path, self._too_long(raw, delimiter))
         if b"\x00" in raw:
             raise InputError(self.path, _binary(self.number))
+        if len(raw) > MAX_LINE_BYTES and not raw.endswith(b"\n"):
+            raise InputError(self.path, self._too_long(raw, delimiter))
         if self.number == 1 and raw.startswith(b"\xef\xbb\xbf"):
             raw = raw[3:]
         try:
