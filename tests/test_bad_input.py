@@ -41,9 +41,10 @@ def good(tmp_path, base):
 
 
 def test_not_mcap(tmp_path):
-    path = tmp_path / "log.csv"
-    path.write_text("t,ax,ay,az\n0,0,0,9.81\n")
-    with pytest.raises(NotMcapError, match=r"log\.csv: not an MCAP file.*looks like text"):
+    # Text that is no table (a CSV is read: tests/test_csv_direct.py).
+    path = tmp_path / "log.txt"
+    path.write_text("spin of monday\nno samples here\n")
+    with pytest.raises(NotMcapError, match=r"log\.txt: not an MCAP file.*looks like text"):
         read_recording(path)
 
 

@@ -47,11 +47,11 @@ def test_truncated_file_is_named_and_refused(tmp_path, good, capsys):
 
 
 def test_not_an_mcap_file(tmp_path, capsys):
-    text = tmp_path / "log.csv"
-    text.write_text("t,ax,ay,az\n0,1,2,3\n")
+    text = tmp_path / "log.txt"  # no table (a CSV is read: tests/test_csv_direct.py)
+    text.write_text("spin of monday\nno samples here\n")
     assert main(["calibrate", str(text), "--out", str(tmp_path / "o")]) == 1
     err = capsys.readouterr().err
-    assert "log.csv" in err and "not an MCAP file" in err
+    assert "log.txt" in err and "not an MCAP file" in err
 
 
 def test_missing_radius_then_given_on_the_command_line(tmp_path, capsys):

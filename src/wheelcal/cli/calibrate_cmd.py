@@ -1,4 +1,4 @@
-"""``wheelcal calibrate FILE.mcap... --out DIR`` — one calibration JSON per recording."""
+"""``wheelcal calibrate FILE... --out DIR`` — one calibration JSON per recording."""
 
 from __future__ import annotations
 
@@ -9,18 +9,23 @@ from wheelcal.cli.errors import SessionsFailed
 from wheelcal.cli.options import add_session_arguments, output_folder, session_options
 
 #: The command's one-line help and its --help description.
-HELP = "calibrate recordings (MCAP) → <stem>.calibration.json"
+HELP = "calibrate recordings (MCAP, .db3, .bag, CSV exports) → <stem>.calibration.json"
 DESCRIPTION = (
     "Calibrate each recording: find the free spin, fit offsets, gains, tilt, "
     "misalignment and spin jointly, and write <out>/<stem>.calibration.json "
-    "(format wheelcal.calibration/1). A failing file is reported and the others go on."
+    "(format wheelcal.calibration/1). A failing file is reported and the others go on. "
+    "Recordings are MCAP, rosbag2 .db3 and ROS 1 .bag files, and the CSV exports whose "
+    "format states the units, read directly: the Xsens DOT export (units fixed by the "
+    "format) and CSVs whose header states every unit (x-io NGIMU sensors.csv, x-IMU3 "
+    "Inertial.csv, phyphox). Any other CSV (an Arduino log) is refused with the "
+    "`wheelcal convert` command that reads it."
 )
 
 
 def register(sub) -> None:
     """Add the ``calibrate`` parser."""
     p = sub.add_parser("calibrate", help=HELP, description=DESCRIPTION)
-    p.add_argument("files", nargs="+", metavar="FILE.mcap")
+    p.add_argument("files", nargs="+", metavar="FILE")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--rrd", action="store_true", help="also write a Rerun recording per session")
     p.add_argument("--quiet", action="store_true", help="print only failures")

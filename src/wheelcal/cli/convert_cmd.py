@@ -17,8 +17,12 @@ DESCRIPTION = (
     "sampling rate it implies is implausible); Arduino's millis/micros are ms/µs. The "
     "acceleration unit comes from the header when it states one (phyphox: "
     "'Acceleration x (m/s^2)'), else it must be given; raw counts need "
-    "--counts-per-g. Decimal commas (9,81) are read in ;-separated files. An existing "
-    "OUT.mcap is never replaced unless --force."
+    "--counts-per-g; the Xsens DOT export's format fixes its units (no options needed). "
+    "Decimal commas (9,81) are read in ;-separated files. The file is read in bounded "
+    "memory, and a FIFO, device, folder, a file over 2 GiB, NUL bytes, a line over 128 KiB "
+    "or more than 256 columns are refused by name. An existing OUT.mcap is never replaced "
+    "unless --force. (calibrate reads a CSV export directly when its format states every "
+    "unit: Xsens DOT, x-io NGIMU/x-IMU3, phyphox.)"
 )
 
 

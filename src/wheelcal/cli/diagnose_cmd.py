@@ -1,4 +1,4 @@
-"""``wheelcal diagnose FILE.mcap --out DIR`` — the closed loop on each recording."""
+"""``wheelcal diagnose FILE --out DIR`` — the closed loop on each recording."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ DESCRIPTION = (
 def register(sub) -> None:
     """Add the ``diagnose`` parser."""
     p = sub.add_parser("diagnose", help=HELP, description=DESCRIPTION)
-    p.add_argument("files", nargs="+", metavar="FILE.mcap")
+    p.add_argument("files", nargs="+", metavar="FILE")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--rrd", action="store_true", help="Rerun recording with residuals before/after")
     add_session_arguments(p)

@@ -39,7 +39,8 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
     w.add_argument(
         "--accel-unit",
         choices=("m/s^2", "g"),
-        help="unit of the samples when the file states it wrongly (g means 9.80665 m/s²)",
+        help="unit of the samples when the file states it wrongly, or a CSV states none (g means "
+        "9.80665 m/s²)",
     )
     w.add_argument(
         "--start-s", type=float, help="start of the free-spin window (s from the first sample)"

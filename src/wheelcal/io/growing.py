@@ -33,6 +33,14 @@ class GrowingColumns:
         self._capacity = 0
         self._columns: dict[str, np.ndarray] = {}
 
+    def reserve(self, rows: int) -> None:
+        """Room for ``rows`` rows in all, when the caller knows a bound.
+
+        Untouched pages cost nothing and :meth:`finish` trims, so the columns need
+        not grow (a heap of ever larger copies) as they fill.
+        """
+        self._reserve(rows)
+
     def _reserve(self, needed: int) -> None:
         if needed <= self._capacity:
             return

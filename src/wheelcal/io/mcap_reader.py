@@ -56,7 +56,7 @@ from wheelcal.io.growing import ColumnSink
 from wheelcal.io.imu_cdr import IMU_FORMAT, ImuLayoutError, ImuSink, decode_imu_with_gyro
 from wheelcal.io.imu_ros1 import ROS1_IMU_FORMAT, decode_ros1_block
 from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord
-from wheelcal.io.recording_scan import scan_recording
+from wheelcal.io.recording_scan import recording_kind, scan_recording
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
 from wheelcal.io.temperature_cdr import TEMPERATURE_FORMAT, decode_temperature_blocks
 from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording
@@ -324,12 +324,14 @@ def read_recording(
     temperature: bool = True,
     temperature_topic: str | None = None,
 ) -> Recording:
-    """Read the accelerometer samples and session facts of an MCAP recording.
+    """Read the accelerometer samples and session facts of a recording.
 
     Parameters
     ----------
     path:
-        The MCAP file.
+        The recording: MCAP, a rosbag2 or ROS 1 bag, or a CSV export whose format
+        states its units (:func:`~wheelcal.io.csv_recording.read_csv_recording`,
+        which takes the same options; a CSV has no topics).
     topic:
         The accelerometer topic; ``None`` picks the only one there is.
     info_overrides:
@@ -376,6 +378,23 @@ def read_recording(
     """
     if gyro_unit is not None and gyro_unit not in GYRO_UNITS:
         raise InputError(path, f"gyro unit {gyro_unit!r} is not one of {list(GYRO_UNITS)}")
+    if recording_kind(path) == "csv":
+        if temperature_topic is not None:
+            raise TopicError(path, "a CSV log has no topics (temperature_topic given)")
+        from wheelcal.io.csv_recording import read_csv_recording
+
+        return read_csv_recording(
+            path,
+            topic,
+            info_overrides,
+            info_defaults=info_defaults,
+            accel_unit=accel_unit,
+            policy=policy,
+            gravity_checked=gravity_checked,
+            gyro=gyro,
+            gyro_unit=gyro_unit,
+            temperature=temperature,
+        )
     scan = scan_recording(path, sink_for=_sink_for)
     chosen = choose_topic(scan, topic)
     where = f"topic {chosen.topic}"

@@ -25,7 +25,7 @@ from __future__ import annotations
 import heapq
 import json
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -49,16 +49,51 @@ from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording, SessionInfo
 DEFAULT_TOPICS = {"ros2": "/imu/data_raw", "json": "/wheelcal/accel"}
 DEFAULT_TEMPERATURE_TOPIC = "/imu/temperature"
 DEFAULT_CHUNK_BYTES = 1024 * 1024
+#: Samples encoded at a time: the writer holds this many messages, not the whole file's.
+PIECE_SAMPLES = 8192
 
 Encoding = Literal["ros2", "json"]
 Compression = Literal["zstd", "lz4", "none"]
+
+
+class EncodedMessages(Sequence):
+    """``(log_time_ns, payload)`` pairs encoded piece by piece as they are iterated.
+
+    A long recording's messages (≈ 330 B per ROS 2 Imu sample) never sit in
+    memory at once: ``encode(start, stop)`` gives the messages of samples
+    ``start:stop``, asked for :data:`PIECE_SAMPLES` samples (rounded to whole
+    messages) at a time, so writing holds one piece.  Indexing encodes the
+    whole sequence (for tests and small channels).
+    """
+
+    def __init__(
+        self,
+        encode: Callable[[int, int], list[tuple[int, bytes]]],
+        samples: int,
+        per_message: int = 1,
+    ) -> None:
+        self._encode = encode
+        self._samples = samples
+        self._per_message = per_message
+
+    def __len__(self) -> int:
+        return -(-self._samples // self._per_message)
+
+    def __iter__(self) -> Iterator[tuple[int, bytes]]:
+        step = max(1, PIECE_SAMPLES // self._per_message) * self._per_message
+        for start in range(0, self._samples, step):
+            yield from self._encode(start, min(start + step, self._samples))
+
+    def __getitem__(self, index):
+        return list(self)[index]
 
 
 @dataclass(frozen=True, eq=False)
 class ChannelData:
     """A channel to write: its schema, encoding, metadata and messages.
 
-    ``messages`` holds ``(log_time_ns, payload)`` pairs; the publish time is
+    ``messages`` holds ``(log_time_ns, payload)`` pairs (a tuple, or
+    :class:`EncodedMessages` encoded as they are written); the publish time is
     the log time.
     """
 
@@ -67,7 +102,7 @@ class ChannelData:
     schema_encoding: str
     schema_data: bytes = field(repr=False)
     message_encoding: str
-    messages: tuple[tuple[int, bytes], ...] = field(repr=False)
+    messages: Sequence[tuple[int, bytes]] = field(repr=False)
     metadata: Mapping[str, str] = field(default_factory=dict)
 
     @classmethod
@@ -75,7 +110,7 @@ class ChannelData:
         cls,
         fmt: ChannelFormat,
         topic: str,
-        messages: tuple[tuple[int, bytes], ...],
+        messages: Sequence[tuple[int, bytes]],
         metadata: Mapping[str, str] | None = None,
     ) -> ChannelData:
         """A channel of the format ``fmt`` (its schema stored with it)."""
@@ -178,8 +213,18 @@ def accel_channel(
             raise ValueError(
                 "ROS 2 carries the temperature on its own topic: temperature_channel()"
             )
-        payloads = encode_imu_messages(time_ns, accel, frame_id, gyro, accel_covariance_mps2sq)
-        messages = tuple(zip(time_ns.tolist(), payloads, strict=True))
+        if gyro is not None:
+            gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
+
+        def imu(start: int, stop: int) -> list[tuple[int, bytes]]:
+            rate = None if gyro is None else gyro[start:stop]
+            stamps = time_ns[start:stop]
+            payloads = encode_imu_messages(
+                stamps, accel[start:stop], frame_id, rate, accel_covariance_mps2sq
+            )
+            return list(zip(stamps.tolist(), payloads, strict=True))
+
+        messages = EncodedMessages(imu, time_ns.size)
         return ChannelData.of(IMU_FORMAT, topic or DEFAULT_TOPICS["ros2"], messages)
     if encoding == "json":
         metadata = {UNIT_KEY: unit}
@@ -188,7 +233,21 @@ def accel_channel(
         if accel_covariance_mps2sq is not None:
             cov = np.asarray(accel_covariance_mps2sq, dtype=float).reshape(3, 3)
             metadata["accel_covariance_mps2sq"] = json.dumps(cov.tolist())
-        messages = tuple(encode_accel_batches(time_ns, accel, batch_size, gyro, temperature_c))
+        if batch_size < 1:
+            raise ValueError(f"batch_size must be at least 1, got {batch_size}")
+        if gyro is not None and np.shape(gyro)[0] != time_ns.size:
+            raise ValueError(f"{time_ns.size} stamps but {np.shape(gyro)[0]} gyro rows")
+        if temperature_c is not None and np.size(temperature_c) != time_ns.size:
+            raise ValueError(f"{time_ns.size} stamps but {np.size(temperature_c)} temperatures")
+
+        def batches(start: int, stop: int) -> list[tuple[int, bytes]]:
+            rate = None if gyro is None else np.asarray(gyro)[start:stop]
+            temp = None if temperature_c is None else np.asarray(temperature_c)[start:stop]
+            return encode_accel_batches(
+                time_ns[start:stop], accel[start:stop], batch_size, rate, temp
+            )
+
+        messages = EncodedMessages(batches, time_ns.size, batch_size)
         return ChannelData.of(
             ACCEL_BATCH_FORMAT, topic or DEFAULT_TOPICS["json"], messages, metadata
         )
@@ -213,9 +272,12 @@ def temperature_channel(
     temp = np.asarray(temperature_c, dtype=float).reshape(-1)[::stride]
     keep = np.isfinite(temp)
     time_ns, temp = time_ns[keep], temp[keep]
-    payloads = encode_temperature_messages(time_ns, temp, frame_id)
-    messages = tuple(zip(time_ns.tolist(), payloads, strict=True))
-    return ChannelData.of(TEMPERATURE_FORMAT, topic, messages)
+
+    def readings(start: int, stop: int) -> list[tuple[int, bytes]]:
+        payloads = encode_temperature_messages(time_ns[start:stop], temp[start:stop], frame_id)
+        return list(zip(time_ns[start:stop].tolist(), payloads, strict=True))
+
+    return ChannelData.of(TEMPERATURE_FORMAT, topic, EncodedMessages(readings, time_ns.size))
 
 
 def _compression(name: str):
@@ -290,7 +352,7 @@ def _write_messages(writer, originals: list, channels: Sequence[ChannelData], id
     """
     sequences = [originals]
     for channel_id, channel in zip(ids, channels, strict=True):
-        sequences.append([(log, channel_id, 0, log, data) for log, data in channel.messages])
+        sequences.append(_records(channel_id, channel.messages))  # lazily: piece by piece
     for log, channel_id, sequence, publish, data in heapq.merge(
         *sequences, key=lambda item: item[0]
     ):
@@ -301,6 +363,12 @@ def _write_messages(writer, originals: list, channels: Sequence[ChannelData], id
             publish_time=publish,
             sequence=sequence,
         )
+
+
+def _records(channel_id: int, messages: Sequence[tuple[int, bytes]]):
+    """``(log, channel, sequence 0, publish = log, data)`` of a channel's messages, lazily."""
+    for log, data in messages:
+        yield log, channel_id, 0, log, data
 
 
 def write_accel_mcap(

@@ -1,4 +1,4 @@
-r"""Which reader a recording needs, by its first bytes: MCAP, ROS 1 bag or rosbag2.
+r"""Which reader a recording needs, by its first bytes: MCAP, ROS 1 bag, rosbag2 or CSV.
 
 Every reader gives the same :class:`~wheelcal.io.mcap_scan.McapScan` (schemas,
 channels, metadata, per-channel message blocks consumed by sinks), so the
@@ -9,7 +9,12 @@ topic choice, the decoders and the sample checks of
   ROS 1 (``mcap convert``) or wheelcal's JSON messages;
 * ``#ROSBAG V2.0`` — a ROS 1 bag (:func:`~wheelcal.io.rosbag1_scan.scan_rosbag1`);
 * ``SQLite format 3`` — a rosbag2 ``.db3`` (:func:`~wheelcal.io.rosbag2_scan.scan_rosbag2`),
-  as is a rosbag2 folder (``metadata.yaml`` beside its ``.db3`` or ``.mcap``).
+  as is a rosbag2 folder (``metadata.yaml`` beside its ``.db3`` or ``.mcap``);
+* text whose first line is a delimited table — a CSV export, read by
+  :func:`~wheelcal.io.csv_recording.read_csv_recording` into a recording
+  directly (it is no scan: a CSV has no channels).
+
+:func:`recording_kind` names which, for every reader's dispatch.
 """
 
 from __future__ import annotations
@@ -17,10 +22,32 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from wheelcal.io.mcap_scan import MAGIC as MCAP_MAGIC
 from wheelcal.io.mcap_scan import McapScan, scan_mcap
 
 ROSBAG1_MAGIC = b"#ROSBAG V2.0\n"
 SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+def recording_kind(path: str | os.PathLike) -> str:
+    """``"mcap"``, ``"rosbag1"``, ``"rosbag2"`` or ``"csv"``, by the first bytes (or a folder).
+
+    Anything else (and what is no regular file) is ``"mcap"``: the MCAP reader
+    names what the file is not.
+    """
+    if Path(path).is_dir() and (Path(path) / "metadata.yaml").is_file():
+        return "rosbag2"
+    head = _head(path, 4096)
+    if head.startswith(ROSBAG1_MAGIC):
+        return "rosbag1"
+    if head.startswith(SQLITE_MAGIC):
+        return "rosbag2"
+    if not head.startswith(MCAP_MAGIC):
+        from wheelcal.io.csv_recording import looks_like_csv
+
+        if looks_like_csv(head):
+            return "csv"
+    return "mcap"
 
 
 def scan_recording(path: str | os.PathLike, sink_for=None) -> McapScan:
@@ -42,12 +69,12 @@ def scan_recording(path: str | os.PathLike, sink_for=None) -> McapScan:
     return scan_mcap(path, sink_for)
 
 
-def _head(path: str | os.PathLike) -> bytes:
+def _head(path: str | os.PathLike, size: int = 16) -> bytes:
     """The first bytes of a regular file (b"" for anything else: scan_mcap names the problem)."""
     try:
         if not Path(path).is_file():
             return b""
         with open(path, "rb") as stream:
-            return stream.read(16)
+            return stream.read(size)
     except OSError:
         return b""
