@@ -19,7 +19,7 @@ from wheelcal.estimate.rests import find_rests
 from wheelcal.recording import Recording, RecordingError
 from wheelcal.session.fit import assess
 from wheelcal.session.gates import Gates
-from wheelcal.session.lean_gate import judge_the_lean
+from wheelcal.session.lean_gate import camber_nulls, judge_the_lean
 from wheelcal.session.result import SessionResult, WindowChoice
 from wheelcal.session.window import find_drive_window
 
@@ -49,10 +49,11 @@ def calibrate_field(
     window = window or field_window(recording)
     drive = window.recording
     field = (fit or FieldFit()).fit(drive)
-    nulled = judge_the_lean(recording.source, field, gates)
+    nulled = dict(camber_nulls(field, gates))
+    nulled.update(judge_the_lean(recording.source, field, gates))
     span = (float(drive.time_s[0]), float(drive.time_s[-1]))
     rests = find_rests(recording, span)
-    assessment = assess(field.result, rests, gates, nulled=nulled)
+    assessment = assess(field.result, rests, gates, nulled=tuple(nulled.items()))
     turns = _lean_in_turns_warning(field)
     if turns:
         assessment = dataclasses.replace(assessment, warnings=(*assessment.warnings, turns))
@@ -102,9 +103,15 @@ LEAN_IN_TURNS_Z = 5.0
 
 
 def _lean_in_turns_warning(field: FieldResult) -> str:
-    """A warning when the camber follows the turns (a body's roll below the ``lean`` gate)."""
+    """A warning when the camber follows the turns but the model holds it at one value.
+
+    (With the camber following the gyro's track the model has the roll; the figures
+    stay in the JSON's ``bench.lean``.)
+    """
     turns = field.geometry.lean_in_turns
     if field.geometry.kind != "rolling" or turns is None:
+        return ""
+    if field.geometry.camber is not None and field.geometry.camber.used:
         return ""
     size = float(np.rad2deg(turns.range_rad))
     if size < LEAN_IN_TURNS_WARNING_DEG or turns.z < LEAN_IN_TURNS_Z:

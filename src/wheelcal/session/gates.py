@@ -88,6 +88,8 @@ class Gates:
     lean_z: float = 4.0
     #: … or by up to this many σ of the fit (materiality); beyond both, it moved.
     lean_shift_sigma: float = 1.0
+    #: A rolling wheel's axle axis offset trades with its camber: null above this σ (m/s²).
+    field_axle_offset_std_mps2: float = 0.1
     # warn
     gain_tolerance: float = 0.05
     offset_tolerance_g: float = 0.1
@@ -113,6 +115,7 @@ class Gates:
             "max_harmonic_ratio",
             "lean_z",
             "lean_shift_sigma",
+            "field_axle_offset_std_mps2",
         ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):

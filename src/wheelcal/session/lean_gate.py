@@ -12,6 +12,11 @@ reports what it would move.  The gate judges the answer, not the lean's size:
 
 ``--max-lean-change-deg`` (no limit by default) still refuses a camber that changes
 by more than it, whatever it does.
+
+The axle axis's offset is what the camber at the window's centre trades with (both
+are a constant along the axle; only the turns' share of the camber tells them apart,
+to 1–4° on a car's drive): where its σ exceeds ``Gates.field_axle_offset_std_mps2``
+it is reported null with that reason (:func:`camber_nulls`).
 """
 
 from __future__ import annotations
@@ -27,6 +32,27 @@ def axle_axis(field: FieldResult) -> str:
     """The sensor axis nearest the wheel's axle (bench Z in the sensor's frame: R e_Z)."""
     along = np.abs(field.result.params.bench.misalignment.matrix[:, 2])
     return "xyz"[int(np.argmax(along))]
+
+
+def camber_nulls(field: FieldResult, gates: Gates) -> tuple[tuple[str, str], ...]:
+    """The axle axis's offset null where the camber leaves it undetermined (module docstring)."""
+    if field.geometry.kind != "rolling":
+        return ()
+    result = field.result
+    name = f"offset_{axle_axis(field)}_mps2"
+    std = result.std_of(name)
+    limit = gates.field_axle_offset_std_mps2
+    if std <= limit:
+        return ()
+    tilt = result.std_of("tilt_deg")
+    return (
+        (
+            name,
+            f"the camber at the window's centre trades with this axis's offset (both a "
+            f"constant along the axle; the turns tell them apart to ± {tilt:.2g}°): σ = "
+            f"{std:.3g} m/s², more than {limit:g} m/s²",
+        ),
+    )
 
 
 def judge_the_lean(source: str, field: FieldResult, gates: Gates) -> tuple[tuple[str, str], ...]:

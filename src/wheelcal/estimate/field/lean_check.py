@@ -99,6 +99,10 @@ def camber_extension(result: CalibrationResult, spacing_s: float = KNOT_SPACING_
     # the effect's own grid (its series are interpolated onto the evaluated times)
     grid = rolling.time_s
     basis, _, _ = cubic_bspline_basis(grid, float(tc[0]), spacing, count)
+    basis = _beyond(basis, rolling)
+    if basis.shape[0] == 0:
+        return None
+    count = basis.shape[0]
     extra = {f"spline_{k}": basis[k] for k in range(count)}
     wider = rolling.with_camber_basis(extra)
     effects = tuple(wider if e is rolling else e for e in layout.effects)
@@ -108,6 +112,33 @@ def camber_extension(result: CalibrationResult, spacing_s: float = KNOT_SPACING_
     names = list(wide_layout.names)
     index = np.array([names.index(n) for n in layout.names])
     return Extension(wide_params, wide_layout, index), spacing
+
+
+#: A spline direction whose part beyond the model's own camber shapes is below this
+#: fraction of the largest is dropped (it is one the model has already).
+BEYOND_RTOL = 1e-3
+
+
+def _beyond(basis: np.ndarray, rolling: Rolling) -> np.ndarray:
+    """The spline's directions the model's camber cannot already take (rows, orthonormal).
+
+    The splines span a constant (the tilt), a ramp (the drift the gyro's errors leave) and
+    much of the track's basis: those directions are the fit's own, and left in they make
+    the wider model all but singular (a step of ±80° along a ramp the drift term nearly
+    holds).  The splines are made orthogonal to [1, l, N_k] over the grid, and to each
+    other; what remains is what a camber free to move adds.
+    """
+    own = [np.ones(basis.shape[1])]
+    if rolling.camber_track_rad is not None:
+        own.append(rolling.camber_track_rad)
+    own += list(rolling.camber_basis.values())
+    a = np.column_stack(own)
+    coef, *_ = np.linalg.lstsq(a, basis.T, rcond=None)
+    rest = basis - (a @ coef).T
+    _, sv, vt = np.linalg.svd(rest, full_matrices=False)
+    keep = sv > BEYOND_RTOL * (sv[0] if sv.size else 0.0)
+    # rows scaled like the splines (≈ 1 at their peak), for the fit's conditioning
+    return vt[keep] * np.sqrt(basis.shape[1] / 4.0)
 
 
 def lean_check(
