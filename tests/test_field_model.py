@@ -319,7 +319,7 @@ def test_the_camber_tracks_jacobian_is_exact(tilt_deg, yaw_free):
 
 def test_a_camber_track_of_zeros_is_one_camber():
     t = np.linspace(-15.0, 15.0, 601)
-    rate, rate_dot, yaw, yaw_dot = _series(t)
+    _, _, yaw, yaw_dot = _series(t)
     flat = Rolling(t, yaw, yaw_dot, yaw_across_axle=True)
     zero = Rolling(
         t,
