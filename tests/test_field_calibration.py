@@ -76,7 +76,16 @@ def _crlb_at_truth(calibration, truth) -> dict[str, float]:
     bench = BenchParams(tilt, truth.radius_m, fitted.misalignment)
     at_truth = r.params.with_changes(sensor=truth.sensor, bench=bench)
     bound = cramer_rao_bound(at_truth, r.centred_time_s, r.noise, r.layout)
-    return dict(zip(bound.names, bound.std, strict=True))
+    out = dict(zip(bound.names, bound.std, strict=True))
+    lean = calibration.to_dict()["bench"].get("lean", {})
+    if lean.get("track", {}).get("followed"):
+        # The camber at the window's centre is set, with a track, by the gyro's errors the
+        # track carries (its g-sensitivity across the axle, 0.1 °/s/g: 1–3° of camber on a
+        # car) more than by the accelerometer's noise, which the bound holds alone (0.06°);
+        # the fit propagates that prior into its σ, and the spread of study drives matches
+        # it (σ/spread ≥ 1).  The tilt is judged against that σ where it is the larger.
+        out["tilt_deg"] = max(out["tilt_deg"], r.std_of("tilt_deg"))
+    return out
 
 
 def _assert_within_the_bound(calibration, truth) -> None:
@@ -226,7 +235,7 @@ def test_a_car_that_rolls_a_little_in_its_turns_follows_the_track_and_reports_th
     # still says how much of the camber follows the turns (k = 0.12 ± 0.004°/(m/s²));
     # the same drive without roll holds one camber and reads no roll.
     rng = np.random.default_rng(1001)
-    rolled = dataclasses.replace(car_drive(rng), body_roll_deg_per_mps2=0.15)
+    rolled = dataclasses.replace(car_drive(rng, road=False), body_roll_deg_per_mps2=0.15)
     sim = simulate_field(rolled, rng)
     cal = wheelcal.calibrate(sim.recording)
     assert not _leans_in_turns(cal.session.assessment.warnings)
@@ -237,7 +246,7 @@ def test_a_car_that_rolls_a_little_in_its_turns_follows_the_track_and_reports_th
     assert 0.2 <= lean["in_turns_deg"] < lean["change_deg"] + 0.5, lean
     _assert_within_the_bound(cal, sim.truth)
     rng = np.random.default_rng(1001)
-    cal = wheelcal.calibrate(simulate_field(car_drive(rng), rng).recording)
+    cal = wheelcal.calibrate(simulate_field(car_drive(rng, road=False), rng).recording)
     lean = cal.to_dict()["bench"]["lean"]
     assert lean["track"]["followed"] is False, lean
     assert abs(lean["in_turns_deg_per_mps2"]) < 0.02 and lean["change_deg"] < 1.0, lean
@@ -253,7 +262,7 @@ def test_a_car_that_rolls_in_its_turns_is_calibrated_right_or_refused_by_name(se
     refused by name — never confidently wrong.  These two drives calibrate.
     """
     rng = np.random.default_rng(seed)
-    scenario = dataclasses.replace(car_drive(rng), body_roll_deg_per_mps2=0.8)
+    scenario = dataclasses.replace(car_drive(rng, road=False), body_roll_deg_per_mps2=0.8)
     sim = simulate_field(scenario, rng)
     cal = wheelcal.calibrate(sim.recording)
     assert cal.to_dict()["bench"]["lean"]["track"]["followed"] is True
@@ -319,7 +328,7 @@ def test_a_gyro_sensitive_to_gravity_is_not_read_as_a_lean():
     # gravity's cos 2ϑ, sin 2ϑ in the lean's regressions; study cars with G drawn at
     # 0.1 °/s/g were refused as "lean" at 1.1–1.2°).  The exact check is in test_field_model.
     rng = np.random.default_rng(1009)
-    scenario = car_drive(rng, camber_deg=1.0)
+    scenario = car_drive(rng, camber_deg=1.0, road=False)
     g_sens = ((0.0, 0.3, 0.0), (0.3, 0.0, 0.0), (0.0, 0.0, 0.0))
     gyro = dataclasses.replace(scenario.gyro, g_sensitivity_dps_per_g=g_sens)
     sim = simulate_field(dataclasses.replace(scenario, gyro=gyro), rng)
@@ -331,7 +340,7 @@ def test_a_gyro_sensitive_to_gravity_is_not_read_as_a_lean():
 
 def test_the_session_says_where_its_geometry_came_from():
     rng = np.random.default_rng(5)
-    sim = simulate_field(car_drive(rng), rng)
+    sim = simulate_field(car_drive(rng, road=False), rng)
     cal = wheelcal.calibrate(sim.recording)
     session = cal.session
     assert (session.geometry, session.geometry_source, session.model) == (

@@ -113,7 +113,9 @@ def test_a_vehicle_standing_still_reads_g_in_every_orientation():
 
 def test_the_rests_of_a_drive_read_g_and_the_gyro_reads_nothing():
     rng = np.random.default_rng(2)
-    scenario = dataclasses.replace(car_drive(rng, duration_s=60.0), gyro=GyroSpec.ideal())
+    scenario = dataclasses.replace(
+        car_drive(rng, duration_s=60.0, road=False), gyro=GyroSpec.ideal()
+    )
     truth = simulate_field(scenario, rng).truth
     rest = truth.motion.speed_mps == 0.0
     assert rest.sum() > 200 and rest[0] and rest[-1]
@@ -179,7 +181,7 @@ def test_a_vertical_wheel_in_a_steady_turn_agrees_with_the_rolling_model(side):
 @pytest.mark.parametrize("seed", [6, 7])
 def test_a_vertical_car_wheel_on_a_whole_drive_agrees_with_the_rolling_model(seed):
     rng = np.random.default_rng(seed)
-    truth = simulate_field(car_drive(rng, camber_deg=0.0), rng).truth
+    truth = simulate_field(car_drive(rng, camber_deg=0.0, road=False), rng).truth
     assert (
         np.abs(truth.motion.yaw_rate_radps).max() > 0.05
         and np.abs(truth.motion.speed_dot_mps2).max() > 0.5
@@ -231,7 +233,8 @@ def _closed_form(truth) -> np.ndarray:
 @pytest.mark.parametrize("make", [wheelchair_coast, car_drive])
 def test_a_cambered_wheel_with_an_axle_offset_matches_the_closed_form(make):
     rng = np.random.default_rng(8)
-    truth = simulate_field(make(rng, camber_deg=18.0, axle_offset_m=0.04), rng).truth
+    level = {"road": False} if make is car_drive else {}  # one camber: the closed form's
+    truth = simulate_field(make(rng, camber_deg=18.0, axle_offset_m=0.04, **level), rng).truth
     assert np.abs(_closed_form(truth) - truth.specific_force_mps2).max() < 1e-9
     # and the rolling relation the profiles build on: ω = ψ̇ sin γ − σ v / ρ
     rolling = truth.motion.yaw_rate_radps * np.sin(
@@ -392,7 +395,7 @@ def test_on_a_fixed_axle_an_ideal_gyro_reads_minus_omega_r_ez():
 
 @pytest.fixture(scope="module")
 def drive():
-    return car_drive(np.random.default_rng(14), duration_s=40.0)
+    return car_drive(np.random.default_rng(14), duration_s=40.0, road=False)
 
 
 def _run(scenario, glitches=None):
@@ -634,3 +637,47 @@ def test_bad_setups_are_refused_by_name():
     spiky = _scenario(spin, WheelGeometry(1.0, 0.1), rng, 1.0, glitches=Glitches(gyro_spikes=1))
     with pytest.raises(ValueError, match="gyro spikes need a gyroscope"):
         simulate_field(spiky, rng)
+
+
+def test_a_car_on_a_road_leans_with_it_and_its_carrier_shakes():
+    # The road profile (simulate/road_profile.py): the camber changes by a measured drive's
+    # 4–6.5° (here 2–10° over two minutes), which the carrier's roll rate along the travel
+    # direction carries exactly; the carrier shakes about its three axes, which the body
+    # rate holds (the gyro's reading) beyond the yaw and the roll.
+    from wheelcal.simulate.field_kinematics import bench_axes
+
+    rng = np.random.default_rng(31)
+    scenario = car_drive(rng)
+    assert scenario.road is not None and scenario.rim_vibration is not None
+    sim = simulate_field(scenario, rng)
+    truth = sim.truth
+    gamma = truth.camber_series_rad
+    assert 2.0 < np.rad2deg(np.ptp(gamma)) < 10.0
+    m = truth.motion
+    axes = bench_axes(m.theta_rad, m.heading_rad, truth_wheel := scenario.wheel, gamma)
+    forward = np.column_stack([np.cos(m.heading_rad), np.sin(m.heading_rad), 0 * m.heading_rad])
+    travel_bench = np.einsum("nji,nj->ni", axes, truth_wheel.side * forward)
+    roll = np.sum(truth.body_rate_radps * travel_bench, axis=1)
+    # the body rate along the travel: the camber's rate plus the roll's shaking
+    still = dataclasses.replace(
+        scenario, road=dataclasses.replace(scenario.road, shake_rates_radps=(0.0, 0.0, 0.0))
+    )
+    calm = simulate_field(still, np.random.default_rng(31)).truth
+    calm_roll = np.sum(calm.body_rate_radps * travel_bench, axis=1)
+    np.testing.assert_allclose(calm_roll, np.gradient(gamma, truth.time_s), atol=1e-9)
+    shaking = roll - calm_roll
+    moving = m.speed_mps > 0.5 * scenario.road.full_speed_mps
+    expected = scenario.road.shake_rates_radps[1]  # rms at full speed, ∝ √v below
+    assert 0.5 * expected < np.sqrt(np.mean(shaking[moving] ** 2)) < 1.2 * expected
+    # a level road, no caster and no shaking: the drive of one camber
+    level = dataclasses.replace(
+        scenario,
+        road=dataclasses.replace(
+            scenario.road, cross_slope_std_deg=0.0, caster_deg=0.0, shake_rates_radps=(0, 0, 0)
+        ),
+        rim_vibration=None,
+    )
+    flat = dataclasses.replace(scenario, road=None, rim_vibration=None)
+    a = simulate_field(level, np.random.default_rng(2)).truth.specific_force_mps2
+    b = simulate_field(flat, np.random.default_rng(2)).truth.specific_force_mps2
+    np.testing.assert_allclose(a, b, atol=1e-9)

@@ -34,6 +34,7 @@ anywhere on a hub); ``"random"`` — uniform over all rotations.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from dataclasses import dataclass, field
 from typing import Literal
@@ -58,6 +59,7 @@ from wheelcal.simulate.logger_glitches import Glitches, LoggedSamples
 from wheelcal.simulate.noise import NoiseSpec
 from wheelcal.simulate.presets import hand_spin, random_rotation
 from wheelcal.simulate.road import VibrationSpec
+from wheelcal.simulate.road_profile import RoadProfile
 
 __all__ = [
     "GEOMETRIES",
@@ -170,9 +172,13 @@ class FieldOptions:
     gyro: bool = True
     glitches: Glitches = field(default_factory=Glitches)
     include_radius: bool = False
+    #: A car's road (:class:`~wheelcal.simulate.road_profile.RoadProfile`, drawn as the
+    #: measured drives show it) and its gyro's bias walking and warming up; ``False``: a
+    #: level road of one camber, a carrier that shakes only in translation, a steady bias.
+    road: bool = True
 
 
-_ROLLING_ONLY = ("rolling_radius_m", "camber_deg", "side", "vibration_mps2")
+_ROLLING_ONLY = ("rolling_radius_m", "camber_deg", "side", "vibration_mps2", "road")
 
 
 def _options(given: dict, rolling: bool) -> FieldOptions:
@@ -303,9 +309,36 @@ def car_drive(rng: np.random.Generator, *, duration_s: float = 120.0, **options)
     vibration = VibrationSpec(_pick(rng, opts.vibration_mps2, 0.3, 1.5))
     mounting = draw_mounting(rng, opts.mounting or "aligned", about_axle_deg=(-5.0, 5.0))
     rate = opts.rate_hz or 120.0
-    return _scenario(
+    scenario = _scenario(
         rng, "car", wheel, path, FACTORY_IMU, mounting, vibration, opts, duration_s, rate
     )
+    if not opts.road:
+        return scenario
+    return _on_a_road(rng, scenario)
+
+
+def _on_a_road(rng: np.random.Generator, scenario: FieldScenario) -> FieldScenario:
+    """A car's scenario on a measured drive's road (drawn after everything else).
+
+    The road's camber and the carrier's angular shaking
+    (:meth:`~wheelcal.simulate.road_profile.RoadProfile.car`), the rim's vibration in a
+    second band along the axle (25–55 Hz, 0.4–1.2 m/s² at full speed: the measured
+    residual's along-axle share), and the factory gyro's bias walking
+    (0.002–0.005 °/s/√s) and warming up (±0.05 °/s, τ 60–300 s).
+    """
+    road = RoadProfile.car(rng)
+    gyro = scenario.gyro
+    if gyro is not None:
+        gyro = dataclasses.replace(
+            gyro,
+            bias_walk_dps_per_sqrt_s=float(rng.uniform(0.002, 0.005)),
+            bias_warmup_dps=tuple(float(x) for x in rng.uniform(-0.05, 0.05, 3)),
+            bias_warmup_tau_s=float(rng.uniform(60.0, 300.0)),
+        )
+    rim = VibrationSpec(
+        float(rng.uniform(0.4, 1.2)), band_hz=(25.0, 55.0), axis_ratio=(0.3, 1.0, 0.3)
+    )
+    return dataclasses.replace(scenario, road=road, gyro=gyro, rim_vibration=rim)
 
 
 def robot_drive(

@@ -176,12 +176,19 @@ class Lean:
 
 
 def wheel_kinematics(
-    state: MotionState, wheel: WheelGeometry, lean: Lean | None = None
+    state: MotionState,
+    wheel: WheelGeometry,
+    lean: Lean | None = None,
+    shake_radps: np.ndarray | None = None,
+    rate_hz: float | None = None,
 ) -> WheelKinematics:
     """Evaluate the module docstring's world-frame formulas at the states' samples.
 
     With ``lean`` the carrier turns at Ω_c = ψ̇ e_z + γ̇ σ f, so Ω = Ω_c − ω Z,
     Ż = Ω_c × Z and Ω̇ = ψ̈ e_z + γ̈ σ f + γ̇ σ ψ̇ l − ω̇ Z − ω Ż (ḟ = ψ̇ l).
+    ``shake_radps`` (N, 3): the carrier's angular vibration ν about (the vertical, the
+    direction of travel σ f, the axle Z), added to Ω_c and, differenced at ``rate_hz``,
+    to Ω̇_c (:mod:`~wheelcal.simulate.road_profile`; its attitude is not integrated).
     """
     camber = None if lean is None else lean.camber_rad
     axes = bench_axes(state.theta_rad, state.heading_rad, wheel, camber)
@@ -196,6 +203,12 @@ def wheel_kinematics(
         carrier = carrier + lean.rate_radps[:, None] * travel
         carrier_dot = carrier_dot + lean.accel_radps2[:, None] * travel
         carrier_dot = carrier_dot + (lean.rate_radps[:, None] * yaw_rate) * wheel.side * left
+    if shake_radps is not None:
+        nu = np.asarray(shake_radps, dtype=float)
+        travel = wheel.side * forward
+        shaking = nu[:, :1] * UP + nu[:, 1:2] * travel + nu[:, 2:3] * axle
+        carrier = carrier + shaking
+        carrier_dot = carrier_dot + np.gradient(shaking, 1.0 / float(rate_hz), axis=0)
     rate = carrier - omega * axle  # Ω = Ω_c − ω Z
     axle_dot = np.cross(carrier, axle)  # Ż = Ω_c × Z
     rate_dot = carrier_dot - state.omega_dot_radps2[:, None] * axle - omega * axle_dot

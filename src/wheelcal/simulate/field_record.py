@@ -14,7 +14,9 @@ For each sample time t (recording seconds, the first sample at 0):
    (:meth:`~wheelcal.simulate.gyro.GyroSpec.output`, g-sensitive to R (a + Aᵀ x));
 6. the logger's glitches (:mod:`~wheelcal.simulate.logger_glitches`).
 
-Random draws, in order: accelerometer noise, vibration, gyro noise, glitches.
+Random draws, in order: accelerometer noise, vibration, gyro noise (and its bias's walk,
+if it walks), the rim's vibration (if any), glitches; a road's own series come from its
+seed (:mod:`~wheelcal.simulate.road_profile`).
 """
 
 from __future__ import annotations
@@ -48,11 +50,12 @@ from wheelcal.simulate.logger_glitches import (
 )
 from wheelcal.simulate.noise import NoiseSpec, Quantiser
 from wheelcal.simulate.road import VibrationSpec
+from wheelcal.simulate.road_profile import RoadProfile
 
 #: Geometry labels (CONTRACT ``bench.geometry``).
 GEOMETRIES = ("bench", "vertical", "rolling")
 #: What the truth keeps of the scenario's specs, by the same names.
-_SPECS = ("gyro", "noise", "vibration", "quantiser", "glitches", "free_spin")
+_SPECS = ("gyro", "noise", "vibration", "quantiser", "glitches", "free_spin", "road")
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +88,11 @@ class FieldScenario:
     #: A rolling wheel's camber changes by this much per m/s² of lateral acceleration
     #: v ψ̇ (a car's body roll; :class:`~wheelcal.simulate.field_kinematics.Lean`).
     body_roll_deg_per_mps2: float = 0.0
+    #: The road's camber along it and the carrier's angular shaking (rolling wheels).
+    road: RoadProfile | None = None
+    #: A second band of the hub's vibration (the rim's, e.g. 25–55 Hz along the axle),
+    #: drawn after everything else.
+    rim_vibration: VibrationSpec | None = None
 
     def __post_init__(self) -> None:
         if not (self.duration_s > 0 and self.rate_hz > 0):
@@ -102,6 +110,8 @@ class FieldScenario:
             raise ValueError("include_radius needs a sensor off the axle (radius_m > 0)")
         if self.body_roll_deg_per_mps2 and not rolling:
             raise ValueError("body roll needs a rolling wheel")
+        if self.road is not None and not rolling:
+            raise ValueError("a road profile needs a rolling wheel")
 
     @property
     def geometry(self) -> str:
@@ -186,6 +196,8 @@ class FieldTruth:
     glitch_rows: GlitchRows
     window_s: tuple[float, float]
     free_spin: SpinParams | None = None
+    #: The road's profile (camber, angular shaking), when it has one.
+    road: RoadProfile | None = None
     #: γ(t) per sample where the camber changes during the drive (a lean), else None.
     camber_series_rad: np.ndarray | None = None
 
@@ -195,11 +207,17 @@ class FieldTruth:
         return self.bench.tilt_deg
 
     def tilt_at_deg(self, time_s: float) -> float:
-        """α at ``time_s`` (recording seconds): 90° − γ(t) of a leaning wheel, else α."""
+        """α at ``time_s`` (recording seconds) as the CONTRACT reports it: in [0°, 90°].
+
+        A leaning wheel's is 90° − γ(t).  Where the camber is negative there (the axle's
+        outboard end, this simulator's Z, points down) the CONTRACT's Z is the other end,
+        the one that points up: α = 90° − |γ| (the twin, R·diag(1, −1, −1), ϑ → −ϑ; the
+        gains and offsets are the same in both).
+        """
         if self.camber_series_rad is None:
             return self.tilt_deg
         gamma = float(np.interp(time_s, self.time_s, self.camber_series_rad))
-        return 90.0 - float(np.rad2deg(gamma))
+        return 90.0 - abs(float(np.rad2deg(gamma)))
 
     @property
     def camber_deg(self) -> float | None:
@@ -262,11 +280,20 @@ def _vibration(
         envelope = spec.envelope(state.speed_mps)
     else:
         envelope = scenario.motion.hand_envelope(t)
+    return _shaken(spec, scenario, state, kin, t, rng, envelope), envelope
+
+
+def _shaken(
+    spec: VibrationSpec, scenario, state, kin, t, rng, envelope: np.ndarray | None = None
+) -> np.ndarray:
+    """One band of the hub's vibration in the bench frame (N, 3) (envelope: the speed's)."""
+    if envelope is None:
+        envelope = spec.envelope(state.speed_mps)
     local = spec.sample(t.size, scenario.rate_hz, rng) * envelope[:, None]
     c, s = np.cos(state.heading_rad), np.sin(state.heading_rad)
     world = np.column_stack([local[:, 0] * c - local[:, 1] * s, local[:, 0] * s + local[:, 1] * c])
     world = np.column_stack([world, local[:, 2]])  # (forward, left, up) → world
-    return kin.to_bench(world), envelope
+    return kin.to_bench(world)
 
 
 def _window(scenario: FieldScenario, t: np.ndarray, speed: np.ndarray) -> tuple[float, float]:
@@ -281,13 +308,21 @@ def _window(scenario: FieldScenario, t: np.ndarray, speed: np.ndarray) -> tuple[
 
 
 def _leaning(
-    state: MotionState, wheel: WheelGeometry, roll_rad_per_mps2: float, t: np.ndarray
+    state: MotionState,
+    wheel: WheelGeometry,
+    roll_rad_per_mps2: float,
+    t: np.ndarray,
+    road: RoadProfile | None = None,
 ) -> tuple[MotionState, Lean]:
-    """γ(t) = γ₀ + k v ψ̇, and the wheel's ω = ψ̇ sin γ(t) − σ v/ρ with it (ϑ integrated)."""
+    """γ(t) = γ₀ + k v ψ̇ (+ the road's), and ω = ψ̇ sin γ(t) − σ v/ρ with it (ϑ integrated)."""
     v, v_dot = state.speed_mps, state.speed_dot_mps2
     yaw, yaw_dot = state.yaw_rate_radps, state.yaw_accel_radps2
     gamma = wheel.camber_rad + roll_rad_per_mps2 * v * yaw
     gamma_dot = roll_rad_per_mps2 * (v_dot * yaw + v * yaw_dot)
+    if road is not None:
+        change = road.camber_change(state, wheel.side, t)
+        gamma = gamma + change
+        gamma_dot = gamma_dot + np.gradient(change, t)
     extra = (np.sin(gamma) - np.sin(wheel.camber_rad)) * yaw
     turned = np.concatenate([[0.0], np.cumsum(0.5 * (extra[1:] + extra[:-1]) * np.diff(t))])
     state = dataclasses.replace(
@@ -304,10 +339,13 @@ def simulate_field(scenario: FieldScenario, rng: np.random.Generator) -> FieldSi
     t = scenario.times_s()
     wheel = scenario.wheel
     state = scenario.motion.state(t, wheel)
-    lean = None
-    if scenario.body_roll_deg_per_mps2:
-        state, lean = _leaning(state, wheel, np.deg2rad(scenario.body_roll_deg_per_mps2), t)
-    kin = wheel_kinematics(state, wheel, lean)
+    lean = shake = None
+    if scenario.body_roll_deg_per_mps2 or scenario.road is not None:
+        roll = np.deg2rad(scenario.body_roll_deg_per_mps2)
+        state, lean = _leaning(state, wheel, roll, t, scenario.road)
+    if scenario.road is not None:
+        shake = scenario.road.shake(state, scenario.rate_hz, t.size)
+    kin = wheel_kinematics(state, wheel, lean, shake, scenario.rate_hz)
     force = kin.specific_force_bench(scenario.gravity_mps2)
     rot = scenario.mounting.matrix
     gain, offset = scenario.sensor.gain, scenario.sensor.offset_mps2
@@ -327,6 +365,10 @@ def simulate_field(scenario: FieldScenario, rng: np.random.Generator) -> FieldSi
         sensed = (force + shake_bench) @ rot.T
         gyro = scenario.gyro.output(state.omega_radps, sensed, rot, scenario.rate_hz, rng, extra)
 
+    if scenario.rim_vibration is not None:
+        rim = _shaken(scenario.rim_vibration, scenario, state, kin, t, rng)
+        accel = accel + gain * (rim @ rot.T)
+        shake_out = shake_out + gain * (rim @ rot.T)
     rows = glitch_rows(scenario.glitches, t, gyro is not None, rng)
     keep = rows.kept
     accel, gyro = apply_glitches(

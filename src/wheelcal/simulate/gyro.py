@@ -90,6 +90,12 @@ class GyroSpec:
         ``None`` for a float output; else round to counts of
         2·full_scale / 2**bits (two's complement: the top rail is one count
         below +full scale).  Needs ``full_scale_dps``.
+    bias_walk_dps_per_sqrt_s:
+        The bias's random walk, (°/s)/√s per axis (a factory-calibrated IMU's in-run
+        instability: ~0.003; 0: none).
+    bias_warmup_dps, bias_warmup_tau_s:
+        A warm-up of the bias per axis, b(t) = b + d (1 − e^(−t/τ)) from the first
+        sample (the chip's temperature settling; 0: none).
     """
 
     noise_density_dps_rthz: float = 0.01
@@ -99,6 +105,9 @@ class GyroSpec:
     g_sensitivity_dps_per_g: float | tuple = 0.1
     full_scale_dps: float | None = 2000.0
     bits: int | None = None
+    bias_walk_dps_per_sqrt_s: float = 0.0
+    bias_warmup_dps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    bias_warmup_tau_s: float = 300.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.noise_density_dps_rthz) and self.noise_density_dps_rthz >= 0):
@@ -120,6 +129,25 @@ class GyroSpec:
             raise ValueError("full_scale_dps must be positive (or None)")
         if self.bits is not None and (self.full_scale_dps is None or not 2 <= self.bits <= 32):
             raise ValueError("bits needs full_scale_dps and must be in 2..32")
+        object.__setattr__(
+            self, "bias_warmup_dps", _vector(self.bias_warmup_dps, "bias_warmup_dps")
+        )
+        if not (np.isfinite(self.bias_walk_dps_per_sqrt_s) and self.bias_walk_dps_per_sqrt_s >= 0):
+            raise ValueError("bias_walk_dps_per_sqrt_s must be finite and >= 0")
+        if not self.bias_warmup_tau_s > 0:
+            raise ValueError("bias_warmup_tau_s must be positive")
+
+    def _bias_motion(self, n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
+        """(n, 3): the bias's warm-up and random walk (rad/s; drawn only if it walks)."""
+        out = np.zeros((n, 3))
+        warmup = np.deg2rad(np.asarray(self.bias_warmup_dps))
+        if np.any(warmup):
+            t = np.arange(n) / rate_hz
+            out += np.outer(1.0 - np.exp(-t / self.bias_warmup_tau_s), warmup)
+        if self.bias_walk_dps_per_sqrt_s > 0:
+            step = np.deg2rad(self.bias_walk_dps_per_sqrt_s) / np.sqrt(rate_hz)
+            out += np.cumsum(step * rng.standard_normal((n, 3)), axis=0)
+        return out
 
     @classmethod
     def ideal(cls) -> GyroSpec:
@@ -224,6 +252,7 @@ class GyroSpec:
         std = self.noise_std_radps(rate_hz)
         if std > 0:
             rate += std * rng.standard_normal(rate.shape)
+        rate += self._bias_motion(rate.shape[0], rate_hz, rng)
         if self.bits is not None:
             rate = np.round(rate / self.lsb_radps) * self.lsb_radps
         limits = self.limits_radps

@@ -561,23 +561,38 @@ def _across_g_shifts(
             gyro = yaw_of.gyro_radps + g_std_radps_per_mps2 * np.outer(column, across)
             y, y_dot, track = yaw_of(gyro)
             cross = _cross(y, yaw_of.theta_rad) if with_cross else None
-            effects = tuple(_with_yaw(e, y, y_dot, cross, track) for e in layout.effects)
+            effects = _with_series(layout.effects, params, y, y_dot, cross, track)
             moved = dataclasses.replace(layout, effects=effects)
             shifts.append(evaluate(params, t, moved).predicted_mps2 - base)
     return tuple(shifts)
 
 
-def _with_yaw(effect, y: np.ndarray, y_dot: np.ndarray, cross: np.ndarray | None, track):
-    """``effect`` reading the yaw series y and camber track (the gyro's angle, the forces)."""
-    if isinstance(effect, GyroAngle):
-        return effect.with_yaw(
-            y, y_dot, cross, track.track_rad if effect.camber_track_rad is not None else None
-        )
-    if isinstance(effect, Rolling) and effect.has_camber_track:
-        return effect.with_yaw(y, y_dot, track.track_rad, track.basis)
-    if isinstance(effect, Rolling):
-        return effect.with_yaw(y, y_dot)
-    return effect
+def _with_series(effects: tuple, params: CalibrationParams, y, y_dot, cross, track) -> tuple:
+    """``effects`` reading the yaw series y and the camber track (the gyro angle, the forces).
+
+    The rolling wheel takes the new track and basis; the gyro angle's ψ̇ sin γ(t) takes the
+    camber's change they give at the fitted coefficients (κ l + Σ c_k N_k), as the fit's
+    own angle took the fitted change — not the raw track, whose errors the basis holds.
+    """
+    out = []
+    for effect in effects:
+        if isinstance(effect, Rolling):
+            effect = (
+                effect.with_yaw(y, y_dot, track.track_rad, track.basis)
+                if effect.has_camber_track
+                else effect.with_yaw(y, y_dot)
+            )
+        out.append(effect)
+    rolling = next((e for e in out if isinstance(e, Rolling)), None)
+    for k, effect in enumerate(out):
+        if not isinstance(effect, GyroAngle):
+            continue
+        angle_track = None
+        if effect.camber_track_rad is not None and rolling is not None:
+            values = params.effect(rolling.name, rolling.size)
+            angle_track = rolling.camber_change(values, rolling.time_s)
+        out[k] = effect.with_yaw(y, y_dot, cross, angle_track)
+    return tuple(out)
 
 
 def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tuple:
