@@ -387,6 +387,8 @@ def read_recording(
     if unit not in ACCEL_UNITS:
         raise InputError(scan.path, f"{where}: unit {unit!r} is not one of {list(ACCEL_UNITS)}")
     samples = _samples_of(scan, chosen, unit, gyro, gyro_unit, temperature, temperature_topic)
+    if accel_unit is not None and accel_unit != chosen.unit:  # the option claims the unit
+        samples.update(_override_wording(chosen, accel_unit))
     del scan  # the decoded columns are all that is left of the file
     # The decoded columns are ours to give away: converted and kept in place, no copy.
     return Recording.from_samples(**samples, info=info, policy=policy, consume=True)
@@ -429,6 +431,15 @@ def _samples_of(
         "label": f"{scan.path} ({where})",
         "unit_remedy": _unit_remedy(chosen, unit),
         "gyro_unit_hint": _gyro_unit_hint(chosen),
+    }
+
+
+def _override_wording(chosen: AccelTopic, accel_unit: str) -> dict[str, str]:
+    """Who claimed the unit and how to fix it, when ``accel_unit`` overrode the file's."""
+    own = "m/s^2 (REP 103)" if chosen.encoding in ("ros2", "ros1") else repr(chosen.unit)
+    return {
+        "unit_stated_by": f"--accel-unit {accel_unit} (Python: accel_unit={accel_unit!r})",
+        "unit_remedy": f"leave --accel-unit out (accel_unit=None): the file's own unit is {own}",
     }
 
 

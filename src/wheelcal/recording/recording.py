@@ -323,6 +323,7 @@ class Recording:
         unit_remedy: str | None = None,
         gyro_unit_hint: str = "",
         consume: bool = False,
+        unit_stated_by: str = "the file",
     ) -> Recording:
         """A checked recording from raw samples: repaired where that invents nothing, or refused.
 
@@ -353,6 +354,9 @@ class Recording:
         label, unit_remedy, gyro_unit_hint:
             How messages name the samples (default ``source``), and how to state
             the units right in this source's format.
+        unit_stated_by:
+            Who claimed ``unit`` (``"the file"``, or the option that overrode it),
+            for the unit check's message.
         consume:
             ``time_ns`` and ``accel`` are the caller's to give away (a reader's
             decoded columns): converted and kept in place, no copy.
@@ -380,6 +384,7 @@ class Recording:
             full_scale_g=info.full_scale_g,
             policy=policy,
             unit_remedy=unit_remedy,
+            unit_stated_by=unit_stated_by,
         )
         notes += clean.notes
         raw = (time_ns, mps2, clean.time_ns)
@@ -412,6 +417,14 @@ class Recording:
             temperature=self.temperature_c,
             topic=self.topic,
             notes=self.notes,
+            **(
+                {
+                    "unit_stated_by": f"accel_unit={unit!r}",
+                    "unit_remedy": f"leave accel_unit={unit!r} out",
+                }
+                if unit is not None
+                else {}
+            ),
         )
 
     @property

@@ -110,6 +110,7 @@ def clean_samples(
     full_scale_g: float | None,
     policy: InputPolicy,
     unit_remedy: str | None = None,
+    unit_stated_by: str = "the file",
 ) -> CleanSamples:
     """Repair what can be repaired, refuse the rest (see the module docstring).
 
@@ -130,6 +131,9 @@ def clean_samples(
     unit_remedy:
         How to state the right unit for this file's format (for the unit
         check's message); ``None``: ``--accel-unit`` or the channel metadata.
+    unit_stated_by:
+        Who claimed ``unit``, as the unit check's message names it: ``"the
+        file"``, or the option that overrode it (``"--accel-unit g"``).
 
     Raises
     ------
@@ -154,7 +158,7 @@ def clean_samples(
     _check_rate(path, t.size, step_ns, policy)
     _check_alive(path, a)
     if policy.check_units:
-        _check_units(path, a, unit, unit_remedy)
+        _check_units(path, a, unit, unit_remedy, unit_stated_by)
     duration_s = (t[-1] - t[0]) * 1e-9 if t.size else 0.0
     if t.size < policy.min_samples or duration_s < policy.min_duration_s:
         raise SampleError(
@@ -654,7 +658,7 @@ def _check_rate(path, samples, step_ns, policy):
         )
 
 
-def _check_units(path, a, unit, remedy=None):
+def _check_units(path, a, unit, remedy=None, stated_by="the file"):
     g = STANDARD_GRAVITY_MPS2
     rest = rest_level(a)
     other = "m/s^2" if unit == "g" else "g"
@@ -668,13 +672,13 @@ def _check_units(path, a, unit, remedy=None):
             raise SampleError(
                 path,
                 f"at rest the samples read |a| = {rest:.3g}, about 1: they look like g, "
-                f"but the file says m/s^2 (at rest |a| would be ≈ {g:.2f}); {fix}",
+                f"but {stated_by} says m/s^2 (at rest |a| would be ≈ {g:.2f}); {fix}",
             )
         if unit == "g" and 6.0 < ratio < 16.0:
             raise SampleError(
                 path,
                 f"at rest the samples read |a| = {rest / g:.3g} g: they look like m/s^2, "
-                f"but the file says g; {fix}",
+                f"but {stated_by} says g; {fix}",
             )
         return
     median = float(np.sqrt(np.median(np.einsum("ij,ij->i", a, a))))

@@ -158,8 +158,17 @@ def undetermined_parameters(result: CalibrationResult, gates: Gates) -> list[tup
     return out
 
 
-def refuse_implausible(result: CalibrationResult, gates: Gates, undetermined: list) -> None:
-    """Raise :class:`CalibrationRefused` for the refusal band's post-fit gates."""
+def refuse_implausible(
+    result: CalibrationResult,
+    gates: Gates,
+    undetermined: list,
+    rest_level_mps2: float | None = None,
+) -> None:
+    """Raise :class:`CalibrationRefused` for the refusal band's post-fit gates.
+
+    ``rest_level_mps2``: |a| the rests read in the stated unit (see
+    :func:`refuse_gain_scale`), ``None`` without rests.
+    """
     source = result.source
     bad = {name for name, _ in undetermined}
     gains = {a: result.value_of(f"gain_{a}") for a in AXES if f"gain_{a}" not in bad}
@@ -176,7 +185,7 @@ def refuse_implausible(result: CalibrationResult, gates: Gates, undetermined: li
     listing = ", ".join(f"gain_{a} = {_g(v)}" for a, v in gains.items())
     lo, hi = gates.gain_range
     if any(not lo <= v <= hi for v in gains.values()):
-        refuse_gain_scale(source, mean_gain, radius, listing, gates)
+        refuse_gain_scale(source, mean_gain, radius, listing, gates, rest_level_mps2)
     limit = gates.max_offset_g * STANDARD_GRAVITY_MPS2
     offsets = {
         a: result.value_of(f"offset_{a}_mps2") for a in AXES if f"offset_{a}_mps2" not in bad
@@ -199,14 +208,33 @@ def refuse_implausible(result: CalibrationResult, gates: Gates, undetermined: li
         )
 
 
+#: Rests that read |a| within this fraction of g confirm the stated unit (a unit error
+#: is a factor of 9.8; a radius error does not move a rest's reading at all).
+REST_UNIT_TOLERANCE = 0.1
+
+
+def rest_level(rests) -> float | None:
+    """Median |a| the rests read, in the recording's stated unit (``None`` without rests)."""
+    levels = [float(np.linalg.norm(r.mean_mps2)) for r in rests]
+    return float(np.median(levels)) if levels else None
+
+
 def refuse_gain_scale(
-    source: str, mean_gain: float, radius_m: float, listing: str, gates: Gates
+    source: str,
+    mean_gain: float,
+    radius_m: float,
+    listing: str,
+    gates: Gates,
+    rest_level_mps2: float | None = None,
 ) -> None:
     """Refuse gains far from 1 (``unit`` or ``gain_range``), naming every likely cause.
 
     A factor near g is a unit stated wrongly; any factor is, by eq. (9), also a
     radius error — radius ×0.1 and m/s² labelled g both give gains ≈ 10, and
-    no data can tell them apart — so both are named when both fit.
+    the spin alone cannot tell them apart — so both are named when both fit.
+    The rests can: a sensor at rest reads |a| = g in the right unit whatever
+    the radius, so rests at ≈ 9.8 m/s² (``rest_level_mps2``) rule the unit out
+    and the refusal is ``gain_range``, the radius named alone.
     """
     lo, hi = gates.gain_range
     g = STANDARD_GRAVITY_MPS2
@@ -224,6 +252,14 @@ def refuse_gain_scale(
         "sensor's own gain error"
     )
     head = f"{listing}: outside [{lo:g}, {hi:g}], which no accelerometer is"
+    if rest_level_mps2 is not None and abs(rest_level_mps2 / g - 1) < REST_UNIT_TOLERANCE:
+        raise CalibrationRefused(
+            source,
+            "gain_range",
+            f"{head}: {radius_text} (not the unit: the rests read |a| = "
+            f"{rest_level_mps2:.3g} m/s², gravity, in the unit the file states)",
+            measure,
+        )
     for factor, seen, stated, unit in ((1 / g, "g", "m/s²", "g"), (g, "m/s²", "g", "m/s^2")):
         if abs(np.log(mean_gain / factor)) < np.log(1.35):
             raise CalibrationRefused(
