@@ -70,8 +70,8 @@ def register(sub) -> None:
         metavar="M",
         help="the sensor's distance from the axle in metres (e.g. 0.28), stored as radius_m",
     )
-    p.add_argument("--sensor-id")
-    p.add_argument("--mounting-id")
+    p.add_argument("--sensor-id", help="sensor identifier stored in the file (for reports)")
+    p.add_argument("--mounting-id", help="mounting identifier stored in the file (for reports)")
     p.add_argument(
         "--gyro-full-scale-dps", type=float, help="store gyro_full_scale_dps (the gyro's range)"
     )

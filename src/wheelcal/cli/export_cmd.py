@@ -22,7 +22,13 @@ def register(sub) -> None:
     """Add the ``export`` parser."""
     p = sub.add_parser("export", help=HELP, description=DESCRIPTION)
     p.add_argument("calibration", metavar="CAL.json")
-    p.add_argument("--format", choices=("yaml", "imu_calib", "c"), required=True)
+    p.add_argument(
+        "--format",
+        choices=("yaml", "imu_calib", "c"),
+        required=True,
+        help="yaml: Kalibr's imu.yaml (+ wheelcal's imu0 block); imu_calib: the ROS imu_calib "
+        "package's file; c: a C header",
+    )
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
     p.add_argument(
         "--force", action="store_true", help="replace the --out file if it exists (default: refuse)"
