@@ -56,8 +56,16 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--gyro-unit",
-        choices=("rad/s", "deg/s"),
-        help="unit of the gyro (default: as the header states it; needed with a gyro otherwise)",
+        choices=("rad/s", "deg/s", "counts"),
+        help="unit of the gyro (default: as the header states it; needed with a gyro otherwise); "
+        "counts = raw integers, with --gyro-counts-per-dps",
+    )
+    p.add_argument(
+        "--gyro-counts-per-dps",
+        type=float,
+        metavar="N",
+        help="the gyro columns are raw counts, N per °/s (e.g. 131 for an MPU-6050/9250 at "
+        "±250 °/s, 16.4 at ±2000 °/s): converted to °/s (rad/s in ROS 2)",
     )
     p.add_argument("--no-gyro", action="store_true", help="leave gyro columns out")
     p.add_argument("--temperature-column", help="°C column (default: recognised if present)")
@@ -134,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
             epoch_unix_ns=args.epoch_unix_ns,
             gyro_columns=triple(args.gyro_columns),
             gyro_unit=args.gyro_unit,
+            gyro_counts_per_dps=args.gyro_counts_per_dps,
             read_gyro=not args.no_gyro,
             temperature_column=_column(args.temperature_column),
         )
