@@ -402,9 +402,14 @@ def write_calibration(
     session: SessionResult,
     provenance: dict | None = None,
     durable: bool = True,
+    document: dict | None = None,
 ) -> Path:
-    """Write the calibration JSON atomically; returns the path (``durable``: see atomic)."""
-    doc = calibration_dict(session, provenance)
+    """Write the calibration JSON atomically; returns the path (``durable``: see atomic).
+
+    ``document``: ``calibration_dict(session, provenance)`` when the caller made it
+    already (the session's view reads the same one).
+    """
+    doc = calibration_dict(session, provenance) if document is None else document
     text = dumps_indented(doc)  # json.dumps(doc, indent=2, allow_nan=False), faster
     atomic_write_text(path, text + "\n", durable=durable)
     return Path(path)

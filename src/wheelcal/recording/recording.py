@@ -157,6 +157,14 @@ def _kept_columns(clean: CleanSamples, given_ns, given_accel, consume: bool) -> 
         "accel_mps2": accel,
         "epoch_unix_ns": epoch,
         "clip_limits_mps2": clean.clip_limits_mps2,
+        **(
+            {
+                "clipped_time_s": (clean.clipped_ns - epoch) * 1e-9,
+                "clipped_mps2": clean.clipped_mps2,
+            }
+            if clean.clipped_ns is not None
+            else {}
+        ),
     }
 
 
@@ -236,6 +244,10 @@ class Recording:
     #: m/s², NaN where none; None when nothing clipped.  Clipped samples are already
     #: gone; the estimator also leaves out what the model predicts near a rail.
     clip_limits_mps2: np.ndarray | None = None
+    #: The clipped samples the reader dropped (their times, s from ``epoch_unix_ns``, and
+    #: readings, m/s²), kept for the views to mark; never fitted.  None: none dropped.
+    clipped_time_s: np.ndarray | None = None
+    clipped_mps2: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         """The invariants (cheap: no repair, one pass per check), or :class:`RecordingError`."""
@@ -250,6 +262,19 @@ class Recording:
             limits = limits.reshape(3, 2)
             limits.setflags(write=False)
             object.__setattr__(self, "clip_limits_mps2", limits)
+        if (self.clipped_time_s is None) != (self.clipped_mps2 is None):
+            raise RecordingError(f"{self.source}: clipped_time_s and clipped_mps2 go together")
+        if self.clipped_time_s is not None:
+            ct = _frozen_or_copy(self.clipped_time_s, self.source, "clipped_time_s").reshape(-1)
+            ca = _frozen_or_copy(self.clipped_mps2, self.source, "clipped_mps2")
+            if ca.shape != (ct.size, 3):
+                raise RecordingError(
+                    f"{self.source}: clipped_mps2 must be (K, 3) for K clipped times"
+                )
+            ct.setflags(write=False)
+            ca.setflags(write=False)
+            object.__setattr__(self, "clipped_time_s", ct)
+            object.__setattr__(self, "clipped_mps2", ca)
         t = _frozen_or_copy(self.time_s, self.source, "time_s").reshape(-1)
         a = _frozen_or_copy(self.accel_mps2, self.source, "accel_mps2")
         if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] != t.size:
@@ -404,9 +429,11 @@ class Recording:
         """A copy through the readers' checks (:meth:`from_samples`), e.g. of one built in memory.
 
         ``unit="g"``: its samples are in fact in g; ``info`` replaces its facts.
-        Its notes stay, the repairs' notes follow.
+        Its notes stay, the repairs' notes follow; where the checks find no clipping
+        (a recording whose clipped samples a reader already dropped), its rails and
+        dropped samples stay too.
         """
-        return Recording.from_samples(
+        checked = Recording.from_samples(
             source=self.source,
             time_ns=self.epoch_unix_ns + np.rint(self.time_s * 1e9).astype(np.int64),
             accel=self.accel_mps2,
@@ -425,6 +452,15 @@ class Recording:
                 if unit is not None
                 else {}
             ),
+        )
+        if checked.clip_limits_mps2 is not None or self.clip_limits_mps2 is None:
+            return checked
+        shift_s = (self.epoch_unix_ns - checked.epoch_unix_ns) * 1e-9
+        return replace(
+            checked,
+            clip_limits_mps2=self.clip_limits_mps2,
+            clipped_time_s=None if self.clipped_time_s is None else self.clipped_time_s + shift_s,
+            clipped_mps2=self.clipped_mps2,
         )
 
     @property

@@ -94,6 +94,9 @@ class CleanSamples:
     notes: tuple[str, ...]
     #: (3, 2) low/high rail per axis where clipping was found, NaN elsewhere.
     clip_limits_mps2: np.ndarray | None = None
+    #: The clipped samples that were dropped: stamps (int ns) and rows (m/s²), for views.
+    clipped_ns: np.ndarray | None = None
+    clipped_mps2: np.ndarray | None = None
 
 
 def percent(part: int, whole: int) -> str:
@@ -154,7 +157,7 @@ def clean_samples(
     step_ns = _typical_step_ns(t)  # sorted and unique from here on
     _report_gaps(t, step_ns, policy, notes)
     t, a = _drop_gross_outliers(path, t, a, policy, notes)
-    t, a, rails = _drop_clipped(path, t, a, full_scale_g, policy, notes)
+    t, a, rails, clipped = _drop_clipped(path, t, a, full_scale_g, policy, notes)
     _check_rate(path, t.size, step_ns, policy)
     _check_alive(path, a)
     if policy.check_units:
@@ -167,7 +170,8 @@ def clean_samples(
             f"a calibration needs at least {policy.min_samples} samples and "
             f"{policy.min_duration_s:g} s of free spin",
         )
-    return CleanSamples(t, a, tuple(notes), rails)
+    clipped_ns, clipped_mps2 = clipped if clipped is not None else (None, None)
+    return CleanSamples(t, a, tuple(notes), rails, clipped_ns, clipped_mps2)
 
 
 def rows_all(mask: np.ndarray) -> np.ndarray:
@@ -534,6 +538,8 @@ def _report_gaps(t, dt_ns, policy, notes):
 def _drop_clipped(path, t, a, full_scale_g, policy, notes):
     """Drop clipped samples; also return the rails (3, 2: low, high; NaN = none found).
 
+    And the dropped samples themselves (stamps, rows), for a view to mark.
+
     The rails travel with the recording: dropping only the samples *at* a rail
     keeps their neighbours whose noise happened to stay below it, a selection
     that biases the peaks low; the estimator therefore also leaves out the
@@ -561,7 +567,7 @@ def _drop_clipped(path, t, a, full_scale_g, policy, notes):
         how = "at the rails " + ", ".join(rails) + " m/s² (runs at the extreme value)"
     count = int(clipped.sum())
     if count == 0:
-        return t, a, None
+        return t, a, None, None
     if count > policy.max_clipped_fraction * t.size:
         raise SampleError(
             path,
@@ -569,7 +575,7 @@ def _drop_clipped(path, t, a, full_scale_g, policy, notes):
             "the sensor range is too small for this spin (use a larger range or spin slower)",
         )
     notes.append(f"dropped {count} clipped samples ({percent(count, t.size)}) {how}")
-    return t[~clipped], a[~clipped], limits
+    return t[~clipped], a[~clipped], limits, (t[clipped], a[clipped])
 
 
 def run_lengths(mask: np.ndarray) -> np.ndarray:
