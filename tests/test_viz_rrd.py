@@ -1027,9 +1027,10 @@ def test_batch_one_point_per_session(batch_sessions, tmp_path):
     assert index.tolist() == [2]
     # Legends name what is drawn; the two band lines share one entry.
     gain = group_path("imu/B", "m1") + "/gain_x"
-    assert static(chunks, f"{gain}/value", "SeriesPoints:names") == ["estimate"]
+    assert static(chunks, f"{gain}/value", "SeriesPoints:names") == ["estimate ± σ"]
     assert static(chunks, f"{gain}/band", "SeriesLines:names") == ["±σ", "±σ"]
-    assert static(chunks, f"{gain}/mean", "SeriesLines:names") == ["mean"]
+    # Without a batch's report (no pooled sensor): the value to apply is the group mean.
+    assert static(chunks, f"{gain}/applied", "SeriesLines:names") == ["the group mean"]
 
 
 def test_batch_numbers_as_given(batch_sessions, tmp_path):
@@ -1040,7 +1041,9 @@ def test_batch_numbers_as_given(batch_sessions, tmp_path):
         chunks, group_path("imu A", "") + "/gain_x/value", "Scalars:scalars", "session"
     )
     assert index.tolist() == [2, 5]
-    assert "| 4 | `run2.mcap` | imu/B | m1 |" in static(chunks, "/report", "TextDocument:text")[0]
+    assert (
+        "| 4 |  | `run2.mcap` | imu/B / m1 |" in static(chunks, "/report", "TextDocument:text")[0]
+    )
     with pytest.raises(ValueError, match="one distinct number per session"):
         write_batch_rrd(tmp_path / "b.rrd", batch_sessions, numbers=[1, 1, 2, 3, 4])
 
@@ -1049,11 +1052,15 @@ def test_batch_reports_and_blueprint(batch_sessions, tmp_path):
     path = write_batch_rrd(tmp_path / "batch.rrd", batch_sessions)
     chunks = read_store(path)
     overview = static(chunks, "/report", "TextDocument:text")[0]
-    assert "| 4 | `run3.mcap` | imu A | unspecified |" in overview
+    assert "| 4 |  | `run3.mcap` | imu A / unspecified |" in overview
     group = static(chunks, group_path("imu/B", "m1") + "/report", "TextDocument:text")[0]
     assert "3 sessions: 1, 3, 5" in group
     gains = [batch_sessions[i]["parameters"]["gain_x"]["value"] for i in (0, 2, 4)]
-    assert f"| `gain_x` | {np.mean(gains):.7g} | {np.std(gains, ddof=1):.2g} |" in group
+    # without a batch report (no pooled sensor) the value to apply is the group mean ± std/√n
+    std = np.std(gains, ddof=1)
+    assert f"| gain_x | {np.mean(gains):.6g}ᵍ ± {std / np.sqrt(3):.2g} |" in group
+    row = next(line for line in group.splitlines() if line.startswith("| gain_x |"))
+    assert row.split("|")[4].strip() == f"{std:.2g}"
     # The spin's parameters: per session by nature, mean and std, no ratio.
     omega = [batch_sessions[i]["parameters"]["omega0_radps"]["value"] for i in (0, 2, 4)]
     spin_row = f"| `omega0_radps` | {np.mean(omega):.7g} | {np.std(omega, ddof=1):.2g} |"
@@ -1071,11 +1078,11 @@ def test_batch_reports_and_blueprint(batch_sessions, tmp_path):
     paused = [[rrb.components.PlayState.Paused.value]]
     assert blueprint_component(path, "TimePanelBlueprint:play_state") == paused
     props = view_properties(path)
-    assert props["gain_x"]["PlotLegend"]["PlotLegend:visible"] == [[True]]
+    assert props["gain_x"]["PlotLegend"]["PlotLegend:visible"] == [[False]]  # the report says
     linked = rrb.components.LinkAxis.LinkToGlobal.value
     assert props["gain_x"]["TimeAxis"]["TimeAxis:link"] == [[linked]]
-    # Every session on the shared x-axis, two sessions of room at the left for the legend.
-    assert range_boundaries(path) == [("Absolute", -1), ("Absolute", 6)]
+    # Every session on the shared x-axis, one session of room either side.
+    assert range_boundaries(path) == [("Absolute", 0), ("Absolute", 6)]
     # The tabs: the overview, and per group its parameters and its spins.
     names = blueprint_component(path, "ContainerBlueprint:display_name")
     assert ["imu/B / m1"] in names and ["imu/B / m1: spin (per session)"] in names
