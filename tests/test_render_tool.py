@@ -16,7 +16,7 @@ import pytest
 from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
-import render_rrd as R  # noqa: E402
+import render_rrd as R
 
 W, H = 400, 200
 TABS = [40, 140, 260]  # x of each tab title
