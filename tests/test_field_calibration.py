@@ -245,9 +245,7 @@ def test_a_car_that_rolls_in_its_turns_is_refused_by_name():
         wheelcal.calibrate(sim.recording)
     assert refused.value.gate == "lean"
     # the API names its keyword (issue 39), the command line its option
-    assert "camber changes by" in str(refused.value) and "max_lean_change_deg" in str(
-        refused.value
-    )
+    assert "camber changes by" in str(refused.value) and "max_lean_change_deg" in str(refused.value)
     # the same drive without the roll is calibrated (and its lean is read as small)
     rng = np.random.default_rng(3)
     cal = wheelcal.calibrate(simulate_field(car_drive(rng), rng).recording)

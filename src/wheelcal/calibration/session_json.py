@@ -1,8 +1,9 @@
 """``<stem>.calibration.json`` — the contract's per-session calibration file.
 
-Written atomically.  Keys follow ../shared/CONTRACT.md; additions are additive
-(``parameters``, ``geometry``, ``fit.noise_model``, ``fit.twin``,
-``bench.radius_std_m``, ``wheelcal_version``).
+Written atomically.  Keys follow the contract (docs/guide/outputs.md); additions are
+additive (``parameters``, ``geometry``, ``fit.noise_model``, ``fit.twin``,
+``bench.radius_std_m``, ``wheelcal_version``, ``imu_noise``: Kalibr's noise terms,
+:mod:`wheelcal.calibration.imu_noise`).
 """
 
 from __future__ import annotations
