@@ -98,16 +98,19 @@ def main() -> None:
 def versus(ref: str, session, out: Path, repeats: int) -> None:
     """``write_session_rrd`` of ``ref`` and of this tree, interleaved; wall and CPU."""
     with reference_code(ref):
-        from wheelcal_ref.estimate.joint import JointFit as RefJoint
+        from wheelcal_ref.estimate.joint.fit import JointFit as RefJoint
+        from wheelcal_ref.session.fit import session_of_fit as ref_session_of_fit
         from wheelcal_ref.simulate import simulate as ref_simulate
         from wheelcal_ref.simulate import table1 as ref_table1
         from wheelcal_ref.viz.session_rrd import write_session_rrd as ref_write
 
         ref_recording = ref_simulate(ref_table1(), np.random.default_rng(0)).recording
-        ref_result = RefJoint().fit(ref_recording)
+        ref_session = ref_session_of_fit(RefJoint().fit(ref_recording), ref_recording)
+        # as a batch writes them: no fsync per file; this tree's with the JSON it shares
+        document = calibration_dict(session)
         fns = {
-            "ref": lambda: ref_write(out / "ref.rrd", ref_result, ref_recording, None),
-            "now": lambda: write_session_rrd(out / "now.rrd", session),
+            "ref": lambda: ref_write(out / "ref.rrd", ref_session, False),
+            "now": lambda: write_session_rrd(out / "now.rrd", session, False, document),
         }
         sizes = {}
         for clock, what in ((time.perf_counter, "wall"), (time.process_time, "CPU")):

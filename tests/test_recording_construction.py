@@ -139,7 +139,8 @@ def test_a_recording_in_memory_gets_the_readers_repairs_and_notes(session):
 
 def test_the_api_holds_a_stated_unit_to_the_data_as_the_reader_does(session):
     rec = session.recording
-    with pytest.raises(SampleError, match="they look like m/s\\^2, but the file says g"):
+    # the unit was the keyword's, not the file's: the message says so (issue 39)
+    with pytest.raises(SampleError, match="they look like m/s\\^2, but accel_unit='g' says g"):
         wheelcal.calibrate(rec, radius_m=0.28, accel_unit="g")
     in_g = dataclasses.replace(rec, accel_mps2=rec.accel_mps2 / G)
     checked = in_g.checked(unit="g")

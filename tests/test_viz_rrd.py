@@ -195,9 +195,15 @@ def test_session_entity_paths(session_file):
         "/spin/omega_radps",
         "/spin/omega_measured_radps",
         "/report",
-        # the simulated session rests before and after: their Allan deviation
+        "/verdict",
+        *(f"/noise_band/{a}/{e}" for a in "xyz" for e in ("upper", "lower")),
+        # the simulated session rests before and after: their Allan deviation, with axes
         "/allan/readouts",
-        *(f"/allan/{a}{r}" for a in "xyz" for r in ("", "/readouts")),
+        "/allan/curve_names",
+        "/allan/noise_density",
+        "/allan/random_walk_bound",
+        *(f"/allan/axes/{e}" for e in ("frame", "grid", "labels")),
+        *(f"/allan/{a}" for a in "xyz"),
     }
     assert set(chunks) - {"/__properties"} == expected
 
@@ -390,8 +396,10 @@ def test_report_panel(session, session_file):
     for name in ("gain_x", "offset_z_mps2", "tilt_deg"):
         assert f"| `{name}` | {result.value_of(name):.7g} | {result.std_of(name):.2g} |" in text
     assert f"{result.systematic.std_of('gain_x'):.2g}" in text
-    assert "## Warnings" in text
-    assert window.reason in text
+    verdict = static(chunks, "/verdict", "TextDocument:text")[0]
+    assert "**warnings (" in verdict
+    document = calibration_dict(judged(result, recording, window))
+    assert document["source"]["window_reason"] in verdict  # the JSON's words, not its own
     # The simulator's first sample: 1.7e9 s after the Unix epoch.
     assert recording.epoch_unix_ns == 1_700_000_000_000_000_000
     assert "**recorded**: 2023-11-14 22:13:20.000 UTC" in text
@@ -472,7 +480,8 @@ def test_session_blueprint(session, session_file):
     views = blueprint_views(path)
     classes = {v[0] for v in views}
     assert {"TimeSeries", "BarChart", "TextDocument", "StateTimeline"} <= classes
-    assert ("TextDocument", "calibration", "/report") in views
+    assert ("TextDocument", "parameters (σ stat, σ sys)", "/report") in views
+    assert ("TextDocument", "verdict", "/verdict") in views
     assert ("TimeSeries", "ω(t): model and measured (rad/s)", "/spin") in views
     # Opens paused on `time`, folded to its play bar, the free-spin window selected.
     assert blueprint_component(path, "TimePanelBlueprint:timeline") == [["time"]]
@@ -496,13 +505,13 @@ def test_session_blueprint(session, session_file):
             assert props[name]["TimeAxis"]["TimeAxis:link"] == [[linked]], name
     # Per-axis views draw one field of each entity, with a legend naming it.
     for axis in "xyz":
-        signal = props[f"{axis}: data and model (m/s²)"]
+        signal = props[f"{axis}: data and model (m/s²; min/max per pixel)"]
         assert overrides_of(signal) == {
             ("/signal", ("data",), SIGNAL_DATA, f".{axis}"),
             ("/signal", ("model",), SIGNAL_MODEL, f".{axis}"),
         }
         assert "PlotLegend" not in signal  # Rerun's default: the legend is shown
-        residual = props[f"{axis}: residual, data − model (m/s²)"]
+        residual = props[f"{axis}: residual, data − model (m/s²); lines: ±2σ noise"]
         assert overrides_of(residual) == {("/residual/fit", ("data − model",), f".{axis}")}
         assert "PlotLegend" not in residual
         bars = props[f"{axis}: residual per 5° of ϑ; grey: ±2σ of noise"]
@@ -746,7 +755,7 @@ def test_window_none_marks_the_fitted_span(session, tmp_path):
     t_ns, states = temporal(chunks, "/window", "StateChange:state", "time")
     assert states[1] == ["free spin"]
     assert t_ns[1] == round(result.time_s[0] * 1e9) and t_ns[2] == round(result.time_s[-1] * 1e9)
-    assert "window given" in static(chunks, "/report", "TextDocument:text")[0]
+    assert "window given" in static(chunks, "/verdict", "TextDocument:text")[0]
 
 
 def test_more_residual_sets(session, tmp_path):
@@ -765,7 +774,7 @@ def test_more_residual_sets(session, tmp_path):
     assert f"/residual_angle_mean/y/{BAND_ENTITY}" in chunks  # the calibration's set only
     assert not any(e.startswith("/residual_angle_mean/y/after/") for e in chunks)
     # The blueprint, written last, draws the new set in the per-axis views, with a legend.
-    props = view_properties(path)["y: residual, data − model (m/s²)"]
+    props = view_properties(path)["y: residual, data − model (m/s²); lines: ±2σ noise"]
     assert overrides_of(props) == {
         ("/residual/fit", ("data − model",), ".y"),
         ("/residual/after", ("half",), ".y"),
@@ -945,27 +954,30 @@ def test_diagnose_shows_the_effects_added_before_and_after(diagnosed):
         assert f"| `{name}` | {b:.7g} | {a:.7g} | {after[name]['std']:.2g} | {shift:.2g} |" in text
         assert abs(shift) > 3  # the imbalance biased the paper's model
     assert "`imbalance.sin_radps2` (added)" in text
-    # The residual folded on ϑ: the paper's model leaves a pattern that the final removes.
+    # The residual folded on ϑ: the paper's model leaves a pattern that the final removes,
+    # each beside the other with the ±2σ band of its bin means.
     spread = {}
     for name in ("paper_model", "with_effects"):
         bars = [
-            static(chunks, f"/closed_loop/angle/{a}/{name}", "BarChart:values")[0]["buffer"]
+            static(chunks, f"/closed_loop/{name}/{a}/mean", "BarChart:values")[0]["buffer"]
             for a in "xyz"
         ]
+        band = [
+            static(chunks, f"/closed_loop/{name}/{a}/{BAND_ENTITY}", "BarChart:values")[0]
+            for a in "xyz"
+        ]
+        assert all(len(b["buffer"]) == 2 * ANGLE_BINS for b in band)
         spread[name] = float(np.sqrt(np.mean(np.square(bars))))
     assert spread["paper_model"] > 1.3 * spread["with_effects"]
-    # The trends are the residual's 2-s means on `time`, before and after.
-    for name in ("paper_model", "with_effects"):
-        t_ns, mean = xyz(chunks, f"/closed_loop/trend/{name}")
-        assert 40 <= t_ns.size <= 50 and np.all(np.abs(mean) < 0.05)
-    # And the tab is in the blueprint, with its legends naming the two models.
+    # An imbalance repeats every turn: no trend column (it drew two identical lines)
+    assert not any(e.startswith("/closed_loop/trend") for e in chunks)
+    # And the tab is in the blueprint: before and after side by side, per axis.
     views = blueprint_views(path)
     assert ("TextDocument", "closed loop: what it added", "/closed_loop/report") in views
-    props = view_properties(path)["x: residual, mean per 2 s (m/s²)"]
-    assert overrides_of(props) == {
-        ("/closed_loop/trend/paper_model", ("paper's model",), ".x"),
-        ("/closed_loop/trend/with_effects", ("with effects",), ".x"),
-    }
+    for a in "xyz":
+        for name, label in (("paper_model", "paper's model"), ("with_effects", "with effects")):
+            title = f"{a}: {label} — residual per 5° of ϑ; grey: ±2σ of noise"
+            assert ("BarChart", title, f"/closed_loop/{name}/{a}") in views
 
 
 # ---------------------------------------------------------------- batch file
@@ -1015,9 +1027,10 @@ def test_batch_one_point_per_session(batch_sessions, tmp_path):
     assert index.tolist() == [2]
     # Legends name what is drawn; the two band lines share one entry.
     gain = group_path("imu/B", "m1") + "/gain_x"
-    assert static(chunks, f"{gain}/value", "SeriesPoints:names") == ["estimate"]
+    assert static(chunks, f"{gain}/value", "SeriesPoints:names") == ["estimate ± σ"]
     assert static(chunks, f"{gain}/band", "SeriesLines:names") == ["±σ", "±σ"]
-    assert static(chunks, f"{gain}/mean", "SeriesLines:names") == ["mean"]
+    # Without a batch's report (no pooled sensor): the value to apply is the group mean.
+    assert static(chunks, f"{gain}/applied", "SeriesLines:names") == ["the group mean"]
 
 
 def test_batch_numbers_as_given(batch_sessions, tmp_path):
@@ -1028,7 +1041,9 @@ def test_batch_numbers_as_given(batch_sessions, tmp_path):
         chunks, group_path("imu A", "") + "/gain_x/value", "Scalars:scalars", "session"
     )
     assert index.tolist() == [2, 5]
-    assert "| 4 | `run2.mcap` | imu/B | m1 |" in static(chunks, "/report", "TextDocument:text")[0]
+    assert (
+        "| 4 |  | `run2.mcap` | imu/B / m1 |" in static(chunks, "/report", "TextDocument:text")[0]
+    )
     with pytest.raises(ValueError, match="one distinct number per session"):
         write_batch_rrd(tmp_path / "b.rrd", batch_sessions, numbers=[1, 1, 2, 3, 4])
 
@@ -1037,11 +1052,15 @@ def test_batch_reports_and_blueprint(batch_sessions, tmp_path):
     path = write_batch_rrd(tmp_path / "batch.rrd", batch_sessions)
     chunks = read_store(path)
     overview = static(chunks, "/report", "TextDocument:text")[0]
-    assert "| 4 | `run3.mcap` | imu A | unspecified |" in overview
+    assert "| 4 |  | `run3.mcap` | imu A / unspecified |" in overview
     group = static(chunks, group_path("imu/B", "m1") + "/report", "TextDocument:text")[0]
     assert "3 sessions: 1, 3, 5" in group
     gains = [batch_sessions[i]["parameters"]["gain_x"]["value"] for i in (0, 2, 4)]
-    assert f"| `gain_x` | {np.mean(gains):.7g} | {np.std(gains, ddof=1):.2g} |" in group
+    # without a batch report (no pooled sensor) the value to apply is the group mean ± std/√n
+    std = np.std(gains, ddof=1)
+    assert f"| gain_x | {np.mean(gains):.6g}ᵍ ± {std / np.sqrt(3):.2g} |" in group
+    row = next(line for line in group.splitlines() if line.startswith("| gain_x |"))
+    assert row.split("|")[4].strip() == f"{std:.2g}"
     # The spin's parameters: per session by nature, mean and std, no ratio.
     omega = [batch_sessions[i]["parameters"]["omega0_radps"]["value"] for i in (0, 2, 4)]
     spin_row = f"| `omega0_radps` | {np.mean(omega):.7g} | {np.std(omega, ddof=1):.2g} |"
@@ -1059,11 +1078,11 @@ def test_batch_reports_and_blueprint(batch_sessions, tmp_path):
     paused = [[rrb.components.PlayState.Paused.value]]
     assert blueprint_component(path, "TimePanelBlueprint:play_state") == paused
     props = view_properties(path)
-    assert props["gain_x"]["PlotLegend"]["PlotLegend:visible"] == [[True]]
+    assert props["gain_x"]["PlotLegend"]["PlotLegend:visible"] == [[False]]  # the report says
     linked = rrb.components.LinkAxis.LinkToGlobal.value
     assert props["gain_x"]["TimeAxis"]["TimeAxis:link"] == [[linked]]
-    # Every session on the shared x-axis, two sessions of room at the left for the legend.
-    assert range_boundaries(path) == [("Absolute", -1), ("Absolute", 6)]
+    # Every session on the shared x-axis, one session of room either side.
+    assert range_boundaries(path) == [("Absolute", 0), ("Absolute", 6)]
     # The tabs: the overview, and per group its parameters and its spins.
     names = blueprint_component(path, "ContainerBlueprint:display_name")
     assert ["imu/B / m1"] in names and ["imu/B / m1: spin (per session)"] in names

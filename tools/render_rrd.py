@@ -3,7 +3,8 @@
 What it renders (``docs/rerun/`` by default):
 
 * ``session.png`` — ``session001.rrd`` of the bundled pipeline
-  (``pipelines/table2-repeatability.toml``), as it opens;
+  (``pipelines/table2-repeatability.toml``), as it opens; ``session_clipped.png`` —
+  its ``session004.rrd``, whose fast first turns clipped 18 % of the samples at ±4 g;
 * ``batch.png``, ``batch_spin.png`` and ``batch_sessions.png`` — its
   ``batch.rrd``: the group's tab (as it opens), the group's spin tab and the
   sessions tab;
@@ -20,10 +21,16 @@ it would, in headless Chromium (Debian's ``chromium`` package) driven by
 Playwright (``pip install playwright``; never ``playwright install``: the
 system browser is used), with WebGL (``?renderer=webgl``: a software
 renderer, no GPU needed).  The viewer draws on one canvas; a tab is opened by
-clicking its title, found in the tab bar's pixels.
+clicking its title, found in the tab bar's pixels, and **checked by what the viewer
+then shows**, never by "the pixels changed" (the mouse over a title highlights it,
+which a pixel difference takes for a switch): after the click the mouse leaves the
+tab bar, and the tab counts as open only when the viewer marks that title as the
+selected tab (its blue pill, :func:`selected_tab`) and the views below the tab bar
+differ from the tab it opened on (:func:`views_changed`).  A shot whose tab cannot be
+verified is an error, not an image.
 
     python tools/render_rrd.py [--out out/render] [--docs docs/rerun]
-        [--chromium /usr/bin/chromium] [--size 1600x1000]
+        [--chromium /usr/bin/chromium] [--size 1920x1080]
 
 Look at every image after running it.
 """
@@ -110,6 +117,7 @@ def make_files(out: Path) -> dict[str, Path]:
     wheelcal("diagnose", mcap.name, "--out", ".", "--rrd", cwd=out.resolve())
     return {
         "session": pipeline_out / "session001.rrd",
+        "clipped": pipeline_out / "session004.rrd",
         "batch": pipeline_out / "batch.rrd",
         "closed_loop": out / "imbalance.rrd",
     }
@@ -184,18 +192,54 @@ def settle(page, minimum_s: float = LOAD_S, timeout_s: float = 90.0) -> None:
     raise RuntimeError(f"the viewer kept changing for {timeout_s:.0f} s")
 
 
-def open_tab(page, shot: Shot, width: int, tries: int = 4) -> None:
-    """Click the shot's tab title until the view changes (a click while drawing can be lost)."""
+def _pixels(png: bytes) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
+
+
+def selected_tab(png: bytes, centres: list[int]) -> int | None:
+    """The tab the viewer marks as selected: the one whose title sits in the blue pill.
+
+    Rerun 0.41 draws a selected tab's title on a filled blue (≈ #186ADD) pill; a title
+    under the mouse is only lightened.  None when no title is in a pill.
+    """
+    strip = _pixels(png)[TOP_BAR_PX + 4 : TOP_BAR_PX + TAB_BAR_PX - 4]
+    r, b = strip[..., 0], strip[..., 2]
+    blue = np.flatnonzero(((b > 150) & (b - r > 80)).sum(axis=0) >= 4)
+    if blue.size == 0:
+        return None
+    inside = [k for k, x in enumerate(centres) if blue.min() <= x <= blue.max()]
+    return inside[0] if len(inside) == 1 else None
+
+
+def views_changed(before: bytes, after: bytes, share: float = 0.05) -> bool:
+    """Whether the views below the tab bar differ (on ≥ ``share`` of their pixels)."""
+    top = TOP_BAR_PX + TAB_BAR_PX
+    a, b = _pixels(before)[top:], _pixels(after)[top:]
+    return a.shape == b.shape and float(np.mean(np.any(a != b, axis=2))) >= share
+
+
+def open_tab(page, shot: Shot, size: tuple[int, int], tries: int = 4) -> None:
+    """Click the shot's tab title until the viewer shows that tab (checked, module docstring)."""
+    width, height = size
     before = page.screenshot()
     centres = tab_centres(before, width)
     if len(centres) <= shot.tab:
         raise RuntimeError(f"{shot.file}: found tabs at {centres}, not tab {shot.tab}")
+    seen = None
     for _ in range(tries):
         page.mouse.click(centres[shot.tab], TOP_BAR_PX + TAB_BAR_PX // 2)
+        page.mouse.move(width // 2, height - 2)  # off the tab bar: no hover highlight
         settle(page, minimum_s=2.0)
-        if page.screenshot() != before:
+        now = page.screenshot()
+        seen = selected_tab(now, centres)
+        if seen == shot.tab and views_changed(before, now):
             return
-    raise RuntimeError(f"{shot.file}: clicking tab {shot.tab} changed nothing")
+    raise RuntimeError(
+        f"{shot.file}: tab {shot.tab} did not open (the viewer shows tab {seen} selected, "
+        f"tabs at x = {centres})"
+    )
 
 
 def render(shots: list[Shot], docs: Path, chromium: str, size: tuple[int, int]) -> list[Path]:
@@ -225,7 +269,7 @@ def render(shots: list[Shot], docs: Path, chromium: str, size: tuple[int, int]) 
             page.goto(f"http://127.0.0.1:{viewer_port}/?url={url}&renderer=webgl")
             settle(page)
             if shot.tab is not None:
-                open_tab(page, shot, size[0])
+                open_tab(page, shot, size)
             target = docs / shot.png
             target.write_bytes(small_png(page.screenshot()))
             written.append(target)
@@ -248,12 +292,13 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "render")
     ap.add_argument("--docs", type=Path, default=ROOT / "docs" / "rerun")
     ap.add_argument("--chromium", default="/usr/bin/chromium")
-    ap.add_argument("--size", default="1600x1000", help="viewport WxH in px")
+    ap.add_argument("--size", default="1920x1080", help="viewport WxH in px")
     args = ap.parse_args()
     size = tuple(int(v) for v in args.size.split("x"))
     files = make_files(args.out)
     shots = [
         Shot(files["session"], "session.png"),
+        Shot(files["clipped"], "session_clipped.png"),
         Shot(files["batch"], "batch.png"),
         Shot(files["batch"], "batch_sessions.png", tab=0),
         Shot(files["batch"], "batch_spin.png", tab=2),

@@ -19,9 +19,48 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 
 from wheelcal.calibration.document import Calibration
-from wheelcal.recording import Recording
+from wheelcal.recording import CalibrationRefused, Recording
+
+#: The command line's options as this API's keywords, for a refusal's words
+#: (the gates speak the command line's language; ``calibrate`` translates them).
+KEYWORDS = {
+    "--radius": "radius_m=",
+    "--radius-std": "radius_std_m=",
+    "--start-s": "start_s=",
+    "--end-s": "end_s=",
+    "--topic": "topic=",
+    "--geometry": "geometry=",
+    "--tilt-deg": "known_tilt_deg=",
+    "--tilt-std-deg": "tilt_std_deg=",
+    "--gravity": "gravity_mps2=",
+    "--force-gravity": "force_gravity=True",
+    "--full-scale-g": "full_scale_g=",
+    "--gyro": "gyro=",
+    "--gyro-g-sensitivity": "gyro_g_sensitivity_dps_per_g=",
+    "--model": "model=",
+    "--alpha": "alpha=",
+    "--gain-tolerance": "gates=wheelcal.Gates(gain_tolerance=...)",
+    "--offset-tolerance-g": "gates=wheelcal.Gates(offset_tolerance_g=...)",
+    "--max-lean-change-deg": "gates=wheelcal.Gates(max_lean_change_deg=...)",
+}
+_UNIT_OPTION = re.compile(r"--accel-unit (m/s\^2|g)\b")
+_OPTION = re.compile(r"--[a-z][a-z0-9-]*")
+
+
+def api_words(text: str) -> str:
+    """A message in this API's words: ``--radius`` → ``radius_m=`` (:data:`KEYWORDS`)."""
+    text = _UNIT_OPTION.sub(lambda m: f"accel_unit={m.group(1)!r}", text)
+    return _OPTION.sub(lambda m: KEYWORDS.get(m.group(0), m.group(0)), text)
+
+
+def _in_api_words(refusal: CalibrationRefused) -> CalibrationRefused:
+    """The same refusal, its reason and fix naming keywords instead of options."""
+    return CalibrationRefused(
+        refusal.source, refusal.gate, api_words(refusal.reason), api_words(refusal.fix)
+    )
 
 
 def read_recording(path: str | os.PathLike, **kwargs) -> Recording:
@@ -49,7 +88,9 @@ def calibrate(
     Raises
     ------
     CalibrationRefused
-        A plausibility gate refused the result (README "When wheelcal refuses").
+        A plausibility gate refused the result (README "When wheelcal refuses");
+        its ``reason`` and ``fix`` name this function's keywords (``radius_m=``),
+        not the command line's options.
     wheelcal.io.InputError, RecordingError
         The recording cannot be read or used (the message names it and the problem).
     TypeError
@@ -58,11 +99,14 @@ def calibrate(
     from wheelcal.session.compute import compute_recording, compute_session
 
     opts = _options(radius_m, options)
-    if isinstance(source, Recording):
-        info = source.info.merged(**opts.info_overrides())
-        outcome = compute_recording(source.checked(unit=opts.accel_unit, info=info), opts)
-    else:
-        outcome = compute_session(source, opts)
+    try:
+        if isinstance(source, Recording):
+            info = source.info.merged(**opts.info_overrides())
+            outcome = compute_recording(source.checked(unit=opts.accel_unit, info=info), opts)
+        else:
+            outcome = compute_session(source, opts)
+    except CalibrationRefused as refusal:
+        raise _in_api_words(refusal) from None
     return Calibration.from_session(outcome)
 
 

@@ -8,6 +8,9 @@ expected value).
 
 * **Is the spread larger than predicted?**  With honest σ,
   (n − 1)·ratio² follows χ²(n − 1); ``ratio_p_value`` is the upper tail.
+* **Angles** (the mounting's Euler angles) are averaged as angles: unwrapped about
+  their circular mean first (:mod:`wheelcal.calibration.angles`), so 179° and −179°
+  average to 180°, not 0°.
 * **Outliers**: each session against the others, t = (xᵢ − x̄₋ᵢ) / (s₋ᵢ √(1 + 1/(n−1))),
   Student t with n − 2 dof (externally studentised), Bonferroni-corrected over
   sessions × parameters; flagged when the corrected p < 0.01.
@@ -35,6 +38,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from scipy import special
 
+from wheelcal.calibration.angles import as_angles
 from wheelcal.calibration.document import Calibration, read_only_document
 from wheelcal.model.parameters import AXES
 
@@ -148,8 +152,8 @@ def _stats_of(members: list[dict], names: list[str]) -> dict:
     """group_statistics for each name over member parameter tables ({name: {value, std}})."""
     out = {}
     for name in names:
-        values = np.array(
-            [np.nan if m[name]["value"] is None else m[name]["value"] for m in members]
+        values = as_angles(
+            name, [np.nan if m[name]["value"] is None else m[name]["value"] for m in members]
         )
         stds = np.array([np.nan if m[name]["std"] is None else m[name]["std"] for m in members])
         out[name] = group_statistics(values, stds)
@@ -215,7 +219,8 @@ def _group_entry(
     params = {}
     outliers: list[dict] = []
     for name in names:
-        values = np.array([table[name][0] for table in tables], dtype=float)
+        # angles averaged as angles: unwrapped about their circular mean (calibration/angles.py)
+        values = as_angles(name, [table[name][0] for table in tables])
         stds = np.array([table[name][1] for table in tables], dtype=float)
         params[name] = group_statistics(values, stds)
         outliers += _outliers(files, name, values, len(names) * len(members))
@@ -257,6 +262,14 @@ _DROPPED = {
     "nonfinite": re.compile(r"dropped (\d+) NaN/inf samples"),
     "duplicate": re.compile(r"(\d+) samples repeated a timestamp"),
 }
+
+
+_CLIPPED_SHARE = re.compile(r"dropped \d+ clipped samples \(([0-9.e+-]+) %\)")
+
+
+def clipped_percent(notes: Sequence[str]) -> float:
+    """The share of the recording's samples that clipped, in per cent (0: none)."""
+    return float(sum(float(m.group(1)) for n in notes for m in _CLIPPED_SHARE.finditer(n)))
 
 
 def dropped_counts(notes: Sequence[str]) -> dict[str, int]:
@@ -326,6 +339,7 @@ def session_entry(
         samples=src.get("samples"),
         residual_rms_mps2=fit.get("residual_rms_mps2"),
         clipped_samples=counts["clipped"],
+        clipped_percent=clipped_percent(src.get("notes", [])),
         dropped_samples=sum(counts.values()),
         warnings=len(fit.get("warnings", [])),
         model=fit.get("model", "paper"),

@@ -531,7 +531,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     if batch_rrd:
         from wheelcal.viz.batch_rrd import write_batch_rrd
 
-        write_batch_rrd(out / "batch.rrd", calibrations, numbers)
+        write_batch_rrd(out / "batch.rrd", calibrations, numbers, report)
     _sync()  # the sensor files and the PNG (written without per-file fsync)
     # report.json last: its key marks the whole report as complete.
     atomic_write_text(json_path, dumps_indented(json_safe(report)) + "\n")

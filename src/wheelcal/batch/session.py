@@ -83,11 +83,13 @@ def session_stem(path: str | Path) -> str:
     return name[: -len(".mcap")] if name.endswith(".mcap") else Path(path).stem
 
 
-def _write_rrd(path: Path, session: SessionResult, durable: bool = True) -> Path:
+def _write_rrd(
+    path: Path, session: SessionResult, durable: bool = True, document: dict | None = None
+) -> Path:
     """Session .rrd; with a diagnosis that added effects, its before/after tab."""
     from wheelcal.viz.session_rrd import write_session_rrd
 
-    return write_session_rrd(path, session, durable)
+    return write_session_rrd(path, session, durable, document)
 
 
 def write_session(
@@ -98,7 +100,7 @@ def write_session(
     durable: bool = True,
 ) -> SessionOutcome:
     """Write a computed session's files; returns the outcome with their paths."""
-    from wheelcal.calibration.session_json import write_calibration
+    from wheelcal.calibration.session_json import calibration_dict, write_calibration
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -108,8 +110,9 @@ def write_session(
     # The .rrd first: the calibration JSON marks a complete session (the batch's
     # up-to-date check), so it is written last.
     rrd_path = diagnosis_path = None
+    document = calibration_dict(outcome.session, provenance)  # the JSON and the view's verdict
     if options.rrd:
-        rrd_path = str(_write_rrd(out / f"{stem}.rrd", outcome.session, durable))
+        rrd_path = str(_write_rrd(out / f"{stem}.rrd", outcome.session, durable, document))
         timings["rrd"] = time.perf_counter() - t1
         t1 = time.perf_counter()
     diagnosis = outcome.session.diagnosis
@@ -120,7 +123,7 @@ def write_session(
             write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis, durable=durable)
         )
     json_path = write_calibration(
-        out / f"{stem}.calibration.json", outcome.session, provenance, durable
+        out / f"{stem}.calibration.json", outcome.session, provenance, durable, document
     )
     timings["write"] = time.perf_counter() - t1
     return replace(

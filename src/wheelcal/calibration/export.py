@@ -5,12 +5,14 @@ b in m/s² and M dimensionless (row-major).  A session's calibration
 (``wheelcal.calibration/1``) and a sensor's pooled one
 (``wheelcal.sensor_calibration/1``) export alike.
 
-* ``yaml``: Kalibr's ``imu.yaml`` keys at the top level —
-  ``accelerometer_noise_density`` and ``accelerometer_random_walk`` from the
-  rests' Allan deviation (``fit.allan``; ``null`` when the recording has no
-  rest), ``update_rate`` and ``rostopic`` — and wheelcal's ``imu0`` block
+* ``yaml``: Kalibr's ``imu.yaml`` keys at the top level — the accelerometer's
+  and the gyroscope's ``*_noise_density`` (the white noise's σ per sample /
+  √rate, Kalibr's definition) and ``*_random_walk`` (the rests' Allan bound,
+  marked as one), from ``imu_noise`` (:mod:`wheelcal.calibration.imu_noise`;
+  a key that cannot be filled is left out and a comment says why),
+  ``update_rate`` and ``rostopic`` — and wheelcal's ``imu0`` block
   (``accelerometer.bias_mps2``, ``matrix``, statistical and systematic σ, the
-  per-axis Allan read-outs);
+  per-axis Allan read-outs, ``noise``: the per-axis noise terms);
 * ``imu_calib``: the ROS ``imu_calib`` package's ``SM`` (9, row-major) and
   ``bias``, for a = SM v − bias;
 * ``c``: a C header with ``<prefix>_accel_correct()``.
@@ -29,6 +31,7 @@ import json
 
 import numpy as np
 
+from wheelcal.calibration.imu_noise import ALLAN_VARIANCE_ROS_NAMES, KALIBR_KEYS, kalibr_values
 from wheelcal.calibration.session_json import (
     SENSOR_CALIBRATION_FORMAT,
     load_correction_from,
@@ -75,46 +78,79 @@ def _yaml_number(value) -> float | None:
     return None if value is None or not np.isfinite(value) else float(value)
 
 
-def _kalibr_noise(calibration: dict) -> tuple[dict, list[str]]:
-    """Kalibr's accelerometer keys, and comment lines saying where each comes from."""
+def _update_rate(calibration: dict) -> float | None:
+    """Kalibr's ``update_rate``: the recording's median sample rate (Hz)."""
     fit = calibration.get("fit", {})
-    allan = fit.get("allan")
-    rate = calibration.get("source", {}).get("rate_hz") or (allan or {}).get("rate_hz")
-    keys = {
-        "accelerometer_noise_density": None,
-        "accelerometer_random_walk": None,
-        "update_rate": _yaml_number(rate),
-    }
-    if not allan:
-        notes = [
-            "accelerometer_noise_density, accelerometer_random_walk: null — the recording has "
-            "no rest (the sensor still before the push or after the stop) to read an Allan "
-            "deviation from; record ≥ 10 s of rest, or fill them in from your sensor's own",
-        ]
-        return keys, notes
-    density = max(allan["white_noise_density_mps2_rthz"])
-    walk = max(allan["random_walk_mps3_rthz"])
-    keys["accelerometer_noise_density"] = _yaml_number(density)
-    keys["accelerometer_random_walk"] = _yaml_number(walk)
-    read = (
-        "read at tau = 1 s"
-        if allan["white_noise_read_at_1s"]
-        else ("extrapolated along the -1/2 slope: the rests do not reach tau = 1 s")
+    rate = (
+        calibration.get("source", {}).get("rate_hz")
+        or (calibration.get("imu_noise") or {}).get("rate_hz")
+        or (fit.get("allan") or {}).get("rate_hz")
     )
-    seen = all(allan["random_walk_seen"])
-    notes = [
-        f"from the overlapping Allan deviation of {allan['rests_s']:.3g} s of rests at "
-        f"{allan['rate_hz']:.6g} Hz (largest axis; per axis under imu0.accelerometer.allan):",
-        f"  accelerometer_noise_density [m/s^2/sqrt(Hz)]: white noise, {read}",
-        "  accelerometer_random_walk [m/s^3/sqrt(Hz)]: "
-        + (
-            "from the +1/2 slope at the longest tau"
+    return _yaml_number(rate)
+
+
+def kalibr_keys(calibration: dict) -> dict[str, tuple[float, str] | None]:
+    """Kalibr's four noise keys (largest axis) with the note each carries, ``None`` if unknown.
+
+    From the calibration's ``imu_noise`` (:mod:`wheelcal.calibration.imu_noise`: the
+    white noise's σ per sample / √rate, the rests' Allan bound on the random walk).
+    A file written before ``imu_noise`` existed gives the accelerometer's: its fit's σ
+    per sample / √rate and ``fit.allan``'s bound.
+    """
+    keys = kalibr_values(calibration)
+    if calibration.get("imu_noise"):
+        return keys
+    fit = calibration.get("fit", {})
+    rate, noise = _update_rate(calibration), fit.get("noise_std_mps2")
+    if rate and noise and all(v is not None for v in noise):
+        keys["accelerometer_noise_density"] = (
+            float(max(noise)) / float(np.sqrt(rate)),
+            "sigma of the fit's noise model per sample / sqrt(rate)",
+        )
+    allan = fit.get("allan")
+    if allan and all(v is not None for v in allan.get("random_walk_mps3_rthz", [None])):
+        seen = all(allan.get("random_walk_seen", [False]))
+        keys["accelerometer_random_walk"] = (
+            float(max(allan["random_walk_mps3_rthz"])),
+            "from the +1/2 slope of the rests' Allan deviation"
             if seen
-            else "an UPPER BOUND, min over tau of sigma(tau)*sqrt(3/tau): the rests are too "
-            "short to show the random walk"
-        ),
-    ]
-    return keys, notes
+            else "UPPER BOUND (min over tau of sigma(tau)*sqrt(3/tau) of the rests' Allan "
+            "deviation): conservative",
+        )
+    return keys
+
+
+#: Why a Kalibr key is missing, by its sensor (Kalibr's reader then names the field).
+_MISSING = {
+    "accelerometer": "the recording has no rest and no usable residual noise",
+    "gyroscope": "this calibration has no gyroscope",
+}
+_WALK_MISSING = "no rest to read an Allan deviation from: record >= 10 s of rest"
+
+
+def kalibr_lines(calibration: dict) -> tuple[list[str], list[str]]:
+    """Kalibr's keys as ``key: value  # note`` lines, and comments for the keys left out.
+
+    A key wheelcal cannot fill is left out rather than written ``null`` or 0 (Kalibr's
+    reader refuses both — ``null`` cannot be compared, 0 is "invalid"): its reader then
+    names the missing field, and the comment here says what to put in.
+    """
+    import yaml
+
+    lines, missing = [], []
+    for key, found in kalibr_keys(calibration).items():
+        kind, what = KALIBR_KEYS[key]
+        if found is None:
+            why = _WALK_MISSING if what == "random_walk" and kind != "gyroscope" else _MISSING[kind]
+            if what == "random_walk" and kind == "gyroscope" and calibration.get("gyro"):
+                why = _WALK_MISSING
+            missing.append(f"{key}: not written ({why}); put in your sensor's own value")
+            continue
+        value, note = found
+        scalar = yaml.safe_dump(float(value), default_style=None).splitlines()[0]
+        also = ALLAN_VARIANCE_ROS_NAMES[key]
+        lines.append(f"{key}: {scalar}  # {_comment(note)} (allan_variance_ros: {also})")
+    return lines, missing
 
 
 def yaml_document(calibration: dict) -> dict:
@@ -125,7 +161,6 @@ def yaml_document(calibration: dict) -> dict:
     systematic = calibration.get("systematic", {})
     fit = calibration.get("fit", {})
     noise = fit.get("noise_std_mps2", [None] * 3)
-    kalibr, _ = _kalibr_noise(calibration)
     accelerometer = {
         "bias_mps2": [float(v) for v in corr.bias_mps2],
         "matrix": [[float(v) for v in row] for row in corr.matrix],
@@ -152,17 +187,32 @@ def yaml_document(calibration: dict) -> dict:
             )
         }
     topic = src.get("topic") or "/imu/data_raw"
-    return {
-        **{k: v for k, v in kalibr.items() if k != "update_rate"},
+    imu0 = {
         "rostopic": topic,
-        "update_rate": kalibr["update_rate"],
-        "imu0": {
-            "rostopic": topic,
-            "sensor_id": str(src.get("sensor_id") or calibration.get("sensor_id") or ""),
-            "accelerometer": accelerometer,
-            "calibration_equation": "a = matrix @ (v - bias)",
-        },
+        "sensor_id": str(src.get("sensor_id") or calibration.get("sensor_id") or ""),
+        "accelerometer": accelerometer,
+        "calibration_equation": "a = matrix @ (v - bias)",
     }
+    noise_block = imu0_noise(calibration)
+    if noise_block:
+        imu0["noise"] = noise_block
+    return {
+        **{key: found[0] for key, found in kalibr_keys(calibration).items() if found},
+        "rostopic": topic,
+        "update_rate": _update_rate(calibration),
+        "imu0": imu0,
+    }
+
+
+def imu0_noise(calibration: dict) -> dict:
+    """``imu0.noise``: the ``imu_noise`` block per axis (white σ, densities, walks, sources)."""
+    block = calibration.get("imu_noise") or {}
+    out = {}
+    for kind in ("accelerometer", "gyroscope"):
+        sensor = block.get(kind)
+        if sensor:
+            out[kind] = {k: v for k, v in sensor.items() if k != "sessions"}
+    return out
 
 
 def _list(values) -> list:
@@ -177,22 +227,30 @@ def to_yaml(calibration: dict) -> str:
     """
     import yaml
 
-    _, notes = _kalibr_noise(calibration)
+    lines, missing = kalibr_lines(calibration)
     header = [
         f"wheelcal calibration ({calibration['format']}) of {origin(calibration)}",
         "corrected specific force, sensor frame: a = matrix @ (v - bias)  [m/s^2]",
         *_partial_note(calibration),
-        "Kalibr imu.yaml keys at the top level (gyroscope_* are not measured by wheelcal);",
-        *notes,
+        "Kalibr imu.yaml keys at the top level (ImuParameters: rostopic, update_rate, "
+        "accelerometer_* and gyroscope_* noise_density [unit/sqrt(Hz)] and random_walk "
+        "[unit/s/sqrt(Hz)]; m/s^2 and rad/s);",
+        "noise density = the white noise's sigma per sample / sqrt(update_rate), Kalibr's "
+        "definition; the Allan deviation at tau = 1 s is its check (imu0.noise);",
+        "allan_variance_ros writes the same keys (its log's names in each key's comment)",
+        *missing,
     ]
+    document = yaml_document(calibration)
+    rest = {k: v for k, v in document.items() if k not in KALIBR_KEYS}
     body = yaml.safe_dump(
-        yaml_document(calibration),
+        rest,
         sort_keys=False,
         default_flow_style=None,  # [x, y, z] rows, nested maps in block style
         allow_unicode=False,
         width=1_000_000,
     )
-    return "".join(f"# {_comment(line)}\n" for line in header) + body
+    head = "".join(f"# {_comment(line)}\n" for line in header)
+    return head + "".join(f"{line}\n" for line in lines) + body
 
 
 def to_imu_calib(calibration: dict) -> str:

@@ -18,7 +18,8 @@ for the sensor, so ``export`` and ``apply`` read it the same way::
       "sessions": [{"file", "mounting_id", "calibration", "skipped": [{"parameter", "reason"}]}],
       "parameters": {name: {"value", "std", "systematic_std", "std_unscaled"}},
       "fit": {"noise_std_mps2": [3], "covariance", "covariance_names", "warnings",
-              "allan": {...}}   # the sessions' rests pooled (wheelcal.calibration.allan_json)
+              "allan": {...}},  # the sessions' rests pooled (wheelcal.calibration.allan_json)
+      "imu_noise": {...}   # Kalibr's noise terms pooled (wheelcal.calibration.imu_noise)
     }
 
 Values a session cannot determine are JSON ``null`` in its file; they are
@@ -39,6 +40,7 @@ import numpy as np
 from wheelcal import __version__
 from wheelcal.calibration.allan_json import pooled_allan
 from wheelcal.calibration.document import read_only_document
+from wheelcal.calibration.imu_noise import pooled_imu_noise
 from wheelcal.calibration.session_json import SENSOR_CALIBRATION_FORMAT as FORMAT
 from wheelcal.closedloop.pooling import (
     JOINT_FIT,
@@ -217,6 +219,7 @@ def sensor_calibration_dict(
             "warnings": list(pooled.warnings),
             **_pooled_allan(calibrations),
         },
+        **_pooled_noise(calibrations),
     }
 
 
@@ -283,6 +286,12 @@ def _pooled_allan(calibrations: Sequence[Mapping]) -> dict:
     """``fit.allan`` pooled over the sessions' rests (additive; absent without rests)."""
     block = pooled_allan([c.get("fit", {}).get("allan") for c in calibrations])
     return {} if block is None else {"allan": block}
+
+
+def _pooled_noise(calibrations: Sequence[Mapping]) -> dict:
+    """``imu_noise`` pooled over the sessions (:mod:`wheelcal.calibration.imu_noise`)."""
+    block = pooled_imu_noise([c.get("imu_noise") for c in calibrations])
+    return {} if block is None else {"imu_noise": block}
 
 
 def _common_rate(sources: Sequence[Mapping]) -> float | None:

@@ -1,8 +1,9 @@
 """``<stem>.calibration.json`` — the contract's per-session calibration file.
 
-Written atomically.  Keys follow ../shared/CONTRACT.md; additions are additive
-(``parameters``, ``geometry``, ``fit.noise_model``, ``fit.twin``,
-``bench.radius_std_m``, ``wheelcal_version``).
+Written atomically.  Keys follow the contract (docs/guide/outputs.md); additions are
+additive (``parameters``, ``geometry``, ``fit.noise_model``, ``fit.twin``,
+``bench.radius_std_m``, ``wheelcal_version``, ``imu_noise``: Kalibr's noise terms,
+:mod:`wheelcal.calibration.imu_noise`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 
 from wheelcal import __version__
 from wheelcal.calibration.allan_json import rests_allan
+from wheelcal.calibration.imu_noise import imu_noise_block
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.joint.systematic import SystematicBudget
 from wheelcal.estimate.residual_profile import residual_by_wheel_angle
@@ -82,8 +84,25 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
         "fit": _fit_block(session, undetermined),
         "systematic": _systematic_block(result.systematic),
         **({"gyro": _clean(assessment.gyro.to_dict())} if assessment.gyro is not None else {}),
+        **_imu_noise(session),
         "correction": _correction_block(result, undetermined),
     }
+
+
+def _imu_noise(session: SessionResult) -> dict:
+    """``imu_noise``: Kalibr's noise terms from the rests, else the residuals (imu_noise.py)."""
+    result, assessment = session.result, session.assessment
+    rests = assessment.noise.rests if assessment.noise is not None else ()
+    gyro = assessment.gyro
+    block = imu_noise_block(
+        rests,
+        _rate_hz(result.time_s),
+        accel_residual_std=result.noise.marginal_std_mps2,
+        accel_samples=int(result.time_s.size),
+        gyro_residual_rms=None if gyro is None else gyro.residual_rms_radps,
+        gyro_samples=int(result.time_s.size),
+    )
+    return {} if block is None else {"imu_noise": _clean(block)}
 
 
 def _source_block(session: SessionResult) -> dict:
@@ -384,9 +403,14 @@ def write_calibration(
     session: SessionResult,
     provenance: dict | None = None,
     durable: bool = True,
+    document: dict | None = None,
 ) -> Path:
-    """Write the calibration JSON atomically; returns the path (``durable``: see atomic)."""
-    doc = calibration_dict(session, provenance)
+    """Write the calibration JSON atomically; returns the path (``durable``: see atomic).
+
+    ``document``: ``calibration_dict(session, provenance)`` when the caller made it
+    already (the session's view reads the same one).
+    """
+    doc = calibration_dict(session, provenance) if document is None else document
     text = dumps_indented(doc)  # json.dumps(doc, indent=2, allow_nan=False), faster
     atomic_write_text(path, text + "\n", durable=durable)
     return Path(path)

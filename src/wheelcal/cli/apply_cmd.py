@@ -8,8 +8,12 @@ import os
 #: The command's one-line help and its --help description.
 HELP = "write a copy of a recording with a calibrated accelerometer topic added"
 DESCRIPTION = (
-    "Copy IN.mcap to OUT.mcap keeping every channel, and add <topic>/calibrated with "
-    "a = matrix @ (v - bias) per sample; the calibration is stored as metadata."
+    "Read IN (any recording calibrate reads: MCAP, ROS 1 .bag, rosbag2 .db3 or folder) and "
+    "write OUT.mcap with <topic>/calibrated: a = matrix @ (v - bias) for every sample. An "
+    "MCAP is copied with every channel kept; from a bag, its IMU topic is copied beside the "
+    "calibrated one. Samples a calibration would leave out (clipped, outliers, repeated "
+    "stamps) are corrected too and flagged on <topic>/calibrated/flags; the calibration is "
+    "stored as metadata."
 )
 
 
@@ -17,7 +21,7 @@ def register(sub) -> None:
     """Add the ``apply`` parser."""
     p = sub.add_parser("apply", help=HELP, description=DESCRIPTION)
     p.add_argument("calibration", metavar="CAL.json")
-    p.add_argument("source", metavar="IN.mcap")
+    p.add_argument("source", metavar="IN")
     p.add_argument("destination", metavar="OUT.mcap")
     p.add_argument(
         "--force", action="store_true", help="replace OUT.mcap if it exists (default: refuse)"
@@ -41,19 +45,25 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.io.atomic import OutputExistsError
     from wheelcal.io.file_kind import special_file_kind
 
-    for what, path in (("CAL.json", args.calibration), ("IN.mcap", args.source)):
+    for what, path in (("CAL.json", args.calibration), ("IN", args.source)):
         kind = special_file_kind(path)
+        if (
+            kind == "a folder"
+            and what == "IN"
+            and os.path.isfile(os.path.join(path, "metadata.yaml"))
+        ):
+            continue  # a rosbag2 folder
         if kind is not None:
             raise UsageError(f"{what} {path} is {kind}, not a file to read")
     if os.path.isdir(args.destination):
         raise UsageError(f"OUT.mcap {args.destination} is a folder; give the file to write")
     if os.path.exists(args.source) and os.path.exists(args.destination):
         if os.path.samefile(args.source, args.destination):
-            raise UsageError(f"OUT.mcap {args.destination} is IN.mcap itself; give a new file")
+            raise UsageError(f"OUT.mcap {args.destination} is IN itself; give a new file")
     if not args.force and os.path.lexists(args.destination):
         raise UsageError(str(OutputExistsError(args.destination)))
     try:
-        topic, samples = apply_calibration(
+        applied = apply_calibration(
             args.calibration,
             args.source,
             args.destination,
@@ -72,5 +82,5 @@ def run(args: argparse.Namespace) -> int:
         if args.source not in message and args.calibration not in message:
             message = f"{args.source}: {message}"
         raise SessionsFailed(f"error: {message}") from None
-    print(f"wrote {args.destination}: {samples} calibrated samples on {topic}")
+    print(f"wrote {args.destination}: {applied.summary()}")
     return 0

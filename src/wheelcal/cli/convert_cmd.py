@@ -60,8 +60,16 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--gyro-unit",
-        choices=("rad/s", "deg/s"),
-        help="unit of the gyro (default: as the header states it; needed with a gyro otherwise)",
+        choices=("rad/s", "deg/s", "counts"),
+        help="unit of the gyro (default: as the header states it; needed with a gyro otherwise); "
+        "counts = raw integers, with --gyro-counts-per-dps",
+    )
+    p.add_argument(
+        "--gyro-counts-per-dps",
+        type=float,
+        metavar="N",
+        help="the gyro columns are raw counts, N per °/s (e.g. 131 for an MPU-6050/9250 at "
+        "±250 °/s, 16.4 at ±2000 °/s): converted to °/s (rad/s in ROS 2)",
     )
     p.add_argument("--no-gyro", action="store_true", help="leave gyro columns out")
     p.add_argument("--temperature-column", help="°C column (default: recognised if present)")
@@ -74,8 +82,8 @@ def register(sub) -> None:
         metavar="M",
         help="the sensor's distance from the axle in metres (e.g. 0.28), stored as radius_m",
     )
-    p.add_argument("--sensor-id")
-    p.add_argument("--mounting-id")
+    p.add_argument("--sensor-id", help="sensor identifier stored in the file (for reports)")
+    p.add_argument("--mounting-id", help="mounting identifier stored in the file (for reports)")
     p.add_argument(
         "--gyro-full-scale-dps", type=float, help="store gyro_full_scale_dps (the gyro's range)"
     )
@@ -138,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
             epoch_unix_ns=args.epoch_unix_ns,
             gyro_columns=triple(args.gyro_columns),
             gyro_unit=args.gyro_unit,
+            gyro_counts_per_dps=args.gyro_counts_per_dps,
             read_gyro=not args.no_gyro,
             temperature_column=_column(args.temperature_column),
         )

@@ -24,7 +24,13 @@ def register(sub) -> None:
     """Add the ``diagnose`` parser."""
     p = sub.add_parser("diagnose", help=HELP, description=DESCRIPTION)
     p.add_argument("files", nargs="+", metavar="FILE")
-    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="DIR",
+        help="output folder: <stem>.diagnosis.json and <stem>.calibration.json (and <stem>.rrd "
+        "with --rrd)",
+    )
     p.add_argument("--rrd", action="store_true", help="Rerun recording with residuals before/after")
     add_session_arguments(p)
     p.set_defaults(handler=run)

@@ -11,10 +11,10 @@ from pathlib import Path
 HELP = "export a calibration as Kalibr imu.yaml, an imu_calib file or a C header"
 DESCRIPTION = (
     "Print (or write with --out) the bias and 3x3 correction of a calibration: "
-    "yaml = Kalibr's imu.yaml keys (accelerometer_noise_density and "
-    "accelerometer_random_walk from the rests' Allan deviation, update_rate, rostopic) "
-    "with wheelcal's imu0 block; imu_calib = the ROS imu_calib package's SM and bias; "
-    "c = a C header."
+    "yaml = Kalibr's imu.yaml keys (accelerometer_* and gyroscope_* noise_density: the "
+    "white noise's sigma per sample / sqrt(rate), Kalibr's definition; *_random_walk: the "
+    "rests' Allan bound, marked as one; update_rate, rostopic) with wheelcal's imu0 block; "
+    "imu_calib = the ROS imu_calib package's SM and bias; c = a C header."
 )
 
 
@@ -22,7 +22,13 @@ def register(sub) -> None:
     """Add the ``export`` parser."""
     p = sub.add_parser("export", help=HELP, description=DESCRIPTION)
     p.add_argument("calibration", metavar="CAL.json")
-    p.add_argument("--format", choices=("yaml", "imu_calib", "c"), required=True)
+    p.add_argument(
+        "--format",
+        choices=("yaml", "imu_calib", "c"),
+        required=True,
+        help="yaml: Kalibr's imu.yaml (+ wheelcal's imu0 block); imu_calib: the ROS imu_calib "
+        "package's file; c: a C header",
+    )
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
     p.add_argument(
         "--force", action="store_true", help="replace the --out file if it exists (default: refuse)"

@@ -57,8 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
         ),
         epilog=(
             "Exit status: 0 success, 1 some sessions failed (the others still ran), 2 bad usage. "
-            "Frame and sign conventions, input formats and every output file "
-            "(calibration/diagnosis JSON, report.json, .rrd) are described in README.md."
+            "Every command and option: docs/guide/commands.md; frame and sign conventions and "
+            "every output file (calibration/diagnosis JSON, report.json, .rrd): "
+            "docs/guide/outputs.md; input formats: docs/guide/inputs.md."
         ),
     )
     parser.add_argument("--version", action="version", version=f"wheelcal {__version__}")

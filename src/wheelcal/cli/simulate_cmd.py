@@ -8,11 +8,24 @@ import json
 from wheelcal.cli.errors import UsageError
 from wheelcal.cli.options import positive_float
 
+#: The simulated gyro's range without --gyro-full-scale-dps, °/s.
+DEFAULT_GYRO_FULL_SCALE_DPS = 2000.0
 #: ROS 2 files carry the temperature on its own topic at 1/20 of the sample rate.
 TEMPERATURE_STRIDE = 20
 
 #: Presets drawn by the field simulator (:mod:`wheelcal.simulate.field`).
 FIELD_PRESETS = ("car", "robot", "wheelchair", "stand")
+#: The paper's bench (:mod:`wheelcal.simulate.presets`).
+BENCH_PRESETS = ("table1", "table2")
+#: Options of the bench simulator a field preset cannot honour (flag, argparse default).
+BENCH_ONLY_OPTIONS = (
+    ("--reverse", False),
+    ("--free-spin-only", False),
+    ("--quantise", False),
+    ("--no-radius", False),
+    ("--gyro-full-scale-dps", None),
+    ("--temperature", False),
+)
 
 
 #: The command's one-line help and its --help description.
@@ -31,9 +44,11 @@ def register(sub) -> None:
     p.add_argument(
         "--preset",
         default="table2",
+        metavar="NAME",
         help="table1 or table2 (default): the paper's bench; car, robot, wheelchair or stand: a "
-        "wheel in the field with a gyroscope, no radius stored (the field simulator; "
-        "--seed applies, the other options do not)",
+        "wheel in the field with a gyroscope, no radius stored (the field simulator: --seed, "
+        "--noise, --bandwidth-hz, --format, --batch, --sensor-id, --mounting-id and --truth "
+        "apply; the bench's other options are refused)",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (noise and hand spin)")
     p.add_argument("--noise", type=float, help="noise std in m/s² (default: the preset's)")
@@ -52,7 +67,7 @@ def register(sub) -> None:
     p.add_argument(
         "--gyro-full-scale-dps",
         type=positive_float,
-        default=2000.0,
+        default=None,
         metavar="DPS",
         help="gyro range ±DPS °/s, stored as gyro_full_scale_dps (default 2000; 250 clips a "
         "hand spin)",
@@ -72,8 +87,16 @@ def register(sub) -> None:
         "lateral acceleration (a body rolling in its turns; wheelcal refuses such a drive "
         "as 'lean')",
     )
-    p.add_argument("--sensor-id", default="sim-sensor")
-    p.add_argument("--mounting-id", default="sim-mounting")
+    p.add_argument(
+        "--sensor-id",
+        default="sim-sensor",
+        help="sensor_id stored in the file (default sim-sensor)",
+    )
+    p.add_argument(
+        "--mounting-id",
+        default="sim-mounting",
+        help="mounting_id stored in the file (default sim-mounting)",
+    )
     p.add_argument("--truth", metavar="JSON", help="also write the ground truth here")
     p.set_defaults(handler=run)
 
@@ -98,12 +121,14 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.simulate.session import simulate_session
 
     rng = np.random.default_rng(args.seed)
+    if args.preset not in (*BENCH_PRESETS, *FIELD_PRESETS):
+        raise UsageError(
+            f"unknown preset {args.preset!r}; choose from the paper's bench "
+            f"({', '.join(BENCH_PRESETS)}) or a wheel in the field ({', '.join(FIELD_PRESETS)})"
+        )
     if args.preset in FIELD_PRESETS:
         return _run_field(args, rng)
-    try:
-        scenario = preset(args.preset, rng=rng)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
+    scenario = preset(args.preset, rng=rng)
     if args.noise is not None or args.bandwidth_hz is not None:
         std = args.noise if args.noise is not None else scenario.noise.std_mps2
         scenario = dataclasses.replace(
@@ -117,10 +142,9 @@ def run(args: argparse.Namespace) -> int:
         scenario = dataclasses.replace(scenario, quantiser=Quantiser())
     info = scenario.info.merged(sensor_id=args.sensor_id, mounting_id=args.mounting_id)
     if args.gyro:
-        info = info.merged(gyro_full_scale_dps=args.gyro_full_scale_dps)
-        scenario = dataclasses.replace(
-            scenario, gyro=GyroSpec(full_scale_dps=args.gyro_full_scale_dps)
-        )
+        full_scale = args.gyro_full_scale_dps or DEFAULT_GYRO_FULL_SCALE_DPS
+        info = info.merged(gyro_full_scale_dps=full_scale)
+        scenario = dataclasses.replace(scenario, gyro=GyroSpec(full_scale_dps=full_scale))
     if args.temperature:
         scenario = dataclasses.replace(scenario, temperature=TemperatureSpec())
     scenario = dataclasses.replace(scenario, info=info)
@@ -197,6 +221,7 @@ def _run_field(args: argparse.Namespace, rng) -> int:
     from wheelcal.io import write_recording
     from wheelcal.io.atomic import atomic_write_text
     from wheelcal.simulate import (
+        NoiseSpec,
         car_drive,
         robot_drive,
         simulate_field,
@@ -204,9 +229,21 @@ def _run_field(args: argparse.Namespace, rng) -> int:
         wheelchair_coast,
     )
 
+    refused = [flag for flag, default in BENCH_ONLY_OPTIONS if _given(args, flag, default)]
+    if refused:
+        raise UsageError(
+            f"--preset {args.preset} is the field simulator: {', '.join(refused)} "
+            f"{'applies' if len(refused) == 1 else 'apply'} to the bench presets "
+            f"({', '.join(BENCH_PRESETS)}) only"
+        )
     profiles = (car_drive, robot_drive, wheelchair_coast, stand_spin)
     make = dict(zip(FIELD_PRESETS, profiles, strict=True))[args.preset]
     scenario = make(rng)
+    if args.noise is not None or args.bandwidth_hz is not None:
+        std = args.noise if args.noise is not None else scenario.noise.std_mps2
+        scenario = dataclasses.replace(
+            scenario, noise=NoiseSpec(std, bandwidth_hz=args.bandwidth_hz)
+        )
     if args.body_roll_deg_per_mps2:
         if args.preset not in ("car", "robot", "wheelchair"):
             raise UsageError(
@@ -226,6 +263,11 @@ def _run_field(args: argparse.Namespace, rng) -> int:
         f"a {args.preset} wheel ({sim.truth.geometry}), motion {w0:.2f}–{w1:.2f} s, with gyro"
     )
     return 0
+
+
+def _given(args: argparse.Namespace, flag: str, default) -> bool:
+    """Whether the option ``flag`` was given (its value differs from its default)."""
+    return getattr(args, flag.lstrip("-").replace("-", "_")) != default
 
 
 def field_truth_dict(truth) -> dict:

@@ -61,6 +61,9 @@ class RestSegment:
     #: a static reading of its bias and G·a (:mod:`wheelcal.estimate.joint.gyro_rests`).
     gyro_mean_radps: np.ndarray | None = None
     gyro_mean_std_radps: np.ndarray | None = None
+    #: The gyroscope's overlapping Allan sums over the rest (rad/s), pooled over the rests
+    #: for its random walk's bound and the check of its noise density.
+    gyro_allan: AllanSums | None = None
 
     @property
     def mid_s(self) -> float:
@@ -152,6 +155,7 @@ def _segment(
     n = t.size
     # σ of a mean of n correlated samples: long-run std / √n.
     mean_std = noise.long_run_std_mps2 / np.sqrt(n)
+    rate_hz = rate_hz or float(1.0 / np.median(np.diff(t)))
     return RestSegment(
         start_s=float(t[0]),
         end_s=float(t[-1]),
@@ -160,19 +164,21 @@ def _segment(
         mean_std_mps2=mean_std,
         noise_std_mps2=np.array([np.std(row, ddof=1) for row in centred]),
         noise_dof=float(n * np.min(noise.effective_sample_fraction)),
-        allan=AllanSums.of(v, rate_hz or float(1.0 / np.median(np.diff(t)))),
-        **_gyro_statistics(gyro),
+        allan=AllanSums.of(v, rate_hz),
+        **_gyro_statistics(gyro, rate_hz),
     )
 
 
-def _gyro_statistics(gyro: np.ndarray | None) -> dict:
-    """The gyro's std, mean and σ of the mean per axis over a rest's valid rows.
+def _gyro_statistics(gyro: np.ndarray | None, rate_hz: float) -> dict:
+    """The gyro's std, mean, σ of the mean and Allan sums per axis over a rest's valid rows.
 
     Empty (the fields stay None) without a gyro or with fewer than 10 valid rows.
+    The Allan sums need evenly spaced rows: a rest with a row left out has none.
     """
     if gyro is None:
         return {}
-    valid = gyro[np.all(np.isfinite(gyro), axis=1)]
+    finite = np.all(np.isfinite(gyro), axis=1)
+    valid = gyro[finite]
     if valid.shape[0] < 10:
         return {}
     std = np.std(valid, axis=0, ddof=1)
@@ -180,6 +186,7 @@ def _gyro_statistics(gyro: np.ndarray | None) -> dict:
         "gyro_noise_std_radps": std,
         "gyro_mean_radps": valid.mean(axis=0),
         "gyro_mean_std_radps": std / np.sqrt(valid.shape[0]),
+        "gyro_allan": AllanSums.of(valid, rate_hz) if finite.all() else None,
     }
 
 

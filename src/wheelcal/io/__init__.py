@@ -17,7 +17,14 @@ from wheelcal.io.errors import (
     SessionInfoError,
     TopicError,
 )
-from wheelcal.io.mcap_reader import AccelTopic, choose_topic, list_accel_topics, read_recording
+from wheelcal.io.mcap_reader import (
+    AccelTopic,
+    RawImuSamples,
+    choose_topic,
+    list_accel_topics,
+    read_raw_samples,
+    read_recording,
+)
 from wheelcal.io.mcap_writer import (
     ChannelData,
     accel_channel,
@@ -39,6 +46,7 @@ __all__ = [
     "InputError",
     "InputPolicy",
     "NotMcapError",
+    "RawImuSamples",
     "SampleError",
     "SessionInfoError",
     "TopicError",
@@ -50,6 +58,7 @@ __all__ = [
     "convert_csv",
     "copy_with_channels",
     "list_accel_topics",
+    "read_raw_samples",
     "read_recording",
     "require_radius",
     "session_metadata",

@@ -171,6 +171,9 @@ class CsvLayout:
     temperature_column: Column | None = None
     check_units: bool = True
     counts_per_g: float | None = None
+    #: The gyro columns are raw counts, this many per °/s (``gyro_unit`` ``"counts"`` or
+    #: unset): converted to °/s.
+    gyro_counts_per_dps: float | None = None
 
     def __post_init__(self) -> None:
         if self.time_unit is not None and self.time_unit not in TIME_UNITS_NS:
@@ -186,8 +189,18 @@ class CsvLayout:
             np.isfinite(self.counts_per_g) and self.counts_per_g > 0
         ):
             raise ValueError(f"counts_per_g must be positive, got {self.counts_per_g!r}")
-        if self.gyro_unit is not None and self.gyro_unit not in GYRO_UNITS:
-            raise ValueError(f"gyro_unit must be one of {list(GYRO_UNITS)}")
+        if self.gyro_unit is not None and self.gyro_unit not in (*GYRO_UNITS, "counts"):
+            raise ValueError(f"gyro_unit must be one of {[*GYRO_UNITS, 'counts']}")
+        counts = self.gyro_counts_per_dps
+        if (self.gyro_unit == "counts" and counts is None) or (
+            counts is not None and self.gyro_unit not in (None, "counts")
+        ):
+            raise ValueError(
+                "raw gyro counts need their scale: --gyro-counts-per-dps N (gyro_unit 'counts' "
+                f"or unset), got gyro_unit {self.gyro_unit!r} with {counts!r} counts per °/s"
+            )
+        if counts is not None and not (np.isfinite(counts) and counts > 0):
+            raise ValueError(f"gyro_counts_per_dps must be positive, got {counts!r}")
         for name in ("accel_columns", "gyro_columns"):
             value = getattr(self, name)
             if value is not None and len(value) != 3:
@@ -473,6 +486,8 @@ def _stated_gyro_unit(
     notes: list[str],
 ) -> str | None:
     """The gyro columns' unit, as given or as the header (or format) states it; None if none."""
+    if layout.gyro_counts_per_dps is not None:
+        return "counts"
     if cols.gyro is None or layout.gyro_unit is not None:
         return layout.gyro_unit
     if not layout.by_index:
@@ -519,6 +534,12 @@ def _gyro_for_output(
     notes: list[str],
 ) -> tuple[np.ndarray | None, str]:
     """The gyro rows checked against their unit (rad/s for ROS 2), and that unit."""
+    if gyro_unit == "counts":
+        if gyro is None:
+            return None, "rad/s"
+        gyro = gyro / layout.gyro_counts_per_dps
+        gyro_unit = "deg/s"
+        notes.append(f"converted gyro counts to °/s ({layout.gyro_counts_per_dps:g} per °/s)")
     if gyro is not None and layout.check_units:
         _check_gyro_unit(path, gyro, gyro_unit)
     if encoding == "ros2" and gyro is not None and gyro_unit == "deg/s":

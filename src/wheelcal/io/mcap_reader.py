@@ -59,6 +59,7 @@ from wheelcal.io.mcap_scan import ChannelRecord, McapScan, SchemaRecord
 from wheelcal.io.recording_scan import recording_kind, scan_recording
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
 from wheelcal.io.temperature_cdr import TEMPERATURE_FORMAT, decode_temperature_blocks
+from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording
 from wheelcal.recording.samples import InputPolicy
 from wheelcal.recording.temperature import TemperatureReadings
@@ -406,9 +407,79 @@ def read_recording(
     if unit not in ACCEL_UNITS:
         raise InputError(scan.path, f"{where}: unit {unit!r} is not one of {list(ACCEL_UNITS)}")
     samples = _samples_of(scan, chosen, unit, gyro, gyro_unit, temperature, temperature_topic)
+    if accel_unit is not None and accel_unit != chosen.unit:  # the option claims the unit
+        samples.update(_override_wording(chosen, accel_unit))
     del scan  # the decoded columns are all that is left of the file
     # The decoded columns are ours to give away: converted and kept in place, no copy.
     return Recording.from_samples(**samples, info=info, policy=policy, consume=True)
+
+
+@dataclass(frozen=True, eq=False)
+class RawImuSamples:
+    """Every message of an accelerometer topic as the file has it, before any check.
+
+    Stamps (int ns, file order), samples in m/s² (``g`` converted), the gyro in rad/s
+    (``None`` without one); ``source_format`` is the container (``mcap``, ``ros1 bag``,
+    ``rosbag2``), ``encoding`` the channel's (``ros2``, ``ros1``, ``json``).
+    """
+
+    source: str
+    topic: str
+    encoding: str
+    source_format: str
+    time_ns: np.ndarray
+    accel_mps2: np.ndarray
+    gyro_radps: np.ndarray | None
+
+
+def read_raw_samples(
+    path: str | os.PathLike,
+    topic: str | None = None,
+    *,
+    accel_unit: str | None = None,
+    gyro_unit: str | None = None,
+) -> RawImuSamples:
+    """Every sample of an accelerometer topic, unchecked: what ``wheelcal apply`` corrects.
+
+    The same scan, topic choice and decoders as :func:`read_recording` (every format it
+    reads), without the repairs: nothing is dropped, merged or sorted, so each message
+    in has its sample out (the checked :func:`read_recording` says which it would leave
+    out, and why).
+    """
+    scan = scan_recording(path, sink_for=_sink_for)
+    chosen = choose_topic(scan, topic)
+    where = f"topic {chosen.topic}"
+    decoded = _decode(scan, chosen, where, gyro=True, temperature=False)
+    unit = accel_unit or chosen.unit
+    if unit not in ACCEL_UNITS:
+        raise InputError(scan.path, f"{where}: unit {unit!r} is not one of {list(ACCEL_UNITS)}")
+    accel = np.asarray(decoded.accel, dtype=float)
+    if unit == "g":
+        accel = accel * STANDARD_GRAVITY_MPS2
+    gyro = decoded.gyro
+    if gyro is not None:
+        gyro = np.asarray(gyro, dtype=float)
+        if _gyro_unit(scan, chosen, where, gyro_unit) == "deg/s":
+            gyro = np.radians(gyro)
+    return RawImuSamples(
+        source=scan.path,
+        topic=chosen.topic,
+        encoding=chosen.encoding,
+        source_format=_container(scan),
+        time_ns=np.asarray(decoded.time_ns, dtype=np.int64),
+        accel_mps2=accel,
+        gyro_radps=gyro,
+    )
+
+
+def _container(scan: McapScan) -> str:
+    """``mcap``, ``ros1 bag`` or ``rosbag2``: which container the scan read."""
+    library = scan.library.lower()
+    if library.startswith("rosbag2"):
+        return "rosbag2"
+    if "rosbag" in library or "ros1 bag" in library:
+        return "ros1 bag"
+    return "mcap"
 
 
 def _samples_of(
@@ -448,6 +519,15 @@ def _samples_of(
         "label": f"{scan.path} ({where})",
         "unit_remedy": _unit_remedy(chosen, unit),
         "gyro_unit_hint": _gyro_unit_hint(chosen),
+    }
+
+
+def _override_wording(chosen: AccelTopic, accel_unit: str) -> dict[str, str]:
+    """Who claimed the unit and how to fix it, when ``accel_unit`` overrode the file's."""
+    own = "m/s^2 (REP 103)" if chosen.encoding in ("ros2", "ros1") else repr(chosen.unit)
+    return {
+        "unit_stated_by": f"--accel-unit {accel_unit} (Python: accel_unit={accel_unit!r})",
+        "unit_remedy": f"leave --accel-unit out (accel_unit=None): the file's own unit is {own}",
     }
 
 

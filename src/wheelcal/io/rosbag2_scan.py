@@ -13,8 +13,10 @@ memory stays bounded for any length.
 A rosbag2 *folder* (``metadata.yaml`` beside the storage files) is read too:
 its SQLite files in order (their topics merged by name), or its one MCAP file.
 Messages compressed one by one (``compression_mode: message``, zstd) are
-decompressed; a folder compressed file by file must be decompressed first
-(``ros2 bag decompress``).  SQLite stores no checksums: unlike MCAP's CRCs,
+decompressed as they are read; a folder compressed file by file
+(``compression_mode: file``: ``bag_0.db3.zstd``) is decompressed into a
+temporary folder, read, and the copy removed (no ROS install needed; the same
+as ``zstd -d`` by hand).  SQLite stores no checksums: unlike MCAP's CRCs,
 damage inside a blob is found only by the decoder's layout checks.
 
 The database is opened read-only and immutable with ``apsw`` (the SQLite
@@ -24,8 +26,10 @@ binding ``rosbags`` uses; ≈ 1.4× faster here than the standard library's
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import os
+import tempfile
 from pathlib import Path
 from types import MappingProxyType
 
@@ -81,23 +85,42 @@ def scan_rosbag2(path: str | os.PathLike, sink_for=None) -> McapScan:
     """
     name = str(path)
     bag = Path(path)
-    zstd_messages = False
-    if bag.is_dir():
-        files, info = _bag_files(bag)
-        mode = str(info.get("compression_mode") or "").lower()
-        if mode == "file":
-            raise NotMcapError(
-                name,
-                "this rosbag2 is compressed file by file; decompress it first "
-                "(ros2 bag decompress), then give the folder or its .db3",
-            )
-        zstd_messages = mode == "message"
-        if str(info.get("storage_identifier")) == "mcap":
-            if len(files) != 1:
-                raise NotMcapError(name, f"a rosbag2 split into {len(files)} MCAP files: give one")
-            return scan_mcap(files[0], sink_for)
-    else:
-        files = [bag]
+    if not bag.is_dir():
+        return _scan_storage(name, [bag], {}, sink_for)
+    files, info = _bag_files(bag)
+    mode = str(info.get("compression_mode") or "").lower()
+    if mode != "file":
+        return _scan_storage(name, files, info, sink_for, zstd_messages=mode == "message")
+    with tempfile.TemporaryDirectory(prefix="wheelcal-rosbag2-", ignore_cleanup_errors=True) as tmp:
+        plain = [decompressed_copy(file, Path(tmp)) for file in files]
+        scan = _scan_storage(name, plain, info, sink_for)
+    # An MCAP storage file is mapped, not read: the mapping outlives the removed copy.
+    return dataclasses.replace(scan, path=name) if scan.path != name else scan
+
+
+def decompressed_copy(file: Path, folder: Path) -> Path:
+    """A zstd-compressed storage file (``bag_0.db3.zstd``) decompressed into ``folder``."""
+    import zstandard
+
+    target = folder / (file.name[: -len(".zstd")] if file.name.endswith(".zstd") else file.name)
+    try:
+        with open(file, "rb") as source, open(target, "wb") as sink:
+            zstandard.ZstdDecompressor().copy_stream(source, sink)
+    except zstandard.ZstdError as exc:
+        raise CorruptFileError(
+            file, f"a rosbag2 storage file compressed with zstd is damaged ({exc})"
+        ) from None
+    return target
+
+
+def _scan_storage(
+    name: str, files: list[Path], info: dict, sink_for, zstd_messages: bool = False
+) -> McapScan:
+    """The scan of a rosbag2's storage files: its one MCAP file, or its SQLite files in order."""
+    if str(info.get("storage_identifier")) == "mcap":
+        if len(files) != 1:
+            raise NotMcapError(name, f"a rosbag2 split into {len(files)} MCAP files: give one")
+        return scan_mcap(files[0], sink_for)
     collector = _Rosbag2Collector(name, sink_for, zstd_messages)
     for file in files:
         collector.read(file)

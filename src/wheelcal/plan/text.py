@@ -87,7 +87,11 @@ def _sources(report: PlanReport) -> str:
         for _, idx in groups:
             first = float(np.max(np.abs(s.first_order[idx])))
             second = np.abs(s.second_order[idx])
-            second_txt = "n/a" if np.all(np.isnan(second)) else _num(float(np.nanmax(second)))
+            second_txt = (
+                "n/a"
+                if np.all(np.isnan(second))
+                else _num(_above_round_off(float(np.nanmax(second)), first))
+            )
             cells.append(f"{_num(first)} / {second_txt}")
         label = f"{s.name} ±{s.std:g} {s.unit}"
         lines.append(f"  {label:<22}" + "".join(f"{c:>26}" for c in cells))
@@ -133,10 +137,11 @@ def _tradeoffs(report: PlanReport) -> str:
     ]
     for row in report.tradeoffs:
         mark = " ◀ plan" if (row.geometry, row.tilt_deg) == (s.geometry, s.tilt_deg) else ""
+        second = _above_round_off(row.gain_second_order, row.gain_systematic)
         lines.append(
             f"  {row.geometry:<10}{row.tilt_deg:>5g}°{_num(row.offset_std_mps2):>11}"
             f"{_num(row.offset_systematic_mps2):>12}{_num(row.gain_std):>10}"
-            f"{_num(row.gain_systematic):>10}{_num(row.gain_second_order):>10}{mark}"
+            f"{_num(row.gain_systematic):>10}{_num(second):>10}{mark}"
         )
     lines += [
         "  radius mode: offset σ and radius-error shifts grow like tan α toward vertical",
@@ -144,6 +149,16 @@ def _tradeoffs(report: PlanReport) -> str:
         "  vertical: offsets move by g δ (0.17 m/s² per degree), gains only by −δ²/2",
     ]
     return "\n".join(lines)
+
+
+#: A second-order shift is the exact map minus the first order: below this fraction of
+#: the first order (or of 1, whichever is larger) it is the subtraction's round-off.
+ROUND_OFF = 1e-9
+
+
+def _above_round_off(value: float, scale: float) -> float:
+    """``value``, or 0 where it is round-off of a difference of numbers of size ``scale``."""
+    return 0.0 if abs(value) < ROUND_OFF * max(abs(scale), 1.0) else value
 
 
 def _num(value: float, digits: int = 2) -> str:

@@ -157,6 +157,14 @@ def _kept_columns(clean: CleanSamples, given_ns, given_accel, consume: bool) -> 
         "accel_mps2": accel,
         "epoch_unix_ns": epoch,
         "clip_limits_mps2": clean.clip_limits_mps2,
+        **(
+            {
+                "clipped_time_s": (clean.clipped_ns - epoch) * 1e-9,
+                "clipped_mps2": clean.clipped_mps2,
+            }
+            if clean.clipped_ns is not None
+            else {}
+        ),
     }
 
 
@@ -236,6 +244,10 @@ class Recording:
     #: m/s², NaN where none; None when nothing clipped.  Clipped samples are already
     #: gone; the estimator also leaves out what the model predicts near a rail.
     clip_limits_mps2: np.ndarray | None = None
+    #: The clipped samples the reader dropped (their times, s from ``epoch_unix_ns``, and
+    #: readings, m/s²), kept for the views to mark; never fitted.  None: none dropped.
+    clipped_time_s: np.ndarray | None = None
+    clipped_mps2: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         """The invariants (cheap: no repair, one pass per check), or :class:`RecordingError`."""
@@ -250,6 +262,19 @@ class Recording:
             limits = limits.reshape(3, 2)
             limits.setflags(write=False)
             object.__setattr__(self, "clip_limits_mps2", limits)
+        if (self.clipped_time_s is None) != (self.clipped_mps2 is None):
+            raise RecordingError(f"{self.source}: clipped_time_s and clipped_mps2 go together")
+        if self.clipped_time_s is not None:
+            ct = _frozen_or_copy(self.clipped_time_s, self.source, "clipped_time_s").reshape(-1)
+            ca = _frozen_or_copy(self.clipped_mps2, self.source, "clipped_mps2")
+            if ca.shape != (ct.size, 3):
+                raise RecordingError(
+                    f"{self.source}: clipped_mps2 must be (K, 3) for K clipped times"
+                )
+            ct.setflags(write=False)
+            ca.setflags(write=False)
+            object.__setattr__(self, "clipped_time_s", ct)
+            object.__setattr__(self, "clipped_mps2", ca)
         t = _frozen_or_copy(self.time_s, self.source, "time_s").reshape(-1)
         a = _frozen_or_copy(self.accel_mps2, self.source, "accel_mps2")
         if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] != t.size:
@@ -323,6 +348,7 @@ class Recording:
         unit_remedy: str | None = None,
         gyro_unit_hint: str = "",
         consume: bool = False,
+        unit_stated_by: str = "the file",
     ) -> Recording:
         """A checked recording from raw samples: repaired where that invents nothing, or refused.
 
@@ -353,6 +379,9 @@ class Recording:
         label, unit_remedy, gyro_unit_hint:
             How messages name the samples (default ``source``), and how to state
             the units right in this source's format.
+        unit_stated_by:
+            Who claimed ``unit`` (``"the file"``, or the option that overrode it),
+            for the unit check's message.
         consume:
             ``time_ns`` and ``accel`` are the caller's to give away (a reader's
             decoded columns): converted and kept in place, no copy.
@@ -380,6 +409,7 @@ class Recording:
             full_scale_g=info.full_scale_g,
             policy=policy,
             unit_remedy=unit_remedy,
+            unit_stated_by=unit_stated_by,
         )
         notes += clean.notes
         raw = (time_ns, mps2, clean.time_ns)
@@ -399,9 +429,11 @@ class Recording:
         """A copy through the readers' checks (:meth:`from_samples`), e.g. of one built in memory.
 
         ``unit="g"``: its samples are in fact in g; ``info`` replaces its facts.
-        Its notes stay, the repairs' notes follow.
+        Its notes stay, the repairs' notes follow; where the checks find no clipping
+        (a recording whose clipped samples a reader already dropped), its rails and
+        dropped samples stay too.
         """
-        return Recording.from_samples(
+        checked = Recording.from_samples(
             source=self.source,
             time_ns=self.epoch_unix_ns + np.rint(self.time_s * 1e9).astype(np.int64),
             accel=self.accel_mps2,
@@ -412,6 +444,23 @@ class Recording:
             temperature=self.temperature_c,
             topic=self.topic,
             notes=self.notes,
+            **(
+                {
+                    "unit_stated_by": f"accel_unit={unit!r}",
+                    "unit_remedy": f"leave accel_unit={unit!r} out",
+                }
+                if unit is not None
+                else {}
+            ),
+        )
+        if checked.clip_limits_mps2 is not None or self.clip_limits_mps2 is None:
+            return checked
+        shift_s = (self.epoch_unix_ns - checked.epoch_unix_ns) * 1e-9
+        return replace(
+            checked,
+            clip_limits_mps2=self.clip_limits_mps2,
+            clipped_time_s=None if self.clipped_time_s is None else self.clipped_time_s + shift_s,
+            clipped_mps2=self.clipped_mps2,
         )
 
     @property

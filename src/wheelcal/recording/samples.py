@@ -94,6 +94,9 @@ class CleanSamples:
     notes: tuple[str, ...]
     #: (3, 2) low/high rail per axis where clipping was found, NaN elsewhere.
     clip_limits_mps2: np.ndarray | None = None
+    #: The clipped samples that were dropped: stamps (int ns) and rows (m/s²), for views.
+    clipped_ns: np.ndarray | None = None
+    clipped_mps2: np.ndarray | None = None
 
 
 def percent(part: int, whole: int) -> str:
@@ -110,6 +113,7 @@ def clean_samples(
     full_scale_g: float | None,
     policy: InputPolicy,
     unit_remedy: str | None = None,
+    unit_stated_by: str = "the file",
 ) -> CleanSamples:
     """Repair what can be repaired, refuse the rest (see the module docstring).
 
@@ -130,6 +134,9 @@ def clean_samples(
     unit_remedy:
         How to state the right unit for this file's format (for the unit
         check's message); ``None``: ``--accel-unit`` or the channel metadata.
+    unit_stated_by:
+        Who claimed ``unit``, as the unit check's message names it: ``"the
+        file"``, or the option that overrode it (``"--accel-unit g"``).
 
     Raises
     ------
@@ -150,11 +157,11 @@ def clean_samples(
     step_ns = _typical_step_ns(t)  # sorted and unique from here on
     _report_gaps(t, step_ns, policy, notes)
     t, a = _drop_gross_outliers(path, t, a, policy, notes)
-    t, a, rails = _drop_clipped(path, t, a, full_scale_g, policy, notes)
+    t, a, rails, clipped = _drop_clipped(path, t, a, full_scale_g, policy, notes)
     _check_rate(path, t.size, step_ns, policy)
     _check_alive(path, a)
     if policy.check_units:
-        _check_units(path, a, unit, unit_remedy)
+        _check_units(path, a, unit, unit_remedy, unit_stated_by)
     duration_s = (t[-1] - t[0]) * 1e-9 if t.size else 0.0
     if t.size < policy.min_samples or duration_s < policy.min_duration_s:
         raise SampleError(
@@ -163,7 +170,8 @@ def clean_samples(
             f"a calibration needs at least {policy.min_samples} samples and "
             f"{policy.min_duration_s:g} s of free spin",
         )
-    return CleanSamples(t, a, tuple(notes), rails)
+    clipped_ns, clipped_mps2 = clipped if clipped is not None else (None, None)
+    return CleanSamples(t, a, tuple(notes), rails, clipped_ns, clipped_mps2)
 
 
 def rows_all(mask: np.ndarray) -> np.ndarray:
@@ -530,6 +538,8 @@ def _report_gaps(t, dt_ns, policy, notes):
 def _drop_clipped(path, t, a, full_scale_g, policy, notes):
     """Drop clipped samples; also return the rails (3, 2: low, high; NaN = none found).
 
+    And the dropped samples themselves (stamps, rows), for a view to mark.
+
     The rails travel with the recording: dropping only the samples *at* a rail
     keeps their neighbours whose noise happened to stay below it, a selection
     that biases the peaks low; the estimator therefore also leaves out the
@@ -557,7 +567,7 @@ def _drop_clipped(path, t, a, full_scale_g, policy, notes):
         how = "at the rails " + ", ".join(rails) + " m/s² (runs at the extreme value)"
     count = int(clipped.sum())
     if count == 0:
-        return t, a, None
+        return t, a, None, None
     if count > policy.max_clipped_fraction * t.size:
         raise SampleError(
             path,
@@ -565,7 +575,7 @@ def _drop_clipped(path, t, a, full_scale_g, policy, notes):
             "the sensor range is too small for this spin (use a larger range or spin slower)",
         )
     notes.append(f"dropped {count} clipped samples ({percent(count, t.size)}) {how}")
-    return t[~clipped], a[~clipped], limits
+    return t[~clipped], a[~clipped], limits, (t[clipped], a[clipped])
 
 
 def run_lengths(mask: np.ndarray) -> np.ndarray:
@@ -654,7 +664,7 @@ def _check_rate(path, samples, step_ns, policy):
         )
 
 
-def _check_units(path, a, unit, remedy=None):
+def _check_units(path, a, unit, remedy=None, stated_by="the file"):
     g = STANDARD_GRAVITY_MPS2
     rest = rest_level(a)
     other = "m/s^2" if unit == "g" else "g"
@@ -668,13 +678,13 @@ def _check_units(path, a, unit, remedy=None):
             raise SampleError(
                 path,
                 f"at rest the samples read |a| = {rest:.3g}, about 1: they look like g, "
-                f"but the file says m/s^2 (at rest |a| would be ≈ {g:.2f}); {fix}",
+                f"but {stated_by} says m/s^2 (at rest |a| would be ≈ {g:.2f}); {fix}",
             )
         if unit == "g" and 6.0 < ratio < 16.0:
             raise SampleError(
                 path,
                 f"at rest the samples read |a| = {rest / g:.3g} g: they look like m/s^2, "
-                f"but the file says g; {fix}",
+                f"but {stated_by} says g; {fix}",
             )
         return
     median = float(np.sqrt(np.median(np.einsum("ij,ij->i", a, a))))

@@ -50,6 +50,7 @@ from wheelcal.session.gates import (
     refuse_implausible,
     refuse_misfit,
     refuse_undersampled,
+    rest_level,
     rest_warnings,
     tolerance_warnings,
     undetermined_parameters,
@@ -191,7 +192,7 @@ class SessionFit:
             gyro_rests=self.fitter.rests_of(rests),
         )
         guess = fitter.start(window)
-        _check_implied_radius(guess, window, gates)
+        _check_implied_radius(guess, window, gates, rests)
         result = fit_window(fitter, window, guess=guess)
         notes = [
             f"gyro-aided ({why}): wheel angle = cubic + spline with knots every "
@@ -244,7 +245,7 @@ class SessionFit:
         note = rail_note = ""
         while True:
             guess = self.fitter.start(window, fastest)  # a shortened window: no faster
-            _check_implied_radius(guess, window, gates)
+            _check_implied_radius(guess, window, gates, rests)
             result, evaluated = self.fitter.fit_evaluated(window, guess=guess)
             fitted = window
             if window.clip_limits_mps2 is not None:
@@ -384,12 +385,15 @@ def _refuse_long_gap(window: Recording) -> None:
         )
 
 
-def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) -> None:
+def _check_implied_radius(
+    guess: InitialGuess, window: Recording, gates: Gates, rests: tuple[RestSegment, ...] = ()
+) -> None:
     """Refuse before fitting when the start already puts the gains far from 1.
 
     With a radius off by ×1000 (mm typed as m) the fit itself wanders off and
     fails for reasons that hide the cause; the closed-form start already
-    shows it: gains average r_implied / r.
+    shows it: gains average r_implied / r.  The ``rests`` tell a unit error
+    from a radius error (:func:`~wheelcal.session.gates.refuse_gain_scale`).
     """
     radius = window.info.radius_m
     if guess.implied_radius_m is None or radius is None:
@@ -398,7 +402,12 @@ def _check_implied_radius(guess: InitialGuess, window: Recording, gates: Gates) 
     lo, hi = gates.gain_range
     if not lo <= mean_gain <= hi:
         refuse_gain_scale(
-            window.source, mean_gain, radius, f"the gains average ≈ {mean_gain:.4g}", gates
+            window.source,
+            mean_gain,
+            radius,
+            f"the gains average ≈ {mean_gain:.4g}",
+            gates,
+            rest_level(rests),
         )
 
 
@@ -457,7 +466,7 @@ def assess(
     """
     found = undetermined_parameters(result, gates)
     found += [(name, why) for name, why in nulled if name not in {n for n, _ in found}]
-    undetermined = refuse_implausible(result, gates, found)
+    undetermined = refuse_implausible(result, gates, found, rest_level(rests))
     bad = {name for name, _ in undetermined}
     noise = reference or noise_reference(result.residual_mps2, _theta(result), rests)
     refuse_misfit(result.source, noise, gates)

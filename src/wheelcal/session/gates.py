@@ -190,9 +190,15 @@ def undetermined_parameters(result: CalibrationResult, gates: Gates) -> list[tup
 
 
 def refuse_implausible(
-    result: CalibrationResult, gates: Gates, undetermined: list
+    result: CalibrationResult,
+    gates: Gates,
+    undetermined: list,
+    rest_level_mps2: float | None = None,
 ) -> list[tuple[str, str]]:
     """Raise :class:`CalibrationRefused` for the refusal band's post-fit gates.
+
+    ``rest_level_mps2``: |a| the rests read in the stated unit (see
+    :func:`refuse_gain_scale`), ``None`` without rests.
 
     Returns ``undetermined`` with the axes that are implausible on their own added
     (a gain outside :data:`PHYSICAL_GAIN_RANGE` or an offset above
@@ -226,7 +232,9 @@ def refuse_implausible(
     listing = ", ".join(f"gain_{a} = {_g(v)}" for a, v in gains.items())
     lo, hi = gates.gain_range
     if any(not lo <= v <= hi for v in gains.values()):
-        refuse_gain_scale(source, mean_gain, radius, listing, gates, result.layout.fit_radius)
+        refuse_gain_scale(
+            source, mean_gain, radius, listing, gates, rest_level_mps2, result.layout.fit_radius
+        )
     bad = {name for name, _ in undetermined}
     offsets = {
         a: result.value_of(f"offset_{a}_mps2") for a in AXES if f"offset_{a}_mps2" not in bad
@@ -279,19 +287,34 @@ def _alone(
     return out
 
 
+#: Rests that read |a| within this fraction of g confirm the stated unit (a unit error
+#: is a factor of 9.8; a radius error does not move a rest's reading at all).
+REST_UNIT_TOLERANCE = 0.1
+
+
+def rest_level(rests) -> float | None:
+    """Median |a| the rests read, in the recording's stated unit (``None`` without rests)."""
+    levels = [float(np.linalg.norm(r.mean_mps2)) for r in rests]
+    return float(np.median(levels)) if levels else None
+
+
 def refuse_gain_scale(
     source: str,
     mean_gain: float,
     radius_m: float,
     listing: str,
     gates: Gates,
+    rest_level_mps2: float | None = None,
     radius_fitted: bool = False,
 ) -> None:
     """Refuse gains far from 1 (``unit`` or ``gain_range``), naming every likely cause.
 
     A factor near g is a unit stated wrongly; any factor is, by eq. (9), also a
     radius error — radius ×0.1 and m/s² labelled g both give gains ≈ 10, and
-    no data can tell them apart — so both are named when both fit.
+    the spin alone cannot tell them apart — so both are named when both fit.
+    The rests can: a sensor at rest reads |a| = g in the right unit whatever
+    the radius, so rests at ≈ 9.8 m/s² (``rest_level_mps2``) rule the unit out
+    and the refusal is ``gain_range``, the radius named alone.
     """
     lo, hi = gates.gain_range
     g = STANDARD_GRAVITY_MPS2
@@ -315,6 +338,14 @@ def refuse_gain_scale(
         "sensor's own gain error"
     )
     head = f"{listing}: outside [{lo:g}, {hi:g}], which no accelerometer is"
+    if rest_level_mps2 is not None and abs(rest_level_mps2 / g - 1) < REST_UNIT_TOLERANCE:
+        raise CalibrationRefused(
+            source,
+            "gain_range",
+            f"{head}: {radius_text} (not the unit: the rests read |a| = "
+            f"{rest_level_mps2:.3g} m/s², gravity, in the unit the file states)",
+            measure,
+        )
     for factor, seen, stated, unit in ((1 / g, "g", "m/s²", "g"), (g, "m/s²", "g", "m/s^2")):
         if abs(np.log(mean_gain / factor)) < np.log(1.35):
             raise CalibrationRefused(

@@ -325,6 +325,39 @@ def _rate_and_amplitude(
     return omega, omega_dot, amplitude
 
 
+def _side(recording: Recording, edge_s: float, what: str, before: bool) -> str:
+    """``what`` left out beside the window, and "clipped spin" when samples clipped there."""
+    times = recording.clipped_time_s
+    if times is None or not np.any(times < edge_s if before else times > edge_s):
+        return what
+    return f"{what}, and spin whose samples clipped"
+
+
+def clipped_words(recording: Recording, start_s: float, end_s: float) -> str:
+    """What the window's words must add when the reader dropped clipped samples.
+
+    "Left out 27.9 s before (rest, push)" is not the whole truth when part of those
+    27.9 s was spin whose samples clipped at a rail and were dropped: say how many,
+    where, and that the spin there was too fast for the sensor's range.
+    """
+    times = recording.clipped_time_s
+    if times is None or times.size == 0:
+        return ""
+    parts = []
+    for label, inside in (
+        ("before the window", times < start_s),
+        ("inside it", (times >= start_s) & (times <= end_s)),
+        ("after it", times > end_s),
+    ):
+        if inside.any():
+            t = times[inside]
+            parts.append(f"{inside.sum()} in {t.min():.1f}–{t.max():.1f} s {label}")
+    return (
+        f"; {times.size} samples clipped at a rail were dropped ({', '.join(parts)}): the "
+        "spin there was too fast for the sensor's range"
+    )
+
+
 def _free_spin_window(
     recording: Recording,
     grid: np.ndarray,
@@ -345,7 +378,9 @@ def _free_spin_window(
     reason = (
         f"free spin {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s): "
         f"|ω| {w_start:.2f} → {w_end:.2f} rad/s, |dω/dt| ≤ {max_acc:.2f} rad/s² inside; "
-        f"left out {before:.1f} s before (rest, push) and {after:.1f} s after (brake, rest)"
+        f"left out {before:.1f} s before ({_side(recording, start_s, 'rest, push', True)}) and "
+        f"{after:.1f} s after ({_side(recording, end_s, 'brake, rest', False)})"
+        + clipped_words(recording, start_s, end_s)
     )
     return FreeSpinWindow(
         start_s=float(start_s),
@@ -415,7 +450,7 @@ def find_motion_window(recording: Recording, search: MotionSearch | None = None)
         f"motion {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s) from the gyroscope: "
         f"|ω| {window.omega_start_radps:.2f} → {window.omega_end_radps:.2f} rad/s, speed "
         f"changes up to {window.max_spin_accel_radps2:.2f} rad/s² followed by the "
-        "wheel-angle spline"
+        "wheel-angle spline" + clipped_words(recording, start_s, end_s)
     )
     return dataclasses.replace(window, reason=reason)
 

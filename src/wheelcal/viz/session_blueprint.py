@@ -82,6 +82,14 @@ AFTER_COLOR: Rgb = (38, 110, 210)
 
 #: The closed-loop tab's residual trend: its mean over this many seconds.
 TREND_S = 2.0
+#: How the time views draw many samples per pixel: the min and the max of each pixel's
+#: samples (an envelope), never their average — a rail or a spike stays where it is.
+AGGREGATION = "MinMax"
+#: Entities of the per-axis extras (``<a>`` an axis): the sensor's range or the rails the
+#: reader found, the clipped samples it dropped, and the ±2σ of the noise around 0.
+RANGE_PATH = "/range/{axis}"
+CLIPPED_PATH = "/clipped/{axis}"
+NOISE_BAND_PATH = "/noise_band/{axis}"
 
 _LINKED = rrb.TimeAxis(link=rrb.components.LinkAxis.LinkToGlobal)
 
@@ -125,6 +133,12 @@ class Layout:
     residual_sets: tuple[tuple[str, str, Rgb], ...]
     closed_loop: bool = False
     extra_views: tuple[ExtraView, ...] = ()
+    #: The verdict strip's height in lines of text (the first screen holds all of it).
+    verdict_lines: int = 0
+    #: What the signal views draw besides data and model: the range, the clipped samples.
+    signal_extras: tuple[str, ...] = ()
+    #: The closed-loop tab also shows the residual's trend (an added effect drifts in time).
+    closed_loop_trend: bool = False
 
 
 def axis_series(
@@ -137,7 +151,9 @@ def axis_series(
         source_component=component,
         selector=f".{AXES[axis]}",
     )
-    style = rr.SeriesLines(names=[label], colors=[color], widths=[width])
+    style = rr.SeriesLines(
+        names=[label], colors=[color], widths=[width], aggregation_policy=AGGREGATION
+    )
     return style.visualizer(mappings=[mapping])
 
 
@@ -146,15 +162,19 @@ Series = tuple[str, str, str, Rgb, float]
 
 
 def _per_axis_view(
-    axis: int, title: str, series: tuple[Series, ...], legend: bool
+    axis: int, title: str, series: tuple[Series, ...], legend: bool, extras: tuple[str, ...] = ()
 ) -> rrb.TimeSeriesView:
-    """A time view of one axis of {x, y, z} entities (several series may share an entity)."""
+    """A time view of one axis of {x, y, z} entities (several series may share an entity).
+
+    ``extras``: entity subtrees drawn with the style they were logged with (plain
+    scalars of this axis: the range, the clipped samples, the noise band).
+    """
     overrides: dict[str, list[rrb.Visualizer]] = {}
     for path, component, label, color, width in series:
         overrides.setdefault(path, []).append(axis_series(axis, label, color, width, component))
     return rrb.TimeSeriesView(
         origin="/",
-        contents=list(overrides),
+        contents=[*overrides, *(f"{e}/**" for e in extras)],
         name=title,
         axis_x=_LINKED,
         overrides=overrides,
@@ -163,19 +183,26 @@ def _per_axis_view(
     )
 
 
-def _signal_view(k: int) -> rrb.TimeSeriesView:
+def _signal_view(k: int, extras: tuple[str, ...] = ()) -> rrb.TimeSeriesView:
     series = (
         ("/signal", SIGNAL_DATA, "data", DATA_COLOR, 1.0),
         ("/signal", SIGNAL_MODEL, "model", AXIS_COLORS[k], 1.5),
     )
-    return _per_axis_view(k, f"{AXES[k]}: data and model (m/s²)", series, legend=True)
+    paths = tuple(
+        template.format(axis=AXES[k])
+        for name, template in (("range", RANGE_PATH), ("clipped", CLIPPED_PATH))
+        if name in extras
+    )
+    title = f"{AXES[k]}: data and model (m/s²; min/max per pixel)"
+    return _per_axis_view(k, title, series, legend=True, extras=paths)
 
 
 def _residual_view(k: int, sets: tuple[tuple[str, str, Rgb], ...], title: str):
     series = tuple(
         (f"/residual/{name}", XYZ_COMPONENT, label, rgb, 1.0) for name, label, rgb in sets
     )
-    return _per_axis_view(k, title, series, legend=True)
+    band = (NOISE_BAND_PATH.format(axis=AXES[k]),)
+    return _per_axis_view(k, title, series, legend=True, extras=band)
 
 
 def _angle_view(origin: str, title: str, legend: bool) -> rrb.BarChartView:
@@ -191,8 +218,11 @@ def _calibration_tab(layout: Layout) -> rrb.Vertical:
     # One grid (not a column of rows) and the lane across the bottom: every container
     # is a blueprint entity, and each costs the file as much as a view's property.
     per_axis = rrb.Grid(
-        *[_signal_view(k) for k in range(3)],
-        *[_residual_view(k, sets, f"{AXES[k]}: residual, data − model (m/s²)") for k in range(3)],
+        *[_signal_view(k, layout.signal_extras) for k in range(3)],
+        *[
+            _residual_view(k, sets, f"{AXES[k]}: residual, data − model (m/s²); lines: ±2σ noise")
+            for k in range(3)
+        ],
         *[
             _angle_view(
                 f"/residual_angle_mean/{AXES[k]}",
@@ -205,53 +235,75 @@ def _calibration_tab(layout: Layout) -> rrb.Vertical:
         row_shares=[3, 2.4, 2.4],
     )
     right = [
-        rrb.TextDocumentView(origin="/report", name="calibration"),
+        rrb.TextDocumentView(origin="/report", name="parameters (σ stat, σ sys)"),
         # The legend in Rerun's default corner (bottom left: ω spins down, away from it).
         rrb.TimeSeriesView(origin="/spin", name="ω(t): model and measured (rad/s)", axis_x=_LINKED),
         *[extra.view() for extra in layout.extra_views],
     ]
-    # The calibration text keeps room for its parameter table whatever views join it.
-    shares = [4.4, 1.6, *[1.2] * len(layout.extra_views)]
-    return rrb.Vertical(
-        rrb.Horizontal(per_axis, rrb.Vertical(*right, row_shares=shares), column_shares=[3, 1.15]),
-        rrb.StateTimelineView(origin="/window", name="free-spin window", time_view=_LINKED),
-        row_shares=[10, 1],
-        name="calibration",
+    # The parameter table keeps its rows on screen whatever views join it.
+    shares = [4.6, 1.2, *[2.3] * len(layout.extra_views)]
+    main = rrb.Horizontal(
+        per_axis, rrb.Vertical(*right, row_shares=shares), column_shares=[3, 1.15]
     )
+    lane = rrb.StateTimelineView(origin="/window", name="free-spin window", time_view=_LINKED)
+    if not layout.verdict_lines:
+        return rrb.Vertical(main, lane, row_shares=[10, 1], name="calibration")
+    verdict = rrb.TextDocumentView(origin="/verdict", name="verdict")
+    # On a 1080-px screen the tab has ≈ 1000 px: the strip needs its title bar and
+    # padding (≈ 44 px) and ≈ 21 px a line; the other rows share the rest 10 : 1.3.
+    need = 44 + 21 * layout.verdict_lines
+    strip = 11.3 * need / max(1000 - need, 300)
+    return rrb.Vertical(verdict, main, lane, row_shares=[strip, 10, 1.3], name="calibration")
 
 
-def _closed_loop_tab() -> rrb.Horizontal:
-    trends = (
-        ("/closed_loop/trend/paper_model", XYZ_COMPONENT, "paper's model", BEFORE_COLOR, 1.5),
-        ("/closed_loop/trend/with_effects", XYZ_COMPONENT, "with effects", AFTER_COLOR, 1.5),
-    )
-    angle = rrb.Vertical(
-        *[
-            _angle_view(
-                f"/closed_loop/angle/{AXES[k]}",
-                f"{AXES[k]}: residual per 5° of ϑ — orange: paper's model, blue: with effects",
-                legend=False,
+def _closed_loop_tab(trend: bool = False) -> rrb.Horizontal:
+    """Before (the paper's model) and after (with the effects) side by side, each with its band.
+
+    Per axis two bar charts of the residual per 5° of ϑ, each with the ±2σ a bin mean
+    has from noise alone; with ``trend`` (an added effect drifts in time) the
+    residual's mean per :data:`TREND_S` too.
+    """
+    columns = []
+    for name, label in (("paper_model", "paper's model"), ("with_effects", "with effects")):
+        columns.append(
+            rrb.Vertical(
+                *[
+                    _angle_view(
+                        f"/closed_loop/{name}/{AXES[k]}",
+                        f"{AXES[k]}: {label} — residual per 5° of ϑ; grey: ±2σ of noise",
+                        legend=False,
+                    )
+                    for k in range(3)
+                ]
             )
-            for k in range(3)
-        ]
-    )
-    trend = rrb.Vertical(
-        *[
-            _per_axis_view(
-                k, f"{AXES[k]}: residual, mean per {TREND_S:g} s (m/s²)", trends, legend=True
+        )
+    if trend:
+        trends = (
+            ("/closed_loop/trend/paper_model", XYZ_COMPONENT, "paper's model", BEFORE_COLOR, 1.5),
+            ("/closed_loop/trend/with_effects", XYZ_COMPONENT, "with effects", AFTER_COLOR, 1.5),
+        )
+        columns.append(
+            rrb.Vertical(
+                *[
+                    _per_axis_view(
+                        k, f"{AXES[k]}: residual, mean per {TREND_S:g} s (m/s²)", trends, True
+                    )
+                    for k in range(3)
+                ]
             )
-            for k in range(3)
-        ]
-    )
+        )
     report = rrb.TextDocumentView(origin="/closed_loop/report", name="closed loop: what it added")
-    return rrb.Horizontal(angle, trend, report, column_shares=[1, 1, 1.05], name="closed loop")
+    shares = [1.0] * len(columns) + [1.05]
+    return rrb.Horizontal(*columns, report, column_shares=shares, name="closed loop")
 
 
 def session_layout(layout: Layout) -> rrb.Container:
     """The tabs of a session file (module docstring); one tab needs no tab container."""
     if not layout.closed_loop:
         return _calibration_tab(layout)
-    return rrb.Tabs(_calibration_tab(layout), _closed_loop_tab(), active_tab=0)
+    return rrb.Tabs(
+        _calibration_tab(layout), _closed_loop_tab(layout.closed_loop_trend), active_tab=0
+    )
 
 
 class GlobalTimeAxis:

@@ -87,7 +87,7 @@ import functools
 import math
 import os
 import zlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -99,7 +99,7 @@ from rerun.chunk import Chunk
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model import predict
 from wheelcal.model.forward import wheel_kinematics
-from wheelcal.model.parameters import AXES
+from wheelcal.model.parameters import AXES, STANDARD_GRAVITY_MPS2
 from wheelcal.recording import Recording
 from wheelcal.session.result import SessionResult
 from wheelcal.session.window import FreeSpinWindow
@@ -507,9 +507,11 @@ def report_markdown(
     end_s: float,
     recording_epoch_unix_ns: int | None = None,
 ) -> str:
-    """The text panel: source, window, fit summary, parameters ± σ, warnings, notes.
+    """The parameters panel: every parameter ± σ stat and σ sys, then source and fit.
 
     Values are printed with 7 significant digits (``f"{value:.7g}"``), σ with 2.
+    The warnings, notes, window and effects are the verdict strip's
+    (:func:`verdict_markdown`: the calibration JSON's own).
     ``recording_epoch_unix_ns`` (default: the result's epoch) is the recording's
     first sample, printed as its start time.
     """
@@ -517,25 +519,10 @@ def report_markdown(
         recording_epoch_unix_ns = result.epoch_unix_ns
     info = result.info
     topic = f" (topic `{result.topic}`)" if result.topic else ""
-    reason = window.reason if window is not None else "window given (not searched)"
     status = "converged" if result.converged else "**NOT converged**"
     rms = ", ".join(f"{v:.4g}" for v in result.residual_rms_mps2)
     noise = ", ".join(f"{v:.4g}" for v in result.noise.marginal_std_mps2)
     lines = [
-        f"# wheelcal — {Path(result.source).name}",
-        "",
-        f"- **source**: `{result.source}`{topic}",
-        f"- **recorded**: {recorded_at(recording_epoch_unix_ns)} (first sample; time 0 s)",
-        f"- **sensor**: `{info.sensor_id or '—'}` · **mounting**: `{info.mounting_id or '—'}`",
-        f"- **window**: {start_s:.3f}–{end_s:.3f} s ({end_s - start_s:.1f} s) — {reason}",
-        f"- **fit**: {result.time_s.size} samples, {status} after {result.iterations} iterations",
-        f"- **residual RMS** (x, y, z): {rms} m/s² · **noise σ**: {noise} m/s²",
-        "",
-        "## Parameters",
-        "",
-        "σ stat: one sigma from this recording's noise.  σ sys: what the data cannot see "
-        "(radius, gravity, clock), shared by every session on the same bench.",
-        "",
         "| parameter | value | σ stat | σ sys |",
         "|---|---:|---:|---:|",
     ]
@@ -551,11 +538,123 @@ def report_markdown(
             f"| `{name}` | {_fmt(float(result.values[i]), 7)} | {_fmt(float(std[i]), 2)} "
             f"| {sys_text} |"
         )
-    lines += ["", "## Warnings", ""]
-    lines += [f"- {w}" for w in result.warnings] or ["- none"]
-    if result.notes:
-        lines += ["", "## Notes", ""] + [f"- {n}" for n in result.notes]
+    lines += [
+        "",
+        "σ stat: one sigma from this recording's noise.  σ sys: what the data cannot see "
+        "(radius, gravity, clock), shared by every session on the same bench.",
+        "",
+        f"- **source**: `{result.source}`{topic}",
+        f"- **recorded**: {recorded_at(recording_epoch_unix_ns)} (first sample; time 0 s)",
+        f"- **sensor**: `{info.sensor_id or '—'}` · **mounting**: `{info.mounting_id or '—'}`",
+        f"- **window**: {start_s:.3f}–{end_s:.3f} s ({end_s - start_s:.1f} s)",
+        f"- **fit**: {result.time_s.size} samples, {status} after {result.iterations} iterations",
+        f"- **residual RMS** (x, y, z): {rms} m/s² · **noise σ**: {noise} m/s²",
+    ]
     return "\n".join(lines) + "\n"
+
+
+def _p_text(p) -> str:
+    return "—" if p is None else f"{p:.2g}"
+
+
+def _effects_line(document: Mapping) -> str:
+    """What the closed loop added, with the evidence (or what it tested and found none of)."""
+    fit = document.get("fit", {})
+    if fit.get("model") == "paper":
+        return "**model**: the paper's, as asked (`--model paper`): no effect screened"
+    added = []
+    for name, entry in document.get("effects", {}).items():
+        ev = entry.get("evidence")
+        if ev:
+            added.append(
+                f"**{name}** (χ² = {ev['statistic']:.4g}, {ev['dof']} dof, "
+                f"p = {_p_text(ev.get('p_corrected'))})"
+            )
+        else:
+            added.append(f"**{name}**")
+    screen = fit.get("effects_screen", {})
+    tested = len(screen.get("tested", []))
+    alpha = screen.get("alpha")
+    level = f" at family-wise α = {alpha:g}" if alpha is not None else ""
+    if added:
+        return (
+            f"**model**: the paper's + {', '.join(added)} — the closed loop added "
+            f"{'it' if len(added) == 1 else 'them'} ({tested} candidates tested{level}; "
+            "before/after: the **closed loop** tab)"
+        )
+    smallest = _p_text(screen.get("smallest_p_corrected"))
+    return (
+        f"**model**: the paper's — the screen found none of {tested} candidate effects{level} "
+        f"(smallest corrected p = {smallest})"
+    )
+
+
+def _residual_line(document: Mapping) -> str:
+    fit = document.get("fit", {})
+    ref = fit.get("noise_reference") or {}
+    rms = ", ".join(f"{v:.3g}" for v in fit.get("residual_rms_mps2", []))
+    if ref.get("ratio"):
+        where = "the rests" if ref.get("source") == "rests" else "the residual's spectrum"
+        return (
+            f"**residual** {rms} m/s² (x, y, z): {max(ref['ratio']):.2f}× the sensor's noise "
+            f"floor (from {where})"
+        )
+    return f"**residual** {rms} m/s² (x, y, z)"
+
+
+def _clip_line(recording: Recording) -> str:
+    """How many samples the sensor clipped, where, and what became of them."""
+    info = recording.info
+    fs = f"range ±{info.full_scale_g:g} g" if info.full_scale_g else "range not stated"
+    if recording.clipped_time_s is None:
+        return f"**clipped**: none ({fs})"
+    n = recording.clipped_time_s.size
+    total = n + recording.samples
+    rails = recording.clip_limits_mps2
+    where = ", ".join(
+        f"{AXES[k]} = {rails[k, side]:+.4g} m/s²"
+        for k in range(3)
+        for side in range(2)
+        if rails is not None and np.isfinite(rails[k, side])
+    )
+    return (
+        f"**clipped**: {n} of {total} samples ({100 * n / total:.2g} %) at {where or 'a rail'} "
+        f"({fs}): left out of the fit, drawn as magenta points on the data plots"
+    )
+
+
+def verdict_markdown(document: Mapping, recording: Recording) -> str:
+    """The verdict strip: effects and their evidence, residual, clipping, window, warnings.
+
+    Read from the calibration document itself (``calibration_dict``): its warnings
+    are the JSON's ``fit.warnings``, its window words ``source.window_reason``.
+    """
+    source = document.get("source", {})
+    fit = document.get("fit", {})
+    undetermined = document.get("sensor", {}).get("undetermined", [])
+    status = "calibrated" if not undetermined else "calibrated, partly (see warnings)"
+    lines = [
+        f"**{Path(str(source.get('file', '?'))).name}: {status}** · {_effects_line(document)}",
+        f"- {_residual_line(document)} · {_clip_line(recording)}",
+        f"- **window** {source.get('window_s', ['?', '?'])[0]}–"
+        f"{source.get('window_s', ['?', '?'])[1]} s: {source.get('window_reason', '')}",
+    ]
+    warnings = list(fit.get("warnings", []))
+    lines.append(f"- **warnings ({len(warnings)})**" + ("" if warnings else ": none"))
+    lines += [f"  - {w}" for w in warnings]
+    notes = [n for n in source.get("notes", []) if "clipped samples" not in n]
+    if notes:
+        lines.append("- **notes**: " + "; ".join(notes))
+    return "\n".join(lines) + "\n"
+
+
+#: Characters of markdown a line of the verdict strip holds (1920 px, Rerun's font).
+VERDICT_LINE_CHARS = 210
+
+
+def verdict_lines(text: str) -> int:
+    """Lines the verdict strip needs on screen (each markdown line wrapped)."""
+    return sum(1 + len(line) // VERDICT_LINE_CHARS for line in text.splitlines())
 
 
 def closed_loop_markdown(diagnosis) -> str:
@@ -622,8 +721,29 @@ def trend(time_s: np.ndarray, values: np.ndarray, step_s: float) -> tuple[np.nda
     return mean_t, np.column_stack(columns)
 
 
+#: Effects whose residual drifts in time rather than repeating every turn: with one of
+#: them added, the closed-loop tab shows the residual's trend too.
+DRIFTING_EFFECTS = (
+    "offset_warmup",
+    "offset_drift",
+    "gain_drift",
+    "temperature_offset",
+    "spin_extension",
+)
+
+
+def drifts(diagnosis) -> bool:
+    """Whether the closed loop added an effect that drifts in time (:data:`DRIFTING_EFFECTS`)."""
+    return any(step.test.effect.name in DRIFTING_EFFECTS for step in diagnosis.steps)
+
+
 def closed_loop_chunks(diagnosis, shift_s: float) -> list[Chunk]:
-    """The closed-loop tab's entities (module docstring): the paper's model against the final."""
+    """The closed-loop tab's entities (module docstring): the paper's model against the final.
+
+    Per model and axis the residual per 5° of ϑ with its ±2σ band
+    (``/closed_loop/<model>/<a>/mean`` and ``…/band_2sigma``), side by side; the
+    trend (mean per :data:`TREND_S`) only when an added effect drifts.
+    """
     base, final = diagnosis.base, diagnosis.final
     base_shift_s = shift_s + (base.epoch_unix_ns - final.epoch_unix_ns) * 1e-9
     chunks = []
@@ -632,12 +752,84 @@ def closed_loop_chunks(diagnosis, shift_s: float) -> list[Chunk]:
         ("with_effects", final, AFTER_COLOR, shift_s),
     ):
         chunks += angle_bar_chunks(
-            "closed_loop/angle", name, wheel_angle_rad(fit), fit.residual_mps2, rgb, band=False
+            f"closed_loop/{name}", "mean", wheel_angle_rad(fit), fit.residual_mps2, rgb, band=True
         )
-        t, mean = trend(fit.time_s + fit_shift_s, fit.residual_mps2, TREND_S)
-        chunks += xyz_chunks(f"closed_loop/trend/{name}", t, mean)
+        if drifts(diagnosis):
+            t, mean = trend(fit.time_s + fit_shift_s, fit.residual_mps2, TREND_S)
+            chunks += xyz_chunks(f"closed_loop/trend/{name}", t, mean)
     report = rr.TextDocument(closed_loop_markdown(diagnosis), media_type=rr.MediaType.MARKDOWN)
     chunks.append(static_chunk("closed_loop/report", row_columns(report)))
+    return chunks
+
+
+#: Colours of the per-axis extras: the range or rails, the clipped samples, the noise band.
+RANGE_COLOR: Rgb = (30, 30, 30)
+CLIPPED_COLOR: Rgb = (200, 0, 200)
+LEFT_OUT_COLOR: Rgb = (240, 170, 240)
+NOISE_BAND_COLOR: Rgb = (90, 90, 90)
+#: A dropped sample within this fraction of a rail is drawn as clipped on that axis.
+RAIL_BAND = 0.005
+
+
+def signal_extras_chunks(recording: Recording) -> tuple[list[Chunk], tuple[str, ...]]:
+    """``/range/<a>/{low,high}`` and ``/clipped/<a>``, and which of the two there are.
+
+    The range: ±full scale when the session states it, else the rails the reader
+    found (where it found one); across the whole recording.  The clipped samples:
+    every one the reader left out, at its reading (on its rail), as points.
+    """
+    chunks: list[Chunk] = []
+    extras: list[str] = []
+    first, last = float(recording.time_s[0]), float(recording.time_s[-1])
+    fs = recording.info.full_scale_g
+    if fs:
+        limit = fs * STANDARD_GRAVITY_MPS2
+        rails = np.array([[-limit, limit]] * 3)
+        label = f"sensor range ±{fs:g} g"
+    else:
+        rails = recording.clip_limits_mps2
+        label = "rail where it clipped"
+    if rails is not None:
+        t = np.array([first, last])
+        for k in range(3):
+            for side, end in enumerate(("low", "high")):
+                rail = float(rails[k, side])
+                if np.isfinite(rail):
+                    text = f"{label} ({rail:+.4g} m/s²)"
+                    chunks += scalar_chunks(
+                        f"range/{AXES[k]}/{end}", t, np.full(2, rail), text, RANGE_COLOR
+                    )
+        extras.append("range")
+    if recording.clipped_time_s is not None:
+        t, v = recording.clipped_time_s, recording.clipped_mps2
+        for k in range(3):
+            at = np.zeros(t.size, dtype=bool)
+            for rail in rails[k] if rails is not None else ():
+                if np.isfinite(rail):
+                    at |= np.abs(v[:, k] - rail) <= RAIL_BAND * abs(rail)
+            for name, rows, text, color in (
+                ("at_rail", at, f"clipped at the rail: {int(at.sum())}, left out", CLIPPED_COLOR),
+                ("other_axis", ~at, "left out: another axis clipped", LEFT_OUT_COLOR),
+            ):
+                if rows.any():
+                    chunks += scalar_chunks(
+                        f"clipped/{AXES[k]}/{name}", t[rows], v[rows, k], text, color, points=True
+                    )
+        extras.append("clipped")
+    return chunks, tuple(extras)
+
+
+def noise_band_chunks(noise_std_mps2: np.ndarray, start_s: float, end_s: float) -> list[Chunk]:
+    """``/noise_band/<a>/{upper,lower}``: ±2σ of the noise per axis across the window."""
+    chunks: list[Chunk] = []
+    t = np.array([start_s, end_s])
+    for k in range(3):
+        two = 2.0 * float(noise_std_mps2[k])
+        for end, sign in (("upper", 1.0), ("lower", -1.0)):
+            label = f"±2σ noise ({two:.2g} m/s²)"
+            chunks += scalar_chunks(
+                f"noise_band/{AXES[k]}/{end}", t, np.full(2, sign * two), label, NOISE_BAND_COLOR
+            )
     return chunks
 
 
@@ -652,6 +844,12 @@ class SessionRrd:
     extra_views: list[ExtraView] = field(default_factory=list)
     #: Shift from the calibration's clock to the recording's, s.
     shift_s: float = 0.0
+    #: Lines of the verdict strip (0: none logged).
+    verdict_lines: int = 0
+    #: What the data plots draw besides data and model ("range", "clipped").
+    signal_extras: tuple[str, ...] = ()
+    #: The closed-loop tab shows the residual's trend (a drifting effect was added).
+    closed_loop_trend: bool = False
 
     @property
     def residual_set_names(self) -> list[str]:
@@ -688,6 +886,7 @@ class SessionRrd:
             return
         self.stream.send_chunks(closed_loop_chunks(diagnosis, self.shift_s))
         self.closed_loop = True
+        self.closed_loop_trend = drifts(diagnosis)
 
     def add_view(self, kind: str, origin: str, name: str) -> None:
         """Show ``origin`` in the calibration tab's right column.
@@ -707,7 +906,14 @@ class SessionRrd:
 
     def layout(self) -> Layout:
         """The blueprint's cache key for what was logged."""
-        return Layout(tuple(self.residual_sets), self.closed_loop, tuple(self.extra_views))
+        return Layout(
+            tuple(self.residual_sets),
+            self.closed_loop,
+            tuple(self.extra_views),
+            verdict_lines=self.verdict_lines,
+            signal_extras=self.signal_extras,
+            closed_loop_trend=self.closed_loop_trend,
+        )
 
 
 def send_session_blueprint(
@@ -722,7 +928,10 @@ def send_session_blueprint(
 
 @contextlib.contextmanager
 def session_rrd(
-    path: str | os.PathLike, session: SessionResult, durable: bool = True
+    path: str | os.PathLike,
+    session: SessionResult,
+    durable: bool = True,
+    document: Mapping | None = None,
 ) -> Iterator[SessionRrd]:
     """Log a session into a new file; the caller may add residual sets inside the block.
 
@@ -742,6 +951,10 @@ def session_rrd(
         rests' noise for the Allan view.
     durable:
         fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
+    document:
+        The session's calibration JSON (``calibration_dict``), when the caller has it:
+        the verdict strip reads its warnings, effects and window words from it (made
+        here otherwise).
 
     Yields
     ------
@@ -766,13 +979,30 @@ def session_rrd(
         stream.send_chunks(signal_chunks(recording.time_s, recording.accel_mps2, fit_time_s, model))
         log_window(stream, start_s, end_s, first_s, last_s)
         chunks = spin_chunks(result, recording, shift_s, session.gyro)
-        allan = allan_chunks(session.assessment.noise)
+        if document is None:
+            from wheelcal.calibration.session_json import calibration_dict
+
+            document = calibration_dict(session)
+        allan = allan_chunks(session.assessment.noise, document.get("imu_noise"))
         chunks += allan
         markdown = report_markdown(result, window, start_s, end_s, recording.epoch_unix_ns)
         report = rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN)
         chunks.append(static_chunk("report", row_columns(report)))
+        verdict = verdict_markdown(document, recording)
+        text = rr.TextDocument(verdict, media_type=rr.MediaType.MARKDOWN)
+        chunks.append(static_chunk("verdict", row_columns(text)))
+        extras, signal_extras = signal_extras_chunks(recording)
+        chunks += extras
+        noise = session.assessment.noise
+        floor = noise.floor_mps2 if noise is not None else result.noise.marginal_std_mps2
+        chunks += noise_band_chunks(floor, float(fit_time_s[0]), float(fit_time_s[-1]))
         stream.send_chunks(chunks)
-        rrd = SessionRrd(stream, shift_s=shift_s)
+        rrd = SessionRrd(
+            stream,
+            shift_s=shift_s,
+            verdict_lines=verdict_lines(verdict),
+            signal_extras=signal_extras,
+        )
         rrd.log_residuals(
             FIT_SET,
             fit_time_s,
@@ -781,45 +1011,141 @@ def session_rrd(
             label="data − model",
         )
         if allan:
-            rrd.add_view("spatial_2d", "/allan", "rests: Allan deviation (σ up, τ right; log-log)")
+            rrd.add_view(
+                "spatial_2d",
+                "/allan",
+                "rests: Allan deviation σ(τ), log-log; black: exported density N/√τ",
+            )
         yield rrd
         shown_s = (first_s - TIME_MARGIN_S, last_s + TIME_MARGIN_S)
         send_session_blueprint(stream, rrd.layout(), (start_s, end_s), shown_s)
 
 
-def allan_chunks(noise) -> list[Chunk]:
-    """``/allan``: the rests' overlapping Allan deviation, log10 σ against log10 τ, per axis.
+#: Colours of the Allan plot's frame, grid and reference lines.
+_FRAME_COLOR = (60, 60, 60)
+_GRID_COLOR = (200, 200, 200)
+_DENSITY_COLOR = (20, 20, 20)
+_WALK_COLOR = (150, 150, 150)
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
-    A log-log plot drawn as 2-D line strips (x = log10 τ/s, y = −log10 σ/(m/s²):
-    a 2-D view's y axis points down, so larger σ is drawn higher, as on paper),
-    the white-noise density marked at τ = 1 s and the bias instability's
-    minimum, and the read-outs as text (``/allan/readouts``).  ``noise`` is the
-    gates' noise floor (``Assessment.noise``); nothing when the recording has no rests.
+
+def _decade(exponent: int) -> str:
+    """``10⁻²`` for −2 (an axis label)."""
+    return "1" if exponent == 0 else f"10{str(exponent).translate(_SUPERSCRIPT)}"
+
+
+def _tau_label(exponent: int) -> str:
+    return {-3: "1 ms", -2: "10 ms", -1: "0.1 s", 0: "1 s", 1: "10 s", 2: "100 s"}.get(
+        exponent, f"{_decade(exponent)} s"
+    )
+
+
+def allan_chunks(noise, imu_noise: Mapping | None = None) -> list[Chunk]:
+    """``/allan``: the rests' overlapping Allan deviation as a log-log plot with its axes.
+
+    Drawn in a 2-D view at x = log10 τ/s, y = −log10 σ/(m/s²) (a 2-D view's y axis
+    points down: larger σ is drawn higher, as on paper), one decade the same length
+    on both axes, so the white noise's −½ slope looks like one: a frame with a grid
+    line and a labelled tick at every decade (τ in s, σ in m/s²), the curve per axis
+    (labelled at its end), and the references — the exported noise density's line
+    N/√τ (Kalibr's, from the white σ per sample, :mod:`wheelcal.calibration.imu_noise`)
+    and the random walk's bound K√(τ/3).  The read-outs are a table at
+    ``/allan/readouts``.  ``noise`` is the gates' noise floor
+    (``Assessment.noise``); nothing when the recording has no rests.
     """
     from wheelcal.calibration.allan_json import rests_allan
 
     block = None if noise is None else rests_allan(noise.rests)
     if block is None:
         return []
-    tau = np.log10(np.asarray(block["tau_s"]))
-    # −log10: the 2-D view's y axis points down (the curve falls to the right, as on paper)
-    adev = -np.log10(np.asarray(block["adev_mps2"]))
-    density = -np.log10(np.asarray(block["white_noise_density_mps2_rthz"]))
-    bias = np.asarray(block["bias_instability_mps2"]) * 0.664  # back to σ_min on the curve
-    bias_tau = np.log10(np.asarray(block["bias_instability_tau_s"]))
+    tau = np.asarray(block["tau_s"], dtype=float)
+    adev = np.asarray(block["adev_mps2"], dtype=float)
+    accel = (imu_noise or {}).get("accelerometer") or {}
+    density = accel.get("noise_density_mps2_rthz")
+    walk = np.asarray(block["random_walk_mps3_rthz"], dtype=float)
+    lx = np.log10(tau)
+    x0, x1 = int(np.floor(lx.min())), int(np.ceil(lx.max()))
+    values = [adev[np.isfinite(adev)]]
+    if density:
+        values.append(np.asarray(density, float) / np.sqrt(tau[[0, -1]]).reshape(-1, 1))
+    ly = np.log10(np.concatenate([v.ravel() for v in values]))
+    s0, s1 = int(np.floor(ly.min())), int(np.ceil(ly.max()))
+    top, bottom = -s1, -s0  # screen y of the largest and the smallest σ decade
     chunks = []
-    for k, axis in enumerate(AXES):
-        strip = rr.LineStrips2D([np.column_stack([tau, adev[:, k]])], colors=[AXIS_COLORS[k]])
-        marks = rr.Points2D(
-            [[0.0, density[k]], [bias_tau[k], -np.log10(bias[k])]],
-            colors=[AXIS_COLORS[k]] * 2,
-            radii=[0.02, 0.02],
-            labels=[f"N_{axis}", f"B_{axis}"],
+    frame = [[x0, top], [x1, top], [x1, bottom], [x0, bottom], [x0, top]]
+    grid = [[[x, top], [x, bottom]] for x in range(x0 + 1, x1)]
+    grid += [[[x0, -e], [x1, -e]] for e in range(s0 + 1, s1)]
+    chunks.append(
+        static_chunk(
+            "allan/axes/frame", row_columns(rr.LineStrips2D([frame], colors=[_FRAME_COLOR]))
         )
+    )
+    if grid:
+        chunks.append(
+            static_chunk(
+                "allan/axes/grid",
+                row_columns(rr.LineStrips2D(grid, colors=[_GRID_COLOR], radii=[0.004])),
+            )
+        )
+    ticks = [[x, bottom + 0.18] for x in range(x0, x1 + 1)]
+    tick_text = [_tau_label(x) for x in range(x0, x1 + 1)]
+    ticks += [[x0 - 0.5, -e] for e in range(s0, s1 + 1)]
+    tick_text += [f"{_decade(e)} m/s²" for e in range(s0, s1 + 1)]
+    chunks.append(
+        static_chunk(
+            "allan/axes/labels",
+            row_columns(
+                rr.Points2D(
+                    ticks,
+                    labels=tick_text,
+                    radii=[0.001],
+                    colors=[_FRAME_COLOR],
+                    show_labels=True,
+                )
+            ),
+        )
+    )
+    ends, names = [], []
+    for k, axis in enumerate(AXES):
+        ok = np.isfinite(adev[:, k]) & (adev[:, k] > 0)
+        curve = np.column_stack([lx[ok], -np.log10(adev[ok, k])])
+        strip = rr.LineStrips2D([curve], colors=[AXIS_COLORS[k]], radii=[0.012])
         chunks.append(static_chunk(f"allan/{axis}", row_columns(strip)))
-        chunks.append(static_chunk(f"allan/{axis}/readouts", row_columns(marks)))
+        ends.append(curve[-1] + [0.08, 0.0])
+        names.append(axis)
+    chunks.append(
+        static_chunk(
+            "allan/curve_names",
+            row_columns(
+                rr.Points2D(
+                    ends, labels=names, colors=list(AXIS_COLORS), radii=[0.001], show_labels=True
+                )
+            ),
+        )
+    )
+    span = np.array([tau[0], tau[-1]])
+    if density:
+        n = float(max(density))
+        line = np.column_stack([np.log10(span), -np.log10(n / np.sqrt(span))])
+        chunks.append(
+            static_chunk(
+                "allan/noise_density",
+                row_columns(rr.LineStrips2D([line], colors=[_DENSITY_COLOR], radii=[0.006])),
+            )
+        )
+    if np.all(np.isfinite(walk)):
+        k_max = float(walk.max())
+        line = np.column_stack([np.log10(span), -np.log10(k_max * np.sqrt(span / 3))])
+        inside = line[:, 1] >= top  # within the frame's σ range
+        if inside.all():
+            chunks.append(
+                static_chunk(
+                    "allan/random_walk_bound",
+                    row_columns(rr.LineStrips2D([line], colors=[_WALK_COLOR], radii=[0.006])),
+                )
+            )
     lines = [
-        f"Allan deviation of {block['rests_s']:.3g} s of rests (x: log10 τ/s, up: log10 σ/(m/s²))",
+        f"Allan deviation of {block['rests_s']:.3g} s of rests",
         "",
         "| axis | N (m/s²/√Hz) | B (m/s²) | K (m/s³/√Hz) |",
         "|---|---:|---:|---:|",
@@ -838,7 +1164,10 @@ def allan_chunks(noise) -> list[Chunk]:
 
 
 def write_session_rrd(
-    path: str | os.PathLike, session: SessionResult, durable: bool = True
+    path: str | os.PathLike,
+    session: SessionResult,
+    durable: bool = True,
+    document: Mapping | None = None,
 ) -> Path:
     """Write the session's ``.rrd`` (see the module docstring) atomically.
 
@@ -851,12 +1180,14 @@ def write_session_rrd(
         report, when it added effects, gets its before/after tab.
     durable:
         fsync the file (see :func:`wheelcal.io.atomic.atomic_output`).
+    document:
+        The session's calibration JSON, when the caller has it (see :func:`session_rrd`).
 
     Returns
     -------
     Path
         ``path``.
     """
-    with session_rrd(path, session, durable) as rrd:
+    with session_rrd(path, session, durable, document) as rrd:
         rrd.log_diagnosis(session.diagnosis)
     return Path(path)
