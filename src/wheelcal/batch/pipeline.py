@@ -98,6 +98,7 @@ _SECTIONS: dict[str, dict[str, _Key]] = {
     "inputs": {
         "globs": _Key("globs", "a glob pattern or a list of them (strings)"),
         "topic": _text("a topic name (string)"),
+        "ids_from": _choice("stem"),
     },
     "simulate": {
         "preset": _choice("table1", "table2"),
@@ -221,6 +222,20 @@ class Pipeline:
     closure: bool = False
     rerun: bool = False
     executor: Executor = field(default_factory=Executor)
+    #: ``"stem"``: each recording's file name (without its suffix) is its ``sensor_id`` and
+    #: ``mounting_id`` where the pipeline gives none (logs that store no ids: CSV exports).
+    ids_from: str | None = None
+
+    def options_for(self, path: str | os.PathLike) -> SessionOptions:
+        """The session options of one recording (its ids from its name with ``ids_from``)."""
+        if self.ids_from != "stem":
+            return self.options
+        stem = Path(path).stem
+        return dataclasses.replace(
+            self.options,
+            sensor_id=self.options.sensor_id or stem,
+            mounting_id=self.options.mounting_id or stem,
+        )
 
     def input_files(self) -> list[Path]:
         """Recordings matched by the globs plus the simulated ones (sorted, de-duplicated).
@@ -282,6 +297,7 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
         closure=bool(run.get("closure", run.get("diagnose", False))),
         rerun=bool(run.get("rerun", False)),
         executor=executor,
+        ids_from=data.get("inputs", {}).get("ids_from"),
     )
 
 

@@ -287,11 +287,12 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
                 )
             )
             continue
-        key = run_key(sha, pipeline.options, produces)
-        if _up_to_date(out, stem, key, pipeline.options):
+        options = pipeline.options_for(f)
+        key = run_key(sha, options, produces)
+        if _up_to_date(out, stem, key, options):
             up_to_date.append(_up_to_date_record(str(f), out, stem, pipeline.rerun))
         else:
-            tasks.append(_Task(str(f), pipeline.options, str(out), key, sha, stem))
+            tasks.append(_Task(str(f), options, str(out), key, sha, stem))
     return tasks, up_to_date
 
 
