@@ -18,7 +18,9 @@ for the sensor, so ``export`` and ``apply`` read it the same way::
       "sessions": [{"file", "mounting_id", "calibration", "skipped": [{"parameter", "reason"}]}],
       "parameters": {name: {"value", "std", "systematic_std", "std_unscaled"}},
       "fit": {"noise_std_mps2": [3], "covariance", "covariance_names", "warnings",
-              "allan": {...}}   # the sessions' rests pooled (wheelcal.calibration.allan_json)
+              "allan": {...}},  # the sessions' rests pooled (wheelcal.calibration.allan_json)
+      "gyro": {"matrix", "matrix_std", "bias_radps", "bias_std_radps", "mountings", ...}
+                                # with a gyroscope (wheelcal.calibration.gyro_json)
     }
 
 Values a session cannot determine are JSON ``null`` in its file; they are
@@ -39,6 +41,7 @@ import numpy as np
 from wheelcal import __version__
 from wheelcal.calibration.allan_json import pooled_allan
 from wheelcal.calibration.document import read_only_document
+from wheelcal.calibration.gyro_json import gyro_block
 from wheelcal.calibration.session_json import SENSOR_CALIBRATION_FORMAT as FORMAT
 from wheelcal.closedloop.pooling import (
     JOINT_FIT,
@@ -217,6 +220,8 @@ def sensor_calibration_dict(
             "warnings": list(pooled.warnings),
             **_pooled_allan(calibrations),
         },
+        # The gyroscope's full matrix from the mountings (calibration/gyro_json.py).
+        **gyro_block(calibrations),
     }
 
 
