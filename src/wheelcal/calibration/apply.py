@@ -7,6 +7,7 @@ import os
 
 import numpy as np
 
+from wheelcal.calibration.gyro_apply import gyro_correction_from, why_no_gyro_correction
 from wheelcal.calibration.session_json import load_calibration, load_correction_from
 from wheelcal.io.atomic import refuse_existing
 from wheelcal.io.mcap_reader import read_recording
@@ -14,6 +15,20 @@ from wheelcal.io.mcap_writer import accel_channel, copy_with_channels, recording
 from wheelcal.recording.samples import InputPolicy
 
 CALIBRATION_METADATA_NAME = "wheelcal.calibration"
+
+
+class AppliedCopy(tuple):
+    """``(topic, samples)`` of :func:`apply_calibration`, and what was done to the gyro.
+
+    ``gyro_note``: one line for the user (corrected with the sensor's matrix, or
+    why not); empty when the recording has no gyroscope.
+    """
+
+    def __new__(cls, topic: str, samples: int, gyro_note: str = "") -> AppliedCopy:
+        """The pair, with the note attached."""
+        self = super().__new__(cls, (topic, samples))
+        self.gyro_note = gyro_note
+        return self
 
 
 def apply_calibration(
@@ -25,14 +40,18 @@ def apply_calibration(
     encoding: str | None = None,
     allow_partial: bool = False,
     replace: bool = False,
-) -> tuple[str, int]:
+) -> AppliedCopy:
     """Add ``<topic>/calibrated`` (corrected samples, same stamps) to a copy of ``source``.
 
     The calibration JSON is also stored as an MCAP metadata record named
     ``wheelcal.calibration``.  Each calibrated ``sensor_msgs/msg/Imu`` carries
     the samples' noise covariance M diag(σ²) Mᵀ as its
     ``linear_acceleration_covariance`` (:func:`corrected_covariance`).
-    Returns the new topic and the number of samples.
+    With a gyroscope and a sensor file whose ``gyro`` block has the full matrix
+    and bias, the calibrated topic's angular velocity is the corrected rate
+    ω = M⁻¹ (g − b − G f) (:mod:`wheelcal.calibration.gyro_apply`); else the gyro
+    is not copied into it.  Returns the new topic, the number of samples and a
+    note on the gyro (:class:`AppliedCopy`).
     Samples the reader repaired or dropped (NaNs, duplicates, clipping) are
     handled as in calibration and listed in the recording's notes.  A
     calibration with undetermined parameters needs ``allow_partial``.  An
@@ -58,6 +77,7 @@ def apply_calibration(
     new_topic = out_topic or f"{recording.topic.rstrip('/')}/calibrated"
     enc = encoding or ("json" if "wheelcal" in recording.topic else "ros2")
     covariance = corrected_covariance(calibration, correction.matrix)
+    gyro, gyro_note, gyro_metadata = _corrected_gyro(calibration, recording, corrected)
     channel = accel_channel(
         recording_stamps_ns(recording),
         corrected,
@@ -65,6 +85,7 @@ def apply_calibration(
         topic=new_topic,
         batch_size=50,
         accel_covariance_mps2sq=covariance,
+        gyro=gyro,
     )
     metadata = {
         CALIBRATION_METADATA_NAME: {
@@ -80,10 +101,34 @@ def apply_calibration(
                 if covariance is not None
                 else {}
             ),
+            **gyro_metadata,
         }
     }
     copy_with_channels(source, destination, [channel], metadata, replace=replace)
-    return new_topic, recording.samples
+    return AppliedCopy(new_topic, recording.samples, gyro_note)
+
+
+def _corrected_gyro(calibration: dict, recording, accel_mps2: np.ndarray):
+    """(corrected rates or None, a note for the user, metadata entries) for the gyro."""
+    if recording.gyro_radps is None:
+        return None, "", {}
+    gyro = gyro_correction_from(calibration)
+    if gyro is None:
+        why = why_no_gyro_correction(calibration)
+        return None, f"gyro not corrected (left out of the calibrated topic): {why}", {}
+    metadata = {
+        "gyro_matrix": json.dumps(gyro.matrix.tolist()),
+        "gyro_bias_radps": json.dumps(gyro.bias_radps.tolist()),
+        "gyro_equation": "omega = gyro_matrix @ (g - gyro_bias_radps - G @ a)"
+        if gyro.g_sensitivity is not None
+        else "omega = gyro_matrix @ (g - gyro_bias_radps)",
+        **(
+            {"gyro_g_sensitivity_radps_per_mps2": json.dumps(gyro.g_sensitivity.tolist())}
+            if gyro.g_sensitivity is not None
+            else {}
+        ),
+    }
+    return gyro.apply(recording.gyro_radps, accel_mps2), gyro.describe(), metadata
 
 
 def raw_noise_std_mps2(calibration: dict) -> np.ndarray | None:

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.force and os.path.lexists(args.destination):
         raise UsageError(str(OutputExistsError(args.destination)))
     try:
-        topic, samples = apply_calibration(
+        applied = apply_calibration(
             args.calibration,
             args.source,
             args.destination,
@@ -72,5 +72,8 @@ def run(args: argparse.Namespace) -> int:
         if args.source not in message and args.calibration not in message:
             message = f"{args.source}: {message}"
         raise SessionsFailed(f"error: {message}") from None
+    topic, samples = applied
     print(f"wrote {args.destination}: {samples} calibrated samples on {topic}")
+    if applied.gyro_note:
+        print(applied.gyro_note)
     return 0

@@ -7,6 +7,8 @@ import os
 import sys
 from pathlib import Path
 
+#: imu_tk's calibration files: the accelerometer's and (from a pooled sensor file) the gyro's.
+IMU_TK_FORMATS = ("imu_tk_acc", "imu_tk_gyro")
 #: The command's one-line help and its --help description.
 HELP = "export a calibration as Kalibr imu.yaml, an imu_calib file or a C header"
 DESCRIPTION = (
@@ -22,7 +24,7 @@ def register(sub) -> None:
     """Add the ``export`` parser."""
     p = sub.add_parser("export", help=HELP, description=DESCRIPTION)
     p.add_argument("calibration", metavar="CAL.json")
-    p.add_argument("--format", choices=("yaml", "imu_calib", "c"), required=True)
+    p.add_argument("--format", choices=("yaml", "imu_calib", "c", *IMU_TK_FORMATS), required=True)
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
     p.add_argument(
         "--force", action="store_true", help="replace the --out file if it exists (default: refuse)"
@@ -39,7 +41,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export."""
-    from wheelcal.calibration.export import to_c_header, to_imu_calib, to_yaml
+    from wheelcal.calibration.export import to_c_header, to_imu_calib, to_imu_tk, to_yaml
     from wheelcal.calibration.session_json import load_calibration
     from wheelcal.cli.errors import UsageError
     from wheelcal.io.atomic import OutputExistsError, atomic_write_text
@@ -54,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
             text = to_yaml(calibration)
         elif args.format == "imu_calib":
             text = to_imu_calib(calibration)
+        elif args.format in IMU_TK_FORMATS:
+            text = to_imu_tk(calibration, args.format.removeprefix("imu_tk_"))
         else:
             text = to_c_header(calibration, args.prefix)
     except ValueError as exc:

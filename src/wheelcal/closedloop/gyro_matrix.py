@@ -358,10 +358,18 @@ def _undetermined(std, least, n_mountings: int, singular) -> list[tuple[str, str
         sigma = std[k]
         if np.isfinite(sigma) and sigma <= MAX_MATRIX_STD:
             continue
-        if independent < 3:
+        if independent == 1:
             reason = (
-                f"the {n_mountings} mounting(s) give {independent} independent wheel "
-                f"axis/axes in the sensor frame: M is measured only along them (see "
+                f"the {n_mountings} mounting(s) give one wheel axis in the sensor frame: M is "
+                "measured along it only (the scale and direction there, see "
+                "mountings[].matrix_times_axis) — add mountings with the wheel axis near two "
+                "other sensor axes (three independent axes, e.g. near x, y and z, determine "
+                "all nine entries)"
+            )
+        elif independent < 3:
+            reason = (
+                f"the {n_mountings} mounting(s) give {independent} independent wheel axes in "
+                "the sensor frame: M is measured only in their plane (see "
                 f"mountings[].matrix_times_axis); the direction {np.round(least, 3).tolist()} "
                 "is not seen — add a mounting with the wheel axis along it (three independent "
                 "axes, e.g. near the sensor's x, y and z, determine all nine entries)"
