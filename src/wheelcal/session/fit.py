@@ -260,6 +260,8 @@ class SessionFit:
                 window, window.time_s - result.centre_s, result.layout.effects
             )
         result, diagnosis = self._refined(result, window, rests)
+        if fitter.geometry != "rolling":  # the gyro block judges the samples fitted, no others
+            gyro_t, gyro = gyro_samples(window, window.time_s - result.centre_s)
         block = gyro_from_fit(result, gyro_t, gyro)
         notes.append(_stretches_note(window))
         choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
