@@ -126,13 +126,28 @@ def gyro_block(calibrations: Sequence[Mapping]) -> dict:
     if not observations:
         if not skipped:
             return {}
-        return {"gyro": {"matrix": None, "skipped": skipped, "note": _NOTE}}
+        return {"gyro": _empty(skipped, [])}
     try:
         pooled = pool_gyro(observations)
     except (ValueError, np.linalg.LinAlgError) as exc:  # the accelerometer's file still counts
-        reason = f"the pooled gyro fit failed: {exc}"
-        return {"gyro": {"matrix": None, "skipped": skipped, "warnings": [reason], "note": _NOTE}}
+        return {"gyro": _empty(skipped, [f"the pooled gyro fit failed: {exc}"])}
     return {"gyro": pooled_gyro_dict(pooled, skipped)}
+
+
+def _empty(skipped: Sequence[Mapping], warnings: Sequence[str]) -> dict:
+    """The block when no session's gyro reading could be pooled: nulls, and why."""
+    return {
+        "matrix": None,
+        "matrix_std": None,
+        "bias_radps": None,
+        "bias_std_radps": None,
+        "mountings": [],
+        "undetermined": [{"parameter": "matrix", "reason": "no session has a usable gyro reading"}],
+        "sessions_used": 0,
+        "skipped": list(skipped),
+        "warnings": list(warnings),
+        "note": _NOTE,
+    }
 
 
 def pooled_gyro_dict(pooled: PooledGyro, skipped: Sequence[Mapping] = ()) -> dict:

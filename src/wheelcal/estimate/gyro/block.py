@@ -71,6 +71,10 @@ class GyroCalibration:
     reading_names: tuple[str, ...] = ()
     #: g of the fit: b is the reading at zero rate with G R e_Z · g cos α in it.
     gravity_mps2: float | None = None
+    #: The wheel axis d = −R e_Z in the accelerometer's frame (what w = M d measures M
+    #: along) and its σ from R's covariance.
+    wheel_axis: np.ndarray | None = None
+    wheel_axis_std: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         """The calibration JSON's ``gyro`` block."""
@@ -111,6 +115,14 @@ class GyroCalibration:
             ),
             **({"rests_used": self.rests_used} if self.rests_used is not None else {}),
             **self._reading_dict(),
+            **(
+                {
+                    "wheel_axis_in_sensor_frame": self.wheel_axis.tolist(),
+                    "wheel_axis_std": self.wheel_axis_std.tolist(),
+                }
+                if self.wheel_axis is not None
+                else {}
+            ),
             "source": self.source,
             "calibrated": "scale along the wheel axis, the axis direction, the three biases",
             "note": "u is free: it tilts from −R·e_Z by the gyro's own misalignment and "
@@ -132,6 +144,27 @@ class GyroCalibration:
                 **({"gravity_mps2": self.gravity_mps2} if self.gravity_mps2 is not None else {}),
             }
         }
+
+
+def _wheel_axis(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray]:
+    """The wheel axis d = −R e_Z in the accelerometer's frame, and its σ (from R's covariance).
+
+    R → R exp([δ]×) turns d by R [e_Z]× δ, and the angles by ε = J δ
+    (:meth:`~wheelcal.model.Rotation.euler_jacobian_deg`).
+    """
+    from wheelcal.model.rotation import hat
+
+    rotation = result.params.bench.misalignment
+    names = [f"euler_{k}_deg" for k in (1, 2, 3)]
+    index = [result.names.index(n) for n in names]
+    cov_deg2 = result.covariance[np.ix_(index, index)]
+    turn = (
+        rotation.matrix
+        @ hat(np.array([0.0, 0.0, 1.0]))
+        @ np.linalg.inv(rotation.euler_jacobian_deg())
+    )
+    cov = turn @ cov_deg2 @ turn.T
+    return -rotation.matrix[:, 2], np.sqrt(np.maximum(np.diag(cov), 0.0))
 
 
 def _mean_force_mps2(result: CalibrationResult) -> float:
@@ -217,7 +250,13 @@ def gyro_from_fit(
         result.params.gravity_mps2,
     )
     rests = result.gyro_rests
-    return dataclasses.replace(block, rests_used=0 if rests is None else rests.count)
+    axis, axis_std = _wheel_axis(result)
+    return dataclasses.replace(
+        block,
+        rests_used=0 if rests is None else rests.count,
+        wheel_axis=axis,
+        wheel_axis_std=axis_std,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -280,7 +319,7 @@ def gyro_by_product(
     reading = gyro_effect(fitted.layout)
     values = fitted.params.effect(reading.name, reading.size)
     cov, residual = fitted.covariance, fitted.residual_radps
-    return _calibration(
+    block = _calibration(
         values,
         cov,
         result.params.bench.misalignment.matrix,
@@ -291,3 +330,5 @@ def gyro_by_product(
         reading,
         result.params.gravity_mps2,
     )
+    axis, axis_std = _wheel_axis(result)
+    return dataclasses.replace(block, wheel_axis=axis, wheel_axis_std=axis_std)
