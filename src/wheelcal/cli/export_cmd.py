@@ -16,7 +16,8 @@ DESCRIPTION = (
     "yaml = Kalibr's imu.yaml keys (accelerometer_noise_density and "
     "accelerometer_random_walk from the rests' Allan deviation, update_rate, rostopic) "
     "with wheelcal's imu0 block; imu_calib = the ROS imu_calib package's SM and bias; "
-    "c = a C header."
+    "c = a C header; imu_tk_acc, imu_tk_gyro = imu_tk's CalibratedTriad files. A sensor's "
+    "file with the gyro's full matrix adds the gyro (Kalibr's scale-misalignment keys)."
 )
 
 
