@@ -4,8 +4,9 @@ One IMU in three mountings (the wheel axis near the sensor's x, y and z), three
 whole sessions each (90 s at 200 Hz, rest, push, spin, brake, rest; ROS 2 MCAP),
 generated once.  Then, in this process and alternating round by round:
 
-* the default ``wheelcal batch`` of the nine (``--workers`` local workers, no
-  Rerun output), which writes the sensor's pooled file with its ``gyro`` block;
+* the default ``wheelcal batch`` of the nine (``--workers`` local workers, default 1:
+  in this process, so that every CPU second is counted; no Rerun output), which
+  writes the sensor's pooled file with its ``gyro`` block;
 * the same batch with the pooled gyro fit switched off (the sensor file without
   its ``gyro`` block: the baseline, what a batch cost before);
 
@@ -14,7 +15,11 @@ the nine sessions' calibrations).  Prints the medians of the wall time and of th
 CPU seconds (this process and its workers: steadier than the wall time on a
 shared machine), and their ratios; target ≤ 1.05.
 
-Run:  python benchmarks/bench_gyro_matrix.py [--rounds 5] [--workers 2]
+Run:  python benchmarks/bench_gyro_matrix.py [--rounds 9] [--workers 1]
+
+Measured (2 shared cores, load ≈ 4): CPU per batch 2.28 s with the pooled gyro fit,
+2.31 s without (ratio 1.00); wall time ratio 1.03 (the load's noise); the pooled fit
+alone 4–8 ms, 0.2 % of the batch.
 """
 
 from __future__ import annotations
@@ -76,8 +81,8 @@ def _cpu_s() -> float:
 def main() -> int:
     """Time and print."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rounds", type=int, default=5)
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--rounds", type=int, default=9)
+    parser.add_argument("--workers", type=int, default=1)
     args = parser.parse_args()
 
     import wheelcal.calibration.sensor_json as sensor_json
