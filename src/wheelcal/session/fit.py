@@ -186,7 +186,8 @@ class SessionFit:
             return free
         span = free.result.time_s[[0, -1]]
         free_s = float(span[1] - span[0])
-        if free_s >= FREE_SPIN_SHARE * motion.duration_s:
+        # Both windows are capped at max_window_s: an hour's spin gains nothing.
+        if free_s >= FREE_SPIN_SHARE * min(motion.duration_s, self.gates.max_window_s):
             return free
         why = (
             f"the free spin {span[0]:.2f}–{span[1]:.2f} s ({free_s:.1f} s) is "
