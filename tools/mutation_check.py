@@ -235,6 +235,17 @@ MUTATIONS: tuple[Mutation, ...] = (
             ),
         ),
     ),
+    Mutation(
+        "gyro_matrix_transposed",
+        "the pooled gyro fit measures Mᵀ d instead of M d along each mounting's wheel axis",
+        (
+            Replacement(
+                "src/wheelcal/closedloop/gyro_matrix.py",
+                "a[0:3, _M] = np.kron(_E, self.axis)",
+                "a[0:3, _M] = np.kron(self.axis, _E)",
+            ),
+        ),
+    ),
 )
 
 

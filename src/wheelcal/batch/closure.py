@@ -56,6 +56,21 @@ def run_closure(pipeline: Pipeline, calibrations: list[Calibration]) -> dict:
         if len(members) < 2:
             skipped.append({"sensor_id": sensor_id, "reason": "fewer than two calibrated sessions"})
             continue
+        flexible = [
+            m for m in members if "spline" in str(m.document.get("motion", {}).get("model", ""))
+        ]
+        if flexible:
+            # Their windows hold pushes, a motor's steps or a brake that only the gyro's
+            # flexible wheel angle follows; the closure refits the paper's cubic.
+            skipped.append(
+                {
+                    "sensor_id": sensor_id,
+                    "reason": f"{len(flexible)} session(s) fitted with the gyro's flexible wheel "
+                    "angle (a driven or pushed wheel): the sensor closure refits the paper's "
+                    "cubic, which cannot follow them; the sessions are pooled by their own fits",
+                }
+            )
+            continue
         try:
             closure = close_sensor(
                 sensor_id,

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wheelcal.calibration.gyro_apply import gyro_correction_from, why_no_gyro_correction
 from wheelcal.calibration.session_json import load_calibration, load_correction_from
 from wheelcal.io.atomic import refuse_existing
 from wheelcal.io.mcap_reader import RawImuSamples, read_raw_samples, read_recording
@@ -63,6 +64,8 @@ class AppliedCalibration:
     left_out: dict[str, int] = field(default_factory=dict)
     #: What of the source the output carries besides the calibrated topic.
     copied: str = ""
+    #: What was done to the gyro: corrected with the sensor's matrix, or why not ("" without one).
+    gyro_note: str = ""
 
     def summary(self) -> str:
         """One line for the command line: counts in = out, or the difference and why."""
@@ -94,6 +97,10 @@ def apply_calibration(
     ``wheelcal.calibration``.  Each calibrated ``sensor_msgs/msg/Imu`` carries
     the samples' noise covariance M diag(σ²) Mᵀ as its
     ``linear_acceleration_covariance`` (:func:`corrected_covariance`).
+    With a gyroscope and a sensor file whose ``gyro`` block has the full matrix and
+    bias, the calibrated topic's angular velocity is the corrected rate
+    ω = M⁻¹ (g − b − G f) (:mod:`wheelcal.calibration.gyro_apply`); else the gyro is
+    not copied into it (``gyro_note`` says which).
     Samples the reader would leave out of a calibration are corrected and flagged
     (module docstring).  A calibration with undetermined parameters needs
     ``allow_partial``.  An existing ``destination`` is refused unless ``replace``
@@ -123,6 +130,8 @@ def apply_calibration(
     flags_topic = f"{new_topic}/flags"
     enc = encoding or ("json" if raw.encoding == "json" else "ros2")
     covariance = corrected_covariance(calibration, correction.matrix)
+    raw_gyro = None if raw.gyro_radps is None else raw.gyro_radps[finite]
+    gyro, gyro_note, gyro_metadata = _corrected_gyro(calibration, raw_gyro, corrected)
     order = np.argsort(stamps, kind="stable")  # an MCAP writer takes messages in time order
     channel = accel_channel(
         stamps[order],
@@ -131,6 +140,7 @@ def apply_calibration(
         topic=new_topic,
         batch_size=50,
         accel_covariance_mps2sq=covariance,
+        gyro=None if gyro is None else gyro[order],
     )
     flagged = {why: int(np.sum(reasons == why)) for why in (CLIPPED, REPEATED, CHECKS)}
     flagged = {why: n for why, n in flagged.items() if n}
@@ -140,9 +150,10 @@ def apply_calibration(
     if marked.any():
         channels.append(flags_channel(flags_topic, raw.time_ns[marked], reasons[marked]))
     metadata = {
-        CALIBRATION_METADATA_NAME: _calibration_record(
-            calibration, correction, recording.topic, new_topic, covariance
-        ),
+        CALIBRATION_METADATA_NAME: {
+            **_calibration_record(calibration, correction, recording.topic, new_topic, covariance),
+            **gyro_metadata,
+        },
         APPLY_METADATA_NAME: {
             "messages_in": str(raw.time_ns.size),
             "samples_out": str(int(finite.sum())),
@@ -160,7 +171,31 @@ def apply_calibration(
         flagged=flagged,
         left_out=left_out,
         copied=copied,
+        gyro_note=gyro_note,
     )
+
+
+def _corrected_gyro(calibration: dict, gyro_radps: np.ndarray | None, accel_mps2: np.ndarray):
+    """(corrected rates or None, a note for the user, metadata entries) for the gyro."""
+    if gyro_radps is None:
+        return None, "", {}
+    gyro = gyro_correction_from(calibration)
+    if gyro is None:
+        why = why_no_gyro_correction(calibration)
+        return None, f"gyro not corrected (left out of the calibrated topic): {why}", {}
+    metadata = {
+        "gyro_matrix": json.dumps(gyro.matrix.tolist()),
+        "gyro_bias_radps": json.dumps(gyro.bias_radps.tolist()),
+        "gyro_equation": "omega = gyro_matrix @ (g - gyro_bias_radps - G @ a)"
+        if gyro.g_sensitivity is not None
+        else "omega = gyro_matrix @ (g - gyro_bias_radps)",
+        **(
+            {"gyro_g_sensitivity_radps_per_mps2": json.dumps(gyro.g_sensitivity.tolist())}
+            if gyro.g_sensitivity is not None
+            else {}
+        ),
+    }
+    return gyro.apply(gyro_radps, accel_mps2), gyro.describe(), metadata
 
 
 def flag_reasons(raw: RawImuSamples, recording: Recording) -> np.ndarray:

@@ -15,7 +15,17 @@ b in m/s² and M dimensionless (row-major).  A session's calibration
   per-axis Allan read-outs, ``noise``: the per-axis noise terms);
 * ``imu_calib``: the ROS ``imu_calib`` package's ``SM`` (9, row-major) and
   ``bias``, for a = SM v − bias;
-* ``c``: a C header with ``<prefix>_accel_correct()``.
+* ``c``: a C header with ``<prefix>_accel_correct()`` (and, with the gyro's
+  full matrix, ``<prefix>_gyro_correct()``);
+* ``imu_tk_acc``, ``imu_tk_gyro``: imu_tk's ``CalibratedTriad`` files
+  (misalignment T, scale K, bias B: X' = T K (X − B)).
+
+With a sensor's pooled calibration whose ``gyro`` block has the full matrix M
+and bias b (:mod:`wheelcal.calibration.gyro_apply`), the YAML adds the gyro's
+intrinsics in the form of Kalibr's ``scale-misalignment`` IMU model
+(``--imu-models scale-misalignment``: ``model``, ``accelerometers.M``,
+``gyroscopes.M``, ``gyroscopes.A``, ``gyroscopes.C_gyro_i``, the keys
+``IccScaledMisalignedImu`` writes) and wheelcal's ``imu0.gyroscope`` block.
 
 YAML is written by PyYAML (strings quoted and escaped as YAML requires, so a
 sensor id like ``lab "A"`` or ``rig\new`` reads back unchanged); comment lines
@@ -192,6 +202,7 @@ def yaml_document(calibration: dict) -> dict:
         "sensor_id": str(src.get("sensor_id") or calibration.get("sensor_id") or ""),
         "accelerometer": accelerometer,
         "calibration_equation": "a = matrix @ (v - bias)",
+        **_gyroscope_yaml(calibration),
     }
     noise_block = imu0_noise(calibration)
     if noise_block:
@@ -200,6 +211,7 @@ def yaml_document(calibration: dict) -> dict:
         **{key: found[0] for key, found in kalibr_keys(calibration).items() if found},
         "rostopic": topic,
         "update_rate": _update_rate(calibration),
+        **kalibr_scale_misalignment(calibration),
         "imu0": imu0,
     }
 
@@ -213,6 +225,80 @@ def imu0_noise(calibration: dict) -> dict:
         if sensor:
             out[kind] = {k: v for k, v in sensor.items() if k != "sessions"}
     return out
+
+
+def lower_times_rotation(matrix) -> tuple[np.ndarray, np.ndarray]:
+    """M = L Q: L lower triangular with a positive diagonal, Q a proper rotation.
+
+    Kalibr's ``scale-misalignment`` gyro reads ``M_gyro C_gyro_i ω + A C_gyro_i a + b``
+    with ``M_gyro`` lower triangular and ``C_gyro_i`` a rotation: the QR
+    decomposition of Mᵀ (Mᵀ = Q' R', so M = R'ᵀ Q'ᵀ), signs fixed so that L's
+    diagonal is positive.  Raises ValueError when det M ≤ 0 (not a rotation's).
+    """
+    m = np.asarray(matrix, dtype=float).reshape(3, 3)
+    if not np.linalg.det(m) > 0:
+        raise ValueError("the gyro's matrix has det ≤ 0: no lower-triangular × rotation form")
+    q, r = np.linalg.qr(m.T)
+    signs = np.sign(np.diag(r))
+    lower = np.tril((signs[:, None] * r).T) + 0.0  # exact zeros above the diagonal
+    rotation = (q * signs).T
+    return lower, rotation
+
+
+def kalibr_scale_misalignment(calibration: dict) -> dict:
+    """Kalibr's ``scale-misalignment`` IMU model keys, or ``{}`` without the gyro's matrix.
+
+    ``accelerometers.M`` = the accelerometer's response (v = M a + b: the inverse of
+    the correction matrix, lower triangular as Kalibr's); ``gyroscopes.M`` and
+    ``C_gyro_i`` from M = M_gyro C_gyro_i (:func:`lower_times_rotation`); ``A`` =
+    G C_gyro_iᵀ (zeros when G is not determined).  The biases are Kalibr's own
+    states (estimated online): wheelcal's are in ``imu0``.
+    """
+    from wheelcal.calibration.gyro_apply import gyro_correction_from
+
+    gyro = gyro_correction_from(calibration)
+    if gyro is None:
+        return {}
+    corr = load_correction_from(calibration)
+    lower, rotation = lower_times_rotation(gyro.response)
+    g = gyro.g_sensitivity if gyro.g_sensitivity is not None else np.zeros((3, 3))
+    return {
+        "model": "scale-misalignment",
+        "accelerometers": {"M": _rows(np.linalg.inv(corr.matrix))},
+        "gyroscopes": {
+            "M": _rows(lower),
+            "A": _rows(g @ rotation.T),
+            "C_gyro_i": _rows(rotation),
+        },
+    }
+
+
+def _rows(matrix) -> list:
+    return [[float(v) for v in row] for row in np.asarray(matrix, dtype=float)]
+
+
+def _gyroscope_yaml(calibration: dict) -> dict:
+    """``imu0.gyroscope``: the pooled gyro's M, b, G and correction (``{}`` without them)."""
+    from wheelcal.calibration.gyro_apply import gyro_correction_from
+
+    gyro = gyro_correction_from(calibration)
+    if gyro is None:
+        return {}
+    block = calibration["gyro"]
+    return {
+        "gyroscope": {
+            "bias_radps": [float(v) for v in gyro.bias_radps],
+            "matrix": _rows(gyro.matrix),
+            "response_matrix": _rows(gyro.response),
+            "response_matrix_std": [[_yaml_number(v) for v in row] for row in block["matrix_std"]],
+            "bias_std_radps": _list(block.get("bias_std_radps", [None] * 3)),
+            "g_sensitivity_radps_per_mps2": None
+            if gyro.g_sensitivity is None
+            else _rows(gyro.g_sensitivity),
+            "calibration_equation": "omega = matrix @ (g - bias - g_sensitivity @ a)",
+            "reading_equation": "g = response_matrix @ omega + bias + g_sensitivity @ a",
+        }
+    }
 
 
 def _list(values) -> list:
@@ -239,6 +325,7 @@ def to_yaml(calibration: dict) -> str:
         "definition; the Allan deviation at tau = 1 s is its check (imu0.noise);",
         "allan_variance_ros writes the same keys (its log's names in each key's comment)",
         *missing,
+        *_gyro_yaml_notes(calibration),
     ]
     document = yaml_document(calibration)
     rest = {k: v for k, v in document.items() if k not in KALIBR_KEYS}
@@ -251,6 +338,54 @@ def to_yaml(calibration: dict) -> str:
     )
     head = "".join(f"# {_comment(line)}\n" for line in header)
     return head + "".join(f"{line}\n" for line in lines) + body
+
+
+def _gyro_yaml_notes(calibration: dict) -> list[str]:
+    """Comment lines: the gyro's intrinsics exported, or why not."""
+    from wheelcal.calibration.gyro_apply import gyro_correction_from, why_no_gyro_correction
+
+    if gyro_correction_from(calibration) is not None:
+        return [
+            "gyro intrinsics (pooled over the mountings): model, accelerometers, gyroscopes "
+            "in Kalibr's scale-misalignment form (g = M_gyro C_gyro_i w + A C_gyro_i a + b); "
+            "wheelcal's imu0.gyroscope: w = matrix @ (g - bias - g_sensitivity @ a) [rad/s]",
+        ]
+    if calibration.get("gyro"):
+        return [f"no gyro intrinsics: {why_no_gyro_correction(calibration)}"]
+    return []
+
+
+def _imu_tk_triad(correction, bias) -> str:
+    """imu_tk's ``CalibratedTriad`` file: T (unit diagonal), K (diagonal), B; X' = T K (X − B).
+
+    ``CalibratedTriad_::load`` reads 9 + 9 + 3 numbers (row-major), whitespace
+    between; no comments (they would be read as numbers).  T K = ``correction``:
+    K = its diagonal, T = correction K⁻¹.
+    """
+    c = np.asarray(correction, dtype=float)
+    scale = np.diag(np.diag(c))
+    misalignment = c @ np.linalg.inv(scale)
+
+    def rows(m) -> str:
+        return "\n".join(" ".join(repr(float(v)) for v in row) for row in np.atleast_2d(m))
+
+    bias_rows = "\n".join(repr(float(v)) for v in np.asarray(bias, dtype=float))
+    return f"{rows(misalignment)}\n\n{rows(scale)}\n\n{bias_rows}\n\n"
+
+
+def to_imu_tk(calibration: dict, sensor: str) -> str:
+    """imu_tk's calibration file of the accelerometer (``"acc"``) or the gyro (``"gyro"``)."""
+    from wheelcal.calibration.gyro_apply import gyro_correction_from, why_no_gyro_correction
+
+    if sensor == "acc":
+        corr = load_correction_from(calibration)
+        return _imu_tk_triad(corr.matrix, corr.bias_mps2)
+    if sensor != "gyro":
+        raise ValueError(f"imu_tk exports 'acc' or 'gyro', got {sensor!r}")
+    gyro = gyro_correction_from(calibration)
+    if gyro is None:
+        raise ValueError(f"no gyro intrinsics to export: {why_no_gyro_correction(calibration)}")
+    return _imu_tk_triad(gyro.matrix, gyro.bias_radps)
 
 
 def to_imu_calib(calibration: dict) -> str:
@@ -321,6 +456,51 @@ static inline void {fn}_accel_correct(const float v[3], float a[3])
              + {prefix}_ACCEL_MATRIX[i][2] * d2;
     }}
 }}
-
+{_c_gyro_section(calibration, prefix)}
 #endif /* {guard} */
+"""
+
+
+def _c_gyro_section(calibration: dict, prefix: str) -> str:
+    """The gyro's bias, matrices and ``<prefix>_gyro_correct()`` (empty without them)."""
+    from wheelcal.calibration.gyro_apply import gyro_correction_from, why_no_gyro_correction
+
+    gyro = gyro_correction_from(calibration)
+    if gyro is None:
+        if not calibration.get("gyro"):
+            return ""
+        return f"\n/* No gyro correction: {_comment(why_no_gyro_correction(calibration))} */\n"
+    g = gyro.g_sensitivity if gyro.g_sensitivity is not None else np.zeros((3, 3))
+
+    def matrix(m) -> str:
+        return ",\n".join("    {" + ", ".join(map(_c_float, row)) + "}" for row in m)
+
+    bias = ", ".join(map(_c_float, gyro.bias_radps))
+    fn = prefix.lower()
+    return f"""
+/* Gyroscope (pooled over the mountings): w = M (g - b - G a), g raw rate [rad/s], a the
+ * corrected specific force [m/s^2] of {fn}_accel_correct(), w [rad/s], sensor frame. */
+static const float {prefix}_GYRO_BIAS_RADPS[3] = {{{bias}}};
+
+static const float {prefix}_GYRO_MATRIX[3][3] = {{
+{matrix(gyro.matrix)}
+}};
+
+static const float {prefix}_GYRO_G_SENSITIVITY[3][3] = {{
+{matrix(g)}
+}};
+
+/* Correct one raw rate g (rad/s) into w (rad/s), a the corrected specific force. */
+static inline void {fn}_gyro_correct(const float g[3], const float a[3], float w[3])
+{{
+    float d[3];
+    for (int i = 0; i < 3; ++i) {{
+        d[i] = g[i] - {prefix}_GYRO_BIAS_RADPS[i] - ({prefix}_GYRO_G_SENSITIVITY[i][0] * a[0]
+             + {prefix}_GYRO_G_SENSITIVITY[i][1] * a[1] + {prefix}_GYRO_G_SENSITIVITY[i][2] * a[2]);
+    }}
+    for (int i = 0; i < 3; ++i) {{
+        w[i] = {prefix}_GYRO_MATRIX[i][0] * d[0] + {prefix}_GYRO_MATRIX[i][1] * d[1]
+             + {prefix}_GYRO_MATRIX[i][2] * d[2];
+    }}
+}}
 """

@@ -20,6 +20,8 @@ for the sensor, so ``export`` and ``apply`` read it the same way::
       "fit": {"noise_std_mps2": [3], "covariance", "covariance_names", "warnings",
               "allan": {...}},  # the sessions' rests pooled (wheelcal.calibration.allan_json)
       "imu_noise": {...}   # Kalibr's noise terms pooled (wheelcal.calibration.imu_noise)
+      "gyro": {"matrix", "matrix_std", "bias_radps", "bias_std_radps", "mountings", ...}
+                                # with a gyroscope (wheelcal.calibration.gyro_json)
     }
 
 Values a session cannot determine are JSON ``null`` in its file; they are
@@ -40,6 +42,7 @@ import numpy as np
 from wheelcal import __version__
 from wheelcal.calibration.allan_json import pooled_allan
 from wheelcal.calibration.document import read_only_document
+from wheelcal.calibration.gyro_json import gyro_block
 from wheelcal.calibration.imu_noise import pooled_imu_noise
 from wheelcal.calibration.session_json import SENSOR_CALIBRATION_FORMAT as FORMAT
 from wheelcal.closedloop.pooling import (
@@ -220,6 +223,8 @@ def sensor_calibration_dict(
             **_pooled_allan(calibrations),
         },
         **_pooled_noise(calibrations),
+        # The gyroscope's full matrix from the mountings (calibration/gyro_json.py).
+        **gyro_block(calibrations),
     }
 
 

@@ -28,6 +28,7 @@ from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.parameters import AXES
 from wheelcal.session.gates import Assessment
 from wheelcal.session.result import SessionResult
+from wheelcal.session.window import fitted_stretches
 
 FORMAT = "wheelcal.calibration/1"
 #: A sensor's calibration pooled from its sessions (:mod:`wheelcal.calibration.sensor_json`):
@@ -117,6 +118,11 @@ def _source_block(session: SessionResult) -> dict:
         # 93.64500000000001 from the ns → s conversion)
         "window_s": [round(t, 9) for t in result.window_s],
         "window_reason": session.window.reason,
+        # additive: the stretches the fit used (several when pushes or a knock were cut)
+        "fitted_stretches_s": [
+            [round(a, 9), round(b, 9)]
+            for a, b in fitted_stretches(result.time_s, _rate_hz(result.time_s) or 1.0)
+        ],
         "sensor_id": result.info.sensor_id,
         "mounting_id": result.info.mounting_id,
         "notes": list(result.notes),

@@ -83,4 +83,6 @@ def run(args: argparse.Namespace) -> int:
             message = f"{args.source}: {message}"
         raise SessionsFailed(f"error: {message}") from None
     print(f"wrote {args.destination}: {applied.summary()}")
+    if applied.gyro_note:
+        print(applied.gyro_note)
     return 0

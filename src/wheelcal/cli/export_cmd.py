@@ -7,6 +7,8 @@ import os
 import sys
 from pathlib import Path
 
+#: imu_tk's calibration files: the accelerometer's and (from a pooled sensor file) the gyro's.
+IMU_TK_FORMATS = ("imu_tk_acc", "imu_tk_gyro")
 #: The command's one-line help and its --help description.
 HELP = "export a calibration as Kalibr imu.yaml, an imu_calib file or a C header"
 DESCRIPTION = (
@@ -14,7 +16,9 @@ DESCRIPTION = (
     "yaml = Kalibr's imu.yaml keys (accelerometer_* and gyroscope_* noise_density: the "
     "white noise's sigma per sample / sqrt(rate), Kalibr's definition; *_random_walk: the "
     "rests' Allan bound, marked as one; update_rate, rostopic) with wheelcal's imu0 block; "
-    "imu_calib = the ROS imu_calib package's SM and bias; c = a C header."
+    "imu_calib = the ROS imu_calib package's SM and bias; c = a C header; imu_tk_acc, "
+    "imu_tk_gyro = imu_tk's CalibratedTriad files. A sensor's file with the gyro's full "
+    "matrix adds the gyro (Kalibr's scale-misalignment keys)."
 )
 
 
@@ -24,10 +28,10 @@ def register(sub) -> None:
     p.add_argument("calibration", metavar="CAL.json")
     p.add_argument(
         "--format",
-        choices=("yaml", "imu_calib", "c"),
+        choices=("yaml", "imu_calib", "c", *IMU_TK_FORMATS),
         required=True,
         help="yaml: Kalibr's imu.yaml (+ wheelcal's imu0 block); imu_calib: the ROS imu_calib "
-        "package's file; c: a C header",
+        "package's file; c: a C header; imu_tk_acc, imu_tk_gyro: imu_tk's CalibratedTriad files",
     )
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
     p.add_argument(
@@ -45,7 +49,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export."""
-    from wheelcal.calibration.export import to_c_header, to_imu_calib, to_yaml
+    from wheelcal.calibration.export import to_c_header, to_imu_calib, to_imu_tk, to_yaml
     from wheelcal.calibration.session_json import load_calibration
     from wheelcal.cli.errors import UsageError
     from wheelcal.io.atomic import OutputExistsError, atomic_write_text
@@ -60,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
             text = to_yaml(calibration)
         elif args.format == "imu_calib":
             text = to_imu_calib(calibration)
+        elif args.format in IMU_TK_FORMATS:
+            text = to_imu_tk(calibration, args.format.removeprefix("imu_tk_"))
         else:
             text = to_c_header(calibration, args.prefix)
     except ValueError as exc:

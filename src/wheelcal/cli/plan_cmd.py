@@ -92,6 +92,20 @@ def _recording_arguments(r) -> None:
     r.add_argument(
         "--full-scale-g", type=positive_float, metavar="G", help="sensor range: warn if clipping"
     )
+    r.add_argument(
+        "--gyro-noise-density",
+        type=positive_float,
+        default=0.01,
+        metavar="DPS_RTHZ",
+        help="the IMU gyro's white noise, °/s/√Hz, for its planned full matrix (MPU-9250: 0.01)",
+    )
+    r.add_argument(
+        "--gyro-sessions",
+        type=int,
+        default=3,
+        metavar="N",
+        help="spins per mounting planned for the gyro's full matrix (3 mountings)",
+    )
 
 
 def _systematic_arguments(s) -> None:
@@ -136,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.plan import PAPER_MOUNTING_EULER_DEG, MountingSearch, PlannedSetup, plan_report
     from wheelcal.plan.text import render
     from wheelcal.plan.tradeoff import DEFAULT_TILTS_DEG
+    from wheelcal.simulate.gyro import GyroSpec
 
     mounting, search_mounting = _mounting(args.mounting, PAPER_MOUNTING_EULER_DEG)
     tilt = args.tilt_deg
@@ -179,7 +194,12 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     tilts = None if args.no_tradeoffs else DEFAULT_TILTS_DEG
-    report = plan_report(setup, search=search, tradeoff_tilts_deg=tilts)
+    if args.gyro_sessions < 1:
+        raise UsageError(f"--gyro-sessions must be >= 1, got {args.gyro_sessions}")
+    gyro = GyroSpec(noise_density_dps_rthz=args.gyro_noise_density)
+    report = plan_report(
+        setup, search=search, tradeoff_tilts_deg=tilts, gyro=gyro, gyro_sessions=args.gyro_sessions
+    )
     if args.json:
         print(json.dumps(report.to_dict(), indent=2, ensure_ascii=False))
     else:

@@ -14,7 +14,9 @@ for the planned sampling and noise.  :func:`plan_report` gathers
   (:func:`wheelcal.estimate.joint.identifiability.check_identifiability`), plus the
   planning ones (clipping, discrete twins, too few turns);
 * optionally the best mounting (:mod:`wheelcal.plan.mounting`) and the
-  geometry-mode trade-offs (:mod:`wheelcal.plan.tradeoff`).
+  geometry-mode trade-offs (:mod:`wheelcal.plan.tradeoff`);
+* the mountings the gyroscope's full matrix needs, with its predicted σ
+  (:mod:`wheelcal.plan.gyro_plan`).
 """
 
 from __future__ import annotations
@@ -31,8 +33,10 @@ from wheelcal.model import EULER_CONVENTION
 from wheelcal.plan.bench_plan import PlannedSetup
 from wheelcal.plan.budget import PlanBudget, plan_budget
 from wheelcal.plan.fisher import bound_from_fisher, fisher_information
+from wheelcal.plan.gyro_plan import GyroPlan, plan_gyro
 from wheelcal.plan.mounting import MountingResult, MountingSearch
 from wheelcal.plan.tradeoff import DEFAULT_TILTS_DEG, TradeoffRow, geometry_tradeoffs
+from wheelcal.simulate.gyro import GyroSpec
 
 FORMAT = "wheelcal.plan/1"
 #: Fewer turns than this leave the spin polynomial and the offsets poorly sampled.
@@ -55,6 +59,8 @@ class PlanReport:
     notes: tuple[str, ...]
     mounting: MountingResult | None
     tradeoffs: tuple[TradeoffRow, ...]
+    #: The gyroscope's full matrix: the mountings it needs and its predicted σ.
+    gyro: GyroPlan | None = None
 
     def std_of(self, name: str) -> float:
         """Predicted statistical σ of one parameter."""
@@ -104,6 +110,7 @@ class PlanReport:
                 "poorly_determined": list(self.identifiability.poorly_determined),
                 "mounting_search": None if self.mounting is None else self.mounting.to_dict(),
                 "tradeoffs": [row.to_dict() for row in self.tradeoffs],
+                "gyro": None if self.gyro is None else self.gyro.to_dict(),
             }
         )
 
@@ -112,6 +119,8 @@ def plan_report(
     setup: PlannedSetup,
     search: MountingSearch | None = None,
     tradeoff_tilts_deg: tuple[float, ...] | None = DEFAULT_TILTS_DEG,
+    gyro: GyroSpec | None = None,
+    gyro_sessions: int = 3,
 ) -> PlanReport:
     """Predict the precision of ``setup`` (module docstring).
 
@@ -123,6 +132,9 @@ def plan_report(
         Run this mounting search (the mounting is free); ``None``: keep the plan's.
     tradeoff_tilts_deg:
         Tilts of the geometry trade-off table; ``None`` skips it.
+    gyro, gyro_sessions:
+        The IMU's gyroscope (default: a typical MEMS part's noise) and the spins per
+        mounting planned for its full matrix (:mod:`wheelcal.plan.gyro_plan`).
     """
     params = setup.params()
     layout = setup.layout()
@@ -149,6 +161,7 @@ def plan_report(
         notes=tuple(notes),
         mounting=mounting,
         tradeoffs=tradeoffs,
+        gyro=plan_gyro(setup, sessions=gyro_sessions, gyro=gyro),
     )
 
 

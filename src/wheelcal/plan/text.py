@@ -25,6 +25,8 @@ def render(report: PlanReport) -> str:
         parts.append(_mounting(report))
     if report.tradeoffs:
         parts.append(_tradeoffs(report))
+    if report.gyro is not None:
+        parts.append("Gyroscope\n" + "\n".join(f"  {line}" for line in report.gyro.lines()))
     return "\n\n".join(parts) + "\n"
 
 

@@ -61,13 +61,18 @@ from wheelcal.session.rest_check import check_rests
 from wheelcal.session.result import SessionResult, WindowChoice
 from wheelcal.session.window import (
     MAX_BRIDGED_GAP_S,
+    FreeSpinWindow,
     find_drive_window,
     find_free_spin,
     find_motion_window,
+    fitted_stretches,
 )
 
 #: Each retry keeps this fraction of the window (its start).
 SHRINK = 0.6
+#: ``--gyro auto`` keeps the free spin's answer when it covers at least this share of the
+#: motion the gyroscope measures; else it fits the whole motion (a second push, a brake …).
+FREE_SPIN_SHARE = 0.8
 GYRO_MODES = ("auto", "on", "off")
 #: Refusals of the accelerometer-only fit that a gyroscope can overcome (``--gyro auto``).
 GYRO_CAN_HELP = ("motion", "undetermined", "turns")
@@ -162,19 +167,64 @@ class SessionFit:
             assessment = dataclasses.replace(
                 assessment, gyro=block, warnings=assessment.warnings + findings
             )
-            return dataclasses.replace(outcome, assessment=assessment)
+            outcome = dataclasses.replace(outcome, assessment=assessment)
+            if self.start_s is None:  # every second the gyro measures counts
+                return self._whole_motion(recording, outcome)
         return outcome
 
-    def _run_with_gyro(self, recording: Recording, why: str) -> SessionResult:
-        """The gyro-aided fit: the whole motion, a spline wheel angle, both streams."""
+    def _whole_motion(self, recording: Recording, free: SessionResult) -> SessionResult:
+        """The gyro-aided fit of the whole motion when the free spin left much of it out.
+
+        ``--gyro auto`` keeps the free spin's answer (the accelerometer's own) when
+        it covers at least :data:`FREE_SPIN_SHARE` of the motion the gyroscope
+        measures; otherwise a second push, a driven stretch or a brake would be
+        left out, and the whole motion is fitted with the flexible wheel angle.
+        If that fit is refused, the free spin's answer stands, with a warning.
+        """
+        try:
+            motion = find_motion_window(recording)
+        except RecordingError:
+            return free
+        span = free.result.time_s[[0, -1]]
+        free_s = float(span[1] - span[0])
+        # Both windows are capped at max_window_s: an hour's spin gains nothing.
+        if free_s >= FREE_SPIN_SHARE * min(motion.duration_s, self.gates.max_window_s):
+            return free
+        why = (
+            f"the free spin {span[0]:.2f}–{span[1]:.2f} s ({free_s:.1f} s) is "
+            f"{100 * free_s / motion.duration_s:.0f} % of the {motion.duration_s:.1f} s of "
+            "motion the gyroscope measures: the whole motion is fitted"
+        )
+        try:
+            return self._run_with_gyro(recording, why, motion)
+        except (CalibrationRefused, RecordingError) as exc:
+            gate = getattr(exc, "gate", "") or "error"
+            warning = (
+                f"the whole motion the gyroscope measures ({motion.duration_s:.1f} s) could not "
+                f"be fitted ({gate}: {getattr(exc, 'reason', exc)}): calibrated on the free spin "
+                f"alone ({free_s:.1f} s)"
+            )
+            assessment = dataclasses.replace(
+                free.assessment, warnings=(*free.assessment.warnings, warning)
+            )
+            return dataclasses.replace(free, assessment=assessment)
+
+    def _run_with_gyro(
+        self, recording: Recording, why: str, found: FreeSpinWindow | None = None
+    ) -> SessionResult:
+        """The gyro-aided fit: the whole motion, a spline wheel angle, both streams.
+
+        ``found``: the motion window when the caller has found it already.
+        """
         gates = self.gates
         if self.start_s is not None:
             found = None
             window = recording.window(self.start_s, self.end_s)
             reason = f"window given on the command line: {self.start_s:g}–{self.end_s:g} s"
         else:
-            finder = find_drive_window if self.fitter.geometry == "rolling" else find_motion_window
-            found = finder(recording)
+            if found is None:
+                rolling = self.fitter.geometry == "rolling"
+                found = (find_drive_window if rolling else find_motion_window)(recording)
             start, end = found.start_s, min(found.end_s, found.start_s + gates.max_window_s)
             window = recording.window(start, end)
             reason = found.reason + (
@@ -212,7 +262,10 @@ class SessionFit:
                 window, window.time_s - result.centre_s, result.layout.effects
             )
         result, diagnosis = self._refined(result, window, rests)
+        if fitter.geometry != "rolling":  # the gyro block judges the samples fitted, no others
+            gyro_t, gyro = gyro_samples(window, window.time_s - result.centre_s)
         block = gyro_from_fit(result, gyro_t, gyro)
+        notes.append(_stretches_note(window))
         choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
         assessment = assess(result, rests, gates, None, block)
         return self._result(recording, result, assessment, choice, rests, diagnosis)
@@ -367,6 +420,16 @@ def _clear_of_rails(
         f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"
     )
     return refit, kept, note
+
+
+def _stretches_note(window: Recording) -> str:
+    """``fitted a–b, c–d s`` when the fitted samples are more than one stretch (else empty)."""
+    stretches = fitted_stretches(window.time_s, window.rate_hz)
+    if len(stretches) < 2:
+        return ""
+    listed = ", ".join(f"{a:.2f}–{b:.2f}" for a, b in stretches)
+    total = sum(b - a for a, b in stretches)
+    return f"fitted {len(stretches)} stretches: {listed} s ({total:.1f} s)"
 
 
 def _refuse_long_gap(window: Recording) -> None:

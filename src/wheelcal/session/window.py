@@ -415,20 +415,25 @@ def _smoothed_gyro_rate(recording: Recording, search: MotionSearch) -> np.ndarra
 
 
 def find_motion_window(recording: Recording, search: MotionSearch | None = None) -> FreeSpinWindow:
-    """The longest stretch where the wheel turns, found from the gyroscope.
+    """The whole motion the gyroscope measures: first to last stretch where the wheel turns.
 
     With a gyro the motion no longer has to be a free spin: the spline of the
-    wheel angle follows a motor's steps or a second push, so the window is the
-    longest stretch where |ω| > ``min_rate_radps`` — cut only where the rate
-    changes faster than ``max_spin_accel_radps2`` (a hand starting or braking the
-    wheel, whose forces are not in the model), shrunk by ``margin_s``.
+    wheel angle follows a motor's steps, a second push or a brake, so every
+    stretch where |ω| > ``min_rate_radps`` and the rate changes slower than
+    ``max_spin_accel_radps2`` counts, and the window runs from the first to the
+    last of them, the pushes and stops between included (a hand's shake there is
+    what the disturbance check of the fit cuts).  Only its ends are cut where a
+    hand starts or brakes the wheel faster than that (forces not in the model),
+    shrunk by ``margin_s``.  A window never spans a gap of the stamps longer than
+    ``MAX_BRIDGED_GAP_S``: between such gaps, the stretch that turns longest.
     """
     search = search or MotionSearch()
     t = recording.time_s
     rate = _smoothed_gyro_rate(recording, search)
     accel = np.gradient(rate, t)
     turning = (rate > search.min_rate_radps) & (np.abs(accel) < search.max_spin_accel_radps2)
-    for part in contiguous_stretches(t, recording.rate_hz)[1:]:
+    pieces = contiguous_stretches(t, recording.rate_hz)
+    for part in pieces[1:]:
         turning[part.start] = False  # a run never spans a long gap
     starts, stops = _runs(turning)
     if starts.size == 0:
@@ -436,8 +441,12 @@ def find_motion_window(recording: Recording, search: MotionSearch | None = None)
             f"{recording.source}: the gyroscope shows no stretch where the wheel turns faster "
             f"than {search.min_rate_radps} rad/s"
         )
-    best = int(np.argmax(stops - starts))
-    first, last = int(starts[best]), int(stops[best]) - 1
+    # The runs of the stretch (between long gaps) that turns longest.
+    piece = np.searchsorted([p.start for p in pieces], starts, side="right") - 1
+    turned = np.bincount(piece, weights=stops - starts, minlength=len(pieces))
+    best = piece == int(np.argmax(turned))
+    starts, stops = starts[best], stops[best]
+    first, last = int(starts[0]), int(stops[-1]) - 1
     start_s = t[first] + (search.margin_s if first > 0 else 0.0)
     end_s = t[last] - (search.margin_s if last < t.size - 1 else 0.0)
     if end_s - start_s < search.min_duration_s:
@@ -446,13 +455,32 @@ def find_motion_window(recording: Recording, search: MotionSearch | None = None)
             f"(need {search.min_duration_s:g} s)"
         )
     window = _gyro_window(t, rate, accel, start_s, end_s, reason="")
+    joined = ""
+    if starts.size > 1:
+        between = float(np.sum(t[starts[1:]] - t[stops[:-1] - 1]))
+        joined = (
+            f"; {starts.size} stretches where the wheel turns, joined across "
+            f"{starts.size - 1} push(es) or stop(s) ({between:.1f} s faster than "
+            f"{search.max_spin_accel_radps2:g} rad/s² or slower than {search.min_rate_radps:g} "
+            "rad/s)"
+        )
     reason = (
         f"motion {start_s:.2f}–{end_s:.2f} s ({end_s - start_s:.1f} s) from the gyroscope: "
         f"|ω| {window.omega_start_radps:.2f} → {window.omega_end_radps:.2f} rad/s, speed "
         f"changes up to {window.max_spin_accel_radps2:.2f} rad/s² followed by the "
-        "wheel-angle spline" + clipped_words(recording, start_s, end_s)
+        "wheel-angle spline" + joined + clipped_words(recording, start_s, end_s)
     )
     return dataclasses.replace(window, reason=reason)
+
+
+def fitted_stretches(time_s: np.ndarray, rate_hz: float) -> list[tuple[float, float]]:
+    """The stretches of samples a fit used: runs between holes longer than 4 sample periods."""
+    t = np.asarray(time_s, dtype=float)
+    if t.size == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(t) > 4.0 / rate_hz) + 1
+    edges = [0, *cuts.tolist(), t.size]
+    return [(float(t[a]), float(t[b - 1])) for a, b in itertools.pairwise(edges) if b > a]
 
 
 def _gyro_window(

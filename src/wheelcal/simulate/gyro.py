@@ -15,13 +15,20 @@ bench frame, independently of :mod:`wheelcal.model`.)
 The gyro's own errors (typical of a consumer MEMS part such as the paper's
 MPU-9250) make the reading
 
-    ω_meas = (I + diag(k)) · M · (−ω R e_Z) + G · (R a) / g₀ + b + n
+    ω_meas = (I + diag(k)) · (I + N) · Q · (−ω R e_Z) + G · (R a) / g₀ + b + n
 
-then saturated at ±full scale and, optionally, rounded to ``bits`` counts:
+then saturated at ±full scale and, optionally, rounded to ``bits`` counts.
+The gyro's response matrix (:attr:`GyroSpec.response_matrix`, the full M of
+the pooled gyro calibration, reading = M ω + b) is K = (I + diag(k)) (I + N) Q:
 
 * k — per-axis scale errors (``scale_error``);
-* M = exp([m]×) — the gyro's axes slightly rotated from the accelerometer's
-  (``misalignment_deg``, a rotation vector in degrees);
+* N — the gyro's axes not orthogonal to each other (``non_orthogonality_deg``:
+  (n_yx, n_zx, n_zy), strictly lower triangular, the gyro's y axis leaning
+  towards its x by n_yx, its z towards x and y by n_zx, n_zy — Kalibr's
+  lower-triangular ``M`` of the ``scale-misalignment`` model is (I + diag(k))(I + N));
+* Q = exp([m]×) — the gyro's (orthogonalised) axes slightly rotated from the
+  accelerometer's (``misalignment_deg``, a rotation vector in degrees; Kalibr's
+  ``C_gyro_i``);
 * G — sensitivity to linear acceleration, (°/s)/g (``g_sensitivity_dps_per_g``,
   a scalar for G = k·I or a 3×3 matrix); R a is the specific force in the
   sensor axes and g₀ = 9.80665 m/s².  Gravity turning through the sensor once
@@ -81,6 +88,9 @@ class GyroSpec:
         Per-axis relative scale errors k (0.01 = +1 %).
     misalignment_deg:
         Rotation vector m (degrees) of the gyro's axes from the accelerometer's.
+    non_orthogonality_deg:
+        (n_yx, n_zx, n_zy), degrees: the gyro's axes' departure from orthogonal
+        (the strictly lower-triangular N of the module docstring; default none).
     g_sensitivity_dps_per_g:
         Linear-acceleration sensitivity, (°/s)/g: a scalar (each axis to the
         acceleration along itself) or a 3×3 matrix (row: gyro axis).
@@ -108,6 +118,7 @@ class GyroSpec:
     bias_walk_dps_per_sqrt_s: float = 0.0
     bias_warmup_dps: tuple[float, float, float] = (0.0, 0.0, 0.0)
     bias_warmup_tau_s: float = 300.0
+    non_orthogonality_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.noise_density_dps_rthz) and self.noise_density_dps_rthz >= 0):
@@ -116,6 +127,11 @@ class GyroSpec:
         object.__setattr__(self, "scale_error", _vector(self.scale_error, "scale_error"))
         object.__setattr__(
             self, "misalignment_deg", _vector(self.misalignment_deg, "misalignment_deg")
+        )
+        object.__setattr__(
+            self,
+            "non_orthogonality_deg",
+            _vector(self.non_orthogonality_deg, "non_orthogonality_deg"),
         )
         sens = np.asarray(self.g_sensitivity_dps_per_g, dtype=float)
         if sens.ndim == 0:
@@ -154,15 +170,51 @@ class GyroSpec:
         """A perfect gyro: no noise, bias, scale, misalignment, g-sensitivity or range."""
         return cls(0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, None, None)
 
+    @classmethod
+    def device(
+        cls,
+        rng: np.random.Generator,
+        scale_error_std: float = 0.01,
+        misalignment_std_deg: float = 1.0,
+        non_orthogonality_std_deg: float = 0.3,
+        bias_std_radps: float = 0.02,
+        g_sensitivity_std_dps_per_g: float = 0.1,
+        **fixed,
+    ) -> GyroSpec:
+        """One consumer MEMS gyro with its own drawn errors (each normal with these σ).
+
+        Every device differs: its scale errors, axis misalignment and
+        non-orthogonality (the full response matrix), bias and each entry of its
+        3×3 sensitivity to linear acceleration are drawn from ``rng``; ``fixed``
+        sets other fields (noise density, range) as given.
+        """
+        return cls(
+            bias_radps=tuple(rng.normal(0.0, bias_std_radps, 3)),
+            scale_error=tuple(rng.normal(0.0, scale_error_std, 3)),
+            misalignment_deg=tuple(rng.normal(0.0, misalignment_std_deg, 3)),
+            non_orthogonality_deg=tuple(rng.normal(0.0, non_orthogonality_std_deg, 3)),
+            g_sensitivity_dps_per_g=tuple(
+                map(tuple, rng.normal(0.0, g_sensitivity_std_dps_per_g, (3, 3)))
+            ),
+            **fixed,
+        )
+
     @property
     def misalignment_matrix(self) -> np.ndarray:
-        """M = exp([m]×), accelerometer axes → gyro axes."""
+        """Q = exp([m]×), accelerometer axes → the gyro's orthogonalised axes."""
         return _rotation(np.deg2rad(np.asarray(self.misalignment_deg)))
 
     @property
+    def non_orthogonality_matrix(self) -> np.ndarray:
+        """I + N, N strictly lower triangular from (n_yx, n_zx, n_zy)."""
+        n_yx, n_zx, n_zy = np.deg2rad(np.asarray(self.non_orthogonality_deg))
+        return np.array([[1.0, 0.0, 0.0], [n_yx, 1.0, 0.0], [n_zx, n_zy, 1.0]])
+
+    @property
     def response_matrix(self) -> np.ndarray:
-        """(I + diag(k)) · M: true body rate in the accelerometer's axes → gyro reading."""
-        return (1.0 + np.asarray(self.scale_error))[:, None] * self.misalignment_matrix
+        """K = (I + diag(k)) (I + N) Q: true body rate in the accelerometer's axes → reading."""
+        scale = (1.0 + np.asarray(self.scale_error))[:, None]
+        return scale * (self.non_orthogonality_matrix @ self.misalignment_matrix)
 
     @property
     def g_sensitivity_radps_per_mps2(self) -> np.ndarray:

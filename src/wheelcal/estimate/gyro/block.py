@@ -64,6 +64,17 @@ class GyroCalibration:
     #: How many rests' gyro readings the joint fit used (estimate/joint/gyro_rests.py);
     #: None for a regression on the fitted rate.
     rests_used: int | None = None
+    #: The reading's parameters (w, b, then G_X, G_Y when fitted) and their covariance:
+    #: what the pooled gyro fit over several mountings needs (closedloop/gyro_matrix.py).
+    reading_values: np.ndarray | None = None
+    reading_covariance: np.ndarray | None = None
+    reading_names: tuple[str, ...] = ()
+    #: g of the fit: b is the reading at zero rate with G R e_Z · g cos α in it.
+    gravity_mps2: float | None = None
+    #: The wheel axis d = −R e_Z in the accelerometer's frame (what w = M d measures M
+    #: along) and its σ from R's covariance.
+    wheel_axis: np.ndarray | None = None
+    wheel_axis_std: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         """The calibration JSON's ``gyro`` block."""
@@ -103,6 +114,15 @@ class GyroCalibration:
                 else {}
             ),
             **({"rests_used": self.rests_used} if self.rests_used is not None else {}),
+            **self._reading_dict(),
+            **(
+                {
+                    "wheel_axis_in_sensor_frame": self.wheel_axis.tolist(),
+                    "wheel_axis_std": self.wheel_axis_std.tolist(),
+                }
+                if self.wheel_axis is not None
+                else {}
+            ),
             "source": self.source,
             "calibrated": "scale along the wheel axis, the axis direction, the three biases",
             "note": "u is free: it tilts from −R·e_Z by the gyro's own misalignment and "
@@ -110,6 +130,41 @@ class GyroCalibration:
             "bias is the reading at zero rate on this bench: a gyro's sensitivity to linear "
             "acceleration times the bench's mean specific force adds to it (systematic σ)",
         }
+
+    def _reading_dict(self) -> dict:
+        """``reading``: w, b, G_X, G_Y with their full covariance (additive; pooled fits use it)."""
+        if self.reading_values is None or self.reading_covariance is None:
+            return {}
+        return {
+            "reading": {
+                "equation": "reading = w * omega + b + gx * a_X + gy * a_Y (bench-frame force a)",
+                "names": list(self.reading_names),
+                "values": self.reading_values.tolist(),
+                "covariance": self.reading_covariance.tolist(),
+                **({"gravity_mps2": self.gravity_mps2} if self.gravity_mps2 is not None else {}),
+            }
+        }
+
+
+def _wheel_axis(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray]:
+    """The wheel axis d = −R e_Z in the accelerometer's frame, and its σ (from R's covariance).
+
+    R → R exp([δ]×) turns d by R [e_Z]× δ, and the angles by ε = J δ
+    (:meth:`~wheelcal.model.Rotation.euler_jacobian_deg`).
+    """
+    from wheelcal.model.rotation import hat
+
+    rotation = result.params.bench.misalignment
+    names = [f"euler_{k}_deg" for k in (1, 2, 3)]
+    index = [result.names.index(n) for n in names]
+    cov_deg2 = result.covariance[np.ix_(index, index)]
+    turn = (
+        rotation.matrix
+        @ hat(np.array([0.0, 0.0, 1.0]))
+        @ np.linalg.inv(rotation.euler_jacobian_deg())
+    )
+    cov = turn @ cov_deg2 @ turn.T
+    return -rotation.matrix[:, 2], np.sqrt(np.maximum(np.diag(cov), 0.0))
 
 
 def _mean_force_mps2(result: CalibrationResult) -> float:
@@ -128,7 +183,15 @@ def _once_per_turn(theta_rad: np.ndarray, residual: np.ndarray) -> np.ndarray:
 
 
 def _calibration(
-    values, cov, rotation, residual, source, mean_force, theta_rad=None, reading=None
+    values,
+    cov,
+    rotation,
+    residual,
+    source,
+    mean_force,
+    theta_rad=None,
+    reading=None,
+    gravity_mps2=None,
 ) -> GyroCalibration:
     values = np.asarray(values, float)
     w, b = values[:3], values[3:6]
@@ -157,6 +220,10 @@ def _calibration(
         ),
         once_per_turn_radps=None if theta_rad is None else _once_per_turn(theta_rad, residual),
         g_prior_std=None if reading is None else reading.g_prior_std_radps_per_mps2,
+        reading_values=values.copy(),
+        reading_covariance=np.array(cov, dtype=float),
+        reading_names=tuple(reading.param_names) if reading is not None else (),
+        gravity_mps2=gravity_mps2,
     )
 
 
@@ -180,9 +247,16 @@ def gyro_from_fit(
         _mean_force_mps2(result),
         theta,
         effect,
+        result.params.gravity_mps2,
     )
     rests = result.gyro_rests
-    return dataclasses.replace(block, rests_used=0 if rests is None else rests.count)
+    axis, axis_std = _wheel_axis(result)
+    return dataclasses.replace(
+        block,
+        rests_used=0 if rests is None else rests.count,
+        wheel_axis=axis,
+        wheel_axis_std=axis_std,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,7 +319,7 @@ def gyro_by_product(
     reading = gyro_effect(fitted.layout)
     values = fitted.params.effect(reading.name, reading.size)
     cov, residual = fitted.covariance, fitted.residual_radps
-    return _calibration(
+    block = _calibration(
         values,
         cov,
         result.params.bench.misalignment.matrix,
@@ -254,4 +328,7 @@ def gyro_by_product(
         _mean_force_mps2(result),
         wheel_kinematics(result.params, gyro_t, result.layout.effects).theta_rad,
         reading,
+        result.params.gravity_mps2,
     )
+    axis, axis_std = _wheel_axis(result)
+    return dataclasses.replace(block, wheel_axis=axis, wheel_axis_std=axis_std)

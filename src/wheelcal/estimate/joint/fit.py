@@ -184,13 +184,13 @@ class JointFit:
         """
         start, end = frame or (float(recording.time_s[0]), float(recording.time_s[-1]))
         centre = 0.5 * (start + end)
-        motion = []
         spline = self._spline(np.array([start - centre, end - centre]))
-        if spline is not None:
-            motion.append(spline)
-        if self.use_gyro:
-            motion.append(self.gyro_reading())
-        return dataclasses.replace(self.layout, effects=tuple(self.effects) + tuple(motion))
+        # The spline corrects the base motion itself, so it comes first: a spin effect that
+        # follows (an imbalance's wobble, ∝ 1/ω at the angle ϑ) acts on the corrected ϑ, ω —
+        # after it, the wobble of a pushed wheel would turn at the cubic's angle alone.
+        first = () if spline is None else (spline,)
+        last = (self.gyro_reading(),) if self.use_gyro else ()
+        return dataclasses.replace(self.layout, effects=first + tuple(self.effects) + last)
 
     def gyro_reading(self) -> GyroReading:
         """The gyroscope's reading with this configuration's prior on G."""
