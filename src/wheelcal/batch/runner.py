@@ -635,8 +635,9 @@ def _sync() -> None:
 
 def _stored_report(path: Path) -> tuple[str | None, list[str]]:
     """The report key and the output list of an earlier ``report.json`` (None, [] if none)."""
+    document = read_document(path)  # bounded, and never a FIFO put in its place
     try:
-        provenance = json.loads(path.read_text(encoding="utf-8")).get("provenance", {})
-    except (OSError, ValueError, AttributeError):
+        provenance = (document or {}).get("provenance", {})
+        return provenance.get("report_key"), list(provenance.get("outputs", []))
+    except (AttributeError, TypeError):
         return None, []
-    return provenance.get("report_key"), list(provenance.get("outputs", []))

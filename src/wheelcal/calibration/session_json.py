@@ -400,12 +400,21 @@ def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> di
     refused unless ``allow_partial``: its correction leaves those axes
     unchanged, which a user must choose knowingly.
     """
+    from wheelcal.io.input_file import read_bounded
+    from wheelcal.recording.errors import InputError
+
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = json.loads(read_bounded(path, "calibration").decode("utf-8"))
     except FileNotFoundError:
         raise CalibrationFileError(f"{path}: no such calibration file") from None
+    except InputError as exc:  # a FIFO, a device, a folder, a file of gigabytes
+        raise CalibrationFileError(str(exc)) from None
+    except OSError as exc:
+        raise CalibrationFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationFileError(f"{path}: not a calibration JSON ({exc})") from None
+    except RecursionError:
+        raise CalibrationFileError(f"{path}: not a calibration JSON (nested too deeply)") from None
     return check_calibration(data, path, allow_partial)
 
 

@@ -38,13 +38,10 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.batch.session import describe_error
     from wheelcal.calibration.apply import apply_calibration
     from wheelcal.cli.errors import SessionsFailed, UsageError
+    from wheelcal.cli.options import readable_inputs
     from wheelcal.io.atomic import OutputExistsError
-    from wheelcal.io.file_kind import special_file_kind
 
-    for what, path in (("CAL.json", args.calibration), ("IN.mcap", args.source)):
-        kind = special_file_kind(path)
-        if kind is not None:
-            raise UsageError(f"{what} {path} is {kind}, not a file to read")
+    readable_inputs(("CAL.json", args.calibration), ("IN.mcap", args.source))
     if os.path.isdir(args.destination):
         raise UsageError(f"OUT.mcap {args.destination} is a folder; give the file to write")
     if os.path.exists(args.source) and os.path.exists(args.destination):

@@ -111,9 +111,11 @@ def _column(text: str | None) -> str | int | None:
 def run(args: argparse.Namespace) -> int:
     """Convert and report."""
     from wheelcal.cli.errors import UsageError
+    from wheelcal.cli.options import readable_inputs
     from wheelcal.io.atomic import OutputExistsError, refuse_existing
     from wheelcal.io.csv_convert import CsvLayout, convert_csv
 
+    readable_inputs(("IN.csv", args.source))  # a FIFO would wait forever, /dev/zero never end
     if not args.force:
         try:
             refuse_existing(args.destination)  # before reading the CSV

@@ -42,8 +42,10 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.calibration.export import to_c_header, to_imu_calib, to_yaml
     from wheelcal.calibration.session_json import load_calibration
     from wheelcal.cli.errors import UsageError
+    from wheelcal.cli.options import readable_inputs
     from wheelcal.io.atomic import OutputExistsError, atomic_write_text
 
+    readable_inputs(("CAL.json", args.calibration))  # a FIFO would wait forever
     if args.out and Path(args.out).is_dir():
         raise UsageError(f"--out {args.out} is a folder; give the file to write")
     if args.out and not args.force and os.path.lexists(args.out):

@@ -181,3 +181,17 @@ def output_folder(path: str):
         return prepare_output_folder(path, what="--out folder")
     except OutputFolderError as exc:
         raise UsageError(str(exc)) from None
+
+
+def readable_inputs(*inputs: tuple[str, str]) -> None:
+    """Refuse (UsageError, exit 2) an input that is a FIFO, device or folder, before reading.
+
+    ``inputs`` are (what, path) pairs, e.g. ``("IN.csv", args.source)``: reading
+    a FIFO waits for a writer forever and ``/dev/zero`` never ends.
+    """
+    from wheelcal.io.file_kind import special_file_kind
+
+    for what, path in inputs:
+        kind = special_file_kind(path)
+        if kind is not None:
+            raise UsageError(f"{what} {path} is {kind}, not a file to read")

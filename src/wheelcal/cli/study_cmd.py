@@ -145,6 +145,9 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--out {out}: exists and is not a directory")
     try:
         if args.config:
+            from wheelcal.cli.options import readable_inputs
+
+            readable_inputs(("--config", args.config))  # a FIFO would wait forever
             if not Path(args.config).is_file():
                 raise UsageError(f"--config {args.config}: no such file")
             config = load_config(args.config)
