@@ -192,6 +192,16 @@ def _fit_block(session: SessionResult, undetermined: set[str]) -> dict:
     }
 
 
+#: What each systematic source assumes (``systematic.sources.<name>.assumes``).
+_SOURCE_ASSUMES = {
+    "sample_clock": (
+        "the time stamps keep true seconds within ±{std:g} ppm (a crystal clock); a clock "
+        "error ε acts as a radius error of −2ε. A stamped rate off its nominal rate, or a "
+        "gyro that reads the wheel otherwise, is judged in fit.clock_check"
+    ),
+}
+
+
 def _systematic_block(budget: SystematicBudget) -> dict:
     """``systematic``: the budget's total σ, and each unseen source's share."""
     sys_std = dict(zip(budget.names, budget.total_std, strict=True))
@@ -207,6 +217,11 @@ def _systematic_block(budget: SystematicBudget) -> dict:
                 "offset_std_mps2": [_num(v) for v in _pick(s.shift_std, budget.names, "offset")],
                 "tilt_std_deg": _num(
                     dict(zip(budget.names, s.shift_std, strict=True)).get("tilt_deg", 0.0)
+                ),
+                **(
+                    {"assumes": _SOURCE_ASSUMES[s.name].format(std=s.std)}
+                    if s.name in _SOURCE_ASSUMES
+                    else {}
                 ),
             }
             for s in budget.sources
@@ -285,6 +300,8 @@ def _assessment(a: Assessment) -> dict:
     if a.motion is not None:
         out["motion_check"] = _clean(a.motion.to_dict())
     out["rest_checks"] = [_clean(c.to_dict()) for c in a.rest_checks]
+    if a.clock is not None:
+        out["clock_check"] = _clean(a.clock.to_dict())
     out["gates"] = a.gates.to_dict()
     return out
 

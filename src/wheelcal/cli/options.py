@@ -109,6 +109,8 @@ GATE_FLAGS = {
     "the noise floor (default 5)",
     "max_lean_change_deg": "refuse a drive whose wheel camber changes by more than this, ° "
     "(default 1)",
+    "clock_tolerance": "judge the sample clock only when the stamped rate is further than this "
+    "(relative) from its nominal rate (default 0.001 = 1000 ppm)",
 }
 
 
