@@ -11,6 +11,7 @@ from wheelcal.calibration.session_json import load_calibration, load_correction_
 from wheelcal.io.atomic import refuse_existing
 from wheelcal.io.mcap_reader import read_recording
 from wheelcal.io.mcap_writer import accel_channel, copy_with_channels, recording_stamps_ns
+from wheelcal.io.ownership import MARK_RECORD
 from wheelcal.recording.samples import InputPolicy
 
 CALIBRATION_METADATA_NAME = "wheelcal.calibration"
@@ -25,6 +26,7 @@ def apply_calibration(
     encoding: str | None = None,
     allow_partial: bool = False,
     replace: bool = False,
+    mark: dict | None = None,
 ) -> tuple[str, int]:
     """Add ``<topic>/calibrated`` (corrected samples, same stamps) to a copy of ``source``.
 
@@ -38,7 +40,8 @@ def apply_calibration(
     calibration with undetermined parameters needs ``allow_partial``.  An
     existing ``destination`` is refused unless ``replace``
     (:class:`~wheelcal.io.atomic.OutputExistsError`, before any work and again
-    at the atomic install).
+    at the atomic install).  ``mark``: the copy's ``wheelcal.output`` record
+    (:mod:`wheelcal.io.ownership`; the source's own is not copied).
     """
     if not replace:
         refuse_existing(destination)
@@ -82,6 +85,8 @@ def apply_calibration(
             ),
         }
     }
+    if mark is not None:
+        metadata[MARK_RECORD] = dict(mark)
     copy_with_channels(source, destination, [channel], metadata, replace=replace)
     return new_topic, recording.samples
 

@@ -21,6 +21,7 @@ from wheelcal.estimate.joint.systematic import SystematicBudget
 from wheelcal.estimate.residual_profile import residual_by_wheel_angle
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.json_text import dumps_indented
+from wheelcal.io.ownership import MARK_KEY, origin_of, output_mark
 from wheelcal.model import EULER_CONVENTION
 from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.parameters import AXES
@@ -69,6 +70,7 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
     return {
         "format": FORMAT,
         "wheelcal_version": __version__,
+        MARK_KEY: output_mark(origin_of([result.source]), [result.source]),
         "geometry": session.geometry,
         "provenance": provenance or {},
         "source": _source_block(session),

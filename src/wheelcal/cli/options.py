@@ -197,3 +197,12 @@ def readable_inputs(*inputs: tuple[str, str]) -> None:
         kind = special_file_kind(path)
         if kind is not None:
             raise UsageError(f"{what} {path} is {kind}, not a file to read")
+
+
+def claim_sessions(args: argparse.Namespace, command: str, rrd: bool, diagnose: bool) -> None:
+    """Claim every session's outputs before the first is computed (UsageError if refused)."""
+    from wheelcal.batch.session import session_outputs
+    from wheelcal.cli.overwrite import claim
+
+    outputs = [o for path in args.files for o in session_outputs(path, args.out, rrd, diagnose)]
+    claim(outputs, args.force, command)

@@ -313,7 +313,11 @@ def batch_blueprint(groups: list[_Group]) -> rrb.Blueprint:
 
 
 def write_batch_rrd(
-    path: str | os.PathLike, sessions: Sequence[Mapping], numbers: Sequence[int] | None = None
+    path: str | os.PathLike,
+    sessions: Sequence[Mapping],
+    numbers: Sequence[int] | None = None,
+    durable: bool = True,
+    name: str | None = None,
 ) -> Path:
     """Write the batch ``.rrd`` (see the module docstring) atomically.
 
@@ -326,6 +330,10 @@ def write_batch_rrd(
     numbers:
         The sessions' numbers on the ``session`` timeline, as ``report.md``
         numbers them (default 1, 2, … in the order given).
+    durable:
+        fsync the file (see :func:`~wheelcal.viz.rrd_file.rrd_file`).
+    name:
+        The recording's name in the viewer (default: the file's stem).
 
     Returns
     -------
@@ -344,7 +352,7 @@ def write_batch_rrd(
     if len(numbers) != len(sessions) or len(set(numbers)) != len(numbers):
         raise ValueError(f"{path}: need one distinct number per session, got {numbers}")
     groups, files = _groups(sessions, numbers)
-    with rrd_file(path, APPLICATION_ID, Path(path).stem) as stream:
+    with rrd_file(path, APPLICATION_ID, name or Path(path).stem, durable=durable) as stream:
         # The shared x-range lives on the blueprint's global view (not a public part).
         axis = _GlobalSessionAxis(min(numbers), max(numbers))
         send_blueprint_chunks(stream, blueprint_chunks(batch_blueprint(groups), axis))
