@@ -136,12 +136,20 @@ def test_a_device_is_never_renamed_over_even_as_root_with_force(tmp_path, spin, 
     assert [p.name for p in tmp_path.iterdir()] == ["full"]  # no temporary left
 
 
-def test_a_fifo_is_never_replaced(tmp_path):
+def test_a_fifo_is_never_replaced_even_if_it_appears_while_writing(tmp_path):
+    from wheelcal.io.atomic import atomic_output
+
     fifo = tmp_path / "pipe"
     os.mkfifo(fifo)
     with pytest.raises(NotRegularFileError, match="is a FIFO"):
         atomic_write_text(fifo, "x")
-    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    late = tmp_path / "late"
+    with pytest.raises(NotRegularFileError, match="is a FIFO"):
+        with atomic_output(late, binary=False) as stream:
+            stream.write("ours")
+            os.mkfifo(late)  # made by someone else meanwhile: the install checks again
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode) and stat.S_ISFIFO(os.lstat(late).st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["late", "pipe"]  # no temporary
 
 
 def test_calibrate_keeps_a_users_file_and_replaces_its_own(tmp_path, spin, capsys):
