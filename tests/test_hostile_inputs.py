@@ -110,3 +110,10 @@ def test_small_inputs_are_size_checked_before_they_are_read(tmp_path):
     os.link(huge, toml)
     with pytest.raises(PipelineError, match=r"huge\.toml: holds 104857600 bytes"):
         load_pipeline(toml)
+
+
+def test_a_calibration_nested_too_deeply_is_named(tmp_path):
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 200_000)
+    with pytest.raises(CalibrationFileError, match=r"deep\.json: not a calibration JSON \(nested"):
+        load_calibration(deep)
