@@ -93,7 +93,13 @@ def decompress_sized(path: str, compression: str, data, size: int, where: str, u
 
 
 def decompress_unsized(
-    path: str, compression: str, data, budget: int, where: str, unit: str = "block of messages"
+    path: str,
+    compression: str,
+    data,
+    budget: int,
+    where: str,
+    unit: str = "block of messages",
+    zstd_decompressor=None,
 ) -> bytes:
     """``data`` decompressed, refused as soon as it exceeds ``budget`` bytes.
 
@@ -101,7 +107,9 @@ def decompress_unsized(
     frame that does state one is judged by it before anything is allocated
     (then decompressed in one call, into exactly that size).  The caller keeps
     ``budget`` for a block of pieces (:func:`limit_bytes` of their compressed
-    total, less what was used).
+    total, less what was used).  ``zstd_decompressor``: one to reuse (a
+    ``zstandard.ZstdDecompressor``; making one per message costs more than the
+    message).
     """
     _check_compression(path, compression, where)
     declared = -1
@@ -120,7 +128,7 @@ def decompress_unsized(
             )
     try:
         if declared >= 0:
-            return zstandard.ZstdDecompressor().decompress(bytes(data))
+            return (zstd_decompressor or zstandard.ZstdDecompressor()).decompress(bytes(data))
         pieces, total = [], 0
         for piece in _pieces(compression, data):
             total += len(piece)
