@@ -65,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     if args.out:
-        line = mark_line(origin, [args.calibration])  # marks the file as wheelcal's
-        text = (f"/* {line} */\n" if args.format == "c" else f"# {line}\n") + text
+        line = mark_line(origin)  # marks the file as wheelcal's (no path: a comment stays one)
+        text = text + f"/* {line} */\n" if args.format == "c" else f"# {line}\n" + text
         try:
             atomic_write_text(args.out, text, replace=exists)
         except OutputExistsError as exc:  # created meanwhile by someone else
