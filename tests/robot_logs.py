@@ -115,3 +115,112 @@ def write_ros1_mcap(path: Path, time_ns, messages, topic="/imu/data_raw"):
             writer.add_message(channel, log_time=ns, data=raw, publish_time=ns, sequence=seq)
         writer.finish()
     return path
+
+
+# --- a ROS 1 bag record by record (to damage what rosbags' writer always writes right) ---
+
+
+def _bag_record(fields: dict, data: bytes) -> bytes:
+    head = b"".join(
+        len(k + b"=" + v).to_bytes(4, "little") + k + b"=" + v for k, v in fields.items()
+    )
+    return len(head).to_bytes(4, "little") + head + len(data).to_bytes(4, "little") + data
+
+
+def _u32(v: int) -> bytes:
+    return int(v).to_bytes(4, "little")
+
+
+def _u64(v: int) -> bytes:
+    return int(v).to_bytes(8, "little")
+
+
+def raw_bag(
+    time_ns,
+    messages,
+    *,
+    compression: str = "none",
+    chunk_data: bytes | None = None,
+    chunk_size: int | None = None,
+    drop: dict | None = None,
+    values: dict | None = None,
+    topic: str = "/imu/data_raw",
+) -> bytes:
+    """A ROS 1 bag 2.0 of one chunk, built record by record.
+
+    ``compression`` names the chunk's compression (the data are compressed
+    here, unless ``chunk_data`` gives them, with ``chunk_size`` as the claimed
+    uncompressed size); ``drop`` removes header fields per record kind
+    (``{"connection": "conn", "chunk": "size", "chunk info": "chunk_pos",
+    "index data": "count"}``) and ``values`` replaces them (``{"connection":
+    {"conn": b"\\x00\\x00"}}``) to make a damaged bag.
+    """
+    import bz2
+
+    drop, values = drop or {}, values or {}
+
+    def fields(kind: str, items: dict) -> dict:
+        given = {k.encode(): v for k, v in values.get(kind, {}).items()}
+        return {k: given.get(k, v) for k, v in items.items() if k.decode() != drop.get(kind)}
+
+    _, ros1_store = _stores()
+    text, md5 = ros1_store.generate_msgdef("sensor_msgs/msg/Imu")
+    connection = _bag_record(
+        fields("connection", {b"op": b"\x07", b"conn": _u32(0), b"topic": topic.encode()}),
+        _bag_record(
+            {
+                b"topic": topic.encode(),
+                b"type": b"sensor_msgs/Imu",
+                b"md5sum": md5.encode(),
+                b"message_definition": text.encode(),
+            },
+            b"",
+        )[4:-4],
+    )
+    records, entries = [], []
+    offset = 0
+    for ns, raw in zip(np.asarray(time_ns).tolist(), messages, strict=True):
+        sec, nsec = divmod(ns, 1_000_000_000)
+        rec = _bag_record({b"op": b"\x02", b"conn": _u32(0), b"time": _u32(sec) + _u32(nsec)}, raw)
+        entries.append(_u32(sec) + _u32(nsec) + _u32(offset))
+        records.append(rec)
+        offset += len(rec)
+    inner = b"".join(records)
+    if chunk_data is None:
+        chunk_data = {"none": lambda b: b, "bz2": bz2.compress}[compression](inner)
+        chunk_size = len(inner)
+    chunk = _bag_record(
+        fields(
+            "chunk",
+            {b"op": b"\x05", b"compression": compression.encode(), b"size": _u32(chunk_size)},
+        ),
+        chunk_data,
+    )
+    index = _bag_record(
+        fields(
+            "index data",
+            {b"op": b"\x04", b"ver": _u32(1), b"conn": _u32(0), b"count": _u32(len(entries))},
+        ),
+        b"".join(entries),
+    )
+    magic = b"#ROSBAG V2.0\n"
+    header_len = len(_bag_record({b"op": b"\x03", b"index_pos": _u64(0)}, b""))
+    chunk_pos = len(magic) + header_len
+    index_pos = chunk_pos + len(chunk) + len(index)
+    first, last = int(time_ns[0]), int(time_ns[-1])
+    chunk_info = _bag_record(
+        fields(
+            "chunk info",
+            {
+                b"op": b"\x06",
+                b"ver": _u32(1),
+                b"chunk_pos": _u64(chunk_pos),
+                b"start_time": _u32(first // 10**9) + _u32(first % 10**9),
+                b"end_time": _u32(last // 10**9) + _u32(last % 10**9),
+                b"count": _u32(1),
+            },
+        ),
+        _u32(0) + _u32(len(entries)),
+    )
+    header = _bag_record({b"op": b"\x03", b"index_pos": _u64(index_pos)}, b"")
+    return magic + header + chunk + index + connection + chunk_info

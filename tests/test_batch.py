@@ -249,5 +249,7 @@ def test_calibrate_false_only_simulates_the_inputs(tmp_path):
     )
     outcome = run_batch(load_pipeline(path))
     assert outcome.simulated == 2 and outcome.records == ()
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["recordings"]
+    # (and the folder's lock file, .wheelcal.lock: issue 40)
+    made = sorted(p.name for p in (tmp_path / "out").iterdir() if not p.name.startswith("."))
+    assert made == ["recordings"]
     assert len(list((tmp_path / "out" / "recordings").glob("*.mcap"))) == 2

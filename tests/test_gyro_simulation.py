@@ -236,7 +236,8 @@ def test_cli_simulate_writes_gyro_and_temperature(tmp_path, encoding, capsys):
     assert spinning.sum() > 10_000
     # Temperature warms up by the spec's 3 °C over the 99 s session (τ = 60 s).
     assert 23.8 < rec.temperature_c[0] < 24.2 and 26.0 < rec.temperature_c[-1] < 26.8
-    assert main([*args, "--seed", "3", "--gyro-full-scale-dps", "250"]) == 0
+    # other options are another recording: replacing it takes --force (issue 40)
+    assert main([*args, "--seed", "3", "--gyro-full-scale-dps", "250", "--force"]) == 0
     clipped = read_recording(out)
     assert any("clipped at the gyro range ±250 °/s" in n for n in clipped.notes)
     assert 0.05 < clipped.gyro_valid.mean() < 0.2  # rests, push start and stop only

@@ -481,7 +481,7 @@ def test_the_pipeline_file_shown_loads_and_every_key_is_documented(tmp_path):
 
 
 #: Names in backticks that look like Python but name a JSON schema or a metadata record.
-NOT_PYTHON = {"wheelcal.AccelBatch", "wheelcal.SampleFlag", "wheelcal.apply"}  # MCAP names
+NOT_PYTHON = {"wheelcal.AccelBatch", "wheelcal.SampleFlag", "wheelcal.apply", "wheelcal.output"}
 
 
 def _resolves(dotted: str) -> bool:

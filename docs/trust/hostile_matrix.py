@@ -24,6 +24,7 @@ from wheelcal.io import read_recording, write_recording
 from wheelcal.recording import CalibrationRefused, RecordingError
 from wheelcal.session.fit import SessionFit
 from wheelcal.simulate import hostile as H
+from wheelcal.simulate.gyro import GyroSpec
 
 
 def rng(seed):
@@ -63,6 +64,13 @@ def cases():
     yield "sensor axis 1° from the wheel axis", s, s.recording
     s = H.axis_exactly_radial(rng(12))
     yield "sensor axis exactly radial", s, s.recording
+    for gyro, label in ((None, ""), (GyroSpec(), ", with a gyro")):
+        s = H.clean(rng(13), gyro=gyro)
+        yield (
+            f"sample clock 2 % slow (stamps × 0.98){label}",
+            s,
+            H.clock_scaled(s, 0.98, "slow clock"),
+        )
 
 
 def _through_file(recording):
@@ -93,7 +101,7 @@ def main() -> int:
             notes.append("null: " + ", ".join(result.undetermined))
         named = [w for w in result.assessment.warnings if "undetermined" not in w]
         if named:
-            shown = next((w for w in named if "radius" in w), named[0])
+            shown = next((w for w in named if "radius" in w or "clock" in w), named[0])
             notes.append(f"{len(named)} warning(s), e.g. “{shown[:90]}…”")
         outcome = "accepted" + (" — " + "; ".join(notes) if notes else "")
         if worst > 5 and not named:

@@ -16,6 +16,7 @@ from wheelcal.calibration.document import Calibration
 from wheelcal.closedloop.sensor_closure import SessionInput, close_sensor
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.json_text import dumps_indented, json_safe
+from wheelcal.io.ownership import MARK_KEY
 from wheelcal.model.effects import make_effect
 
 
@@ -46,7 +47,9 @@ def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[SessionInput
     return out
 
 
-def run_closure(pipeline: Pipeline, calibrations: list[Calibration]) -> dict:
+def run_closure(
+    pipeline: Pipeline, calibrations: list[Calibration], stage=None, mark: dict | None = None
+) -> dict:
     """``report.json``'s ``closure`` block (and one sensor JSON per sensor)."""
     by_sensor: dict[str, list[Calibration]] = defaultdict(list)
     for cal in calibrations:
@@ -91,8 +94,13 @@ def run_closure(pipeline: Pipeline, calibrations: list[Calibration]) -> dict:
                 "format": "wheelcal.sensor/1",
                 "sensor_id": sensor_id,
                 **closure.sensor_fit.as_dict(),
+                **({MARK_KEY: mark} if mark is not None else {}),
             }
-            atomic_write_text(path, dumps_indented(json_safe(doc)) + "\n")
+            text = dumps_indented(json_safe(doc)) + "\n"
+            if stage is not None:  # with the report set (wheelcal.batch.runner)
+                stage.write_text(path, text)
+            else:
+                atomic_write_text(path, text)
             entry["sensor_file"] = str(path)
         sensors.append(entry)
     return {"sensors": sensors, "skipped": skipped}

@@ -130,3 +130,89 @@ def session_lock(out_dir: str | os.PathLike, stem: str):
 def report_lock(out_dir: str | os.PathLike):
     """Hold the lock of the folder's report files."""
     return _locked(out_dir, _REPORT_OFFSET)
+
+
+# --- one pipeline per folder ----------------------------------------------------------
+
+#: Bytes of the lock file past the sessions' (which lie below 2**31): a mutex for
+#: entering, the folder's "in use" byte, and one byte per pipeline identity above.
+_ENTRY_OFFSET = 1 << 31
+_IN_USE_OFFSET = _ENTRY_OFFSET + 1
+_IDENTITY_BASE = _ENTRY_OFFSET + 2
+
+
+class FolderInUseError(RuntimeError):
+    """Another batch, on a different pipeline, writes into the output folder now."""
+
+
+def _identity_offset(identity: str) -> int:
+    digest = hashlib.sha256(identity.encode()).digest()
+    return _IDENTITY_BASE + int.from_bytes(digest[:4], "big") % (1 << 30)
+
+
+def _held_by_others(fd: int, offset: int) -> bool:
+    """Whether another open file description holds a lock on the byte at ``offset``."""
+    probe = fcntl.fcntl(fd, fcntl.F_OFD_GETLK, _flock(fcntl.F_WRLCK, offset))
+    return struct.unpack("hhqqi4x", probe)[0] != fcntl.F_UNLCK
+
+
+@contextlib.contextmanager
+def pipeline_lock(out_dir: str | os.PathLike, identity: str, who: str) -> Iterator[bool]:
+    """Hold the output folder for one pipeline: a second, *different* one is refused.
+
+    ``identity`` says what the pipeline computes (two runs of the same pipeline
+    share it and may run at once, as before: the session locks keep them from
+    computing a session twice).  Yields whether this batch is the folder's only
+    user (then no other batch's temporary files can be live in it).  ``who``
+    (the pipeline's name and file) is left as the lock file's text, for the
+    refusal another batch may have to give.
+
+    Raises
+    ------
+    FolderInUseError
+        Another batch with a different identity holds the folder.
+    """
+    if fcntl is None or _OFD_SETLKW is None:  # pragma: no cover - not Linux: no check
+        yield False
+        return
+    folder = Path(out_dir)
+    fd = os.open(folder / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+    try:
+        fcntl.fcntl(fd, _OFD_SETLKW, _flock(fcntl.F_WRLCK, _ENTRY_OFFSET))  # one enters at a time
+        try:
+            own = _identity_offset(identity)
+            in_use = _held_by_others(fd, _IN_USE_OFFSET)
+            if in_use and not _held_by_others(fd, own):
+                raise FolderInUseError(
+                    f"the output folder {folder} is in use by another batch with a different "
+                    f"pipeline ({_user(folder)}); wait for it to finish, or give this one "
+                    "another output folder (--out): two pipelines in one folder would pool "
+                    "each other's sessions"
+                )
+            fcntl.fcntl(fd, _OFD_SETLKW, _flock(fcntl.F_RDLCK, _IN_USE_OFFSET))
+            fcntl.fcntl(fd, _OFD_SETLKW, _flock(fcntl.F_RDLCK, own))
+            if not in_use:
+                _leave_user(fd, who)
+        finally:
+            fcntl.fcntl(fd, _OFD_SETLKW, _flock(fcntl.F_UNLCK, _ENTRY_OFFSET))
+        yield not in_use
+    finally:
+        os.close(fd)  # releases the folder's locks with it
+
+
+def _user(folder: Path) -> str:
+    """Who holds the folder, as the lock file's text says (informative only)."""
+    try:
+        text = (folder / LOCK_FILE).read_bytes()[:400].decode("utf-8", "replace")
+    except OSError:
+        return "unknown"
+    return text.strip().strip("\x00") or "unknown"
+
+
+def _leave_user(fd: int, who: str) -> None:
+    """Say who uses the folder in the lock file's bytes (the locks do not care about them)."""
+    text = f"{who}\n".encode("utf-8", "replace")
+    with contextlib.suppress(OSError):
+        if os.pread(fd, len(text) + 1, 0) != text:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, text, 0)

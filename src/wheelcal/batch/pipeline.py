@@ -302,10 +302,22 @@ def load_pipeline(path: str | os.PathLike) -> Pipeline:
 
 
 def _read_toml(path: str) -> dict:
-    """The parsed file; a PipelineError naming it when it cannot be read or parsed."""
+    """The parsed file; a PipelineError naming it when it cannot be read or parsed.
+
+    A FIFO or a device is refused unread, and a file larger than any pipeline
+    (:data:`~wheelcal.io.input_file.MAX_SMALL_INPUT_BYTES`) before it is read.
+    """
+    from wheelcal.io.input_file import SpecialFileError, read_bounded
+    from wheelcal.recording.errors import InputError
+
     try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
+        return tomllib.loads(read_bounded(path, "pipeline").decode("utf-8"))
+    except SpecialFileError as exc:
+        if exc.problem.startswith("is a folder"):
+            raise PipelineError(f"{path}: is a folder; give a pipeline file (TOML)") from None
+        raise PipelineError(str(exc)) from None
+    except InputError as exc:
+        raise PipelineError(str(exc)) from None
     except FileNotFoundError:
         raise PipelineError(f"{path}: no such pipeline file") from None
     except IsADirectoryError:

@@ -57,11 +57,14 @@ def stored_run_key(calibration_path: Path) -> str | None:
 
 
 def read_document(calibration_path: Path) -> dict | None:
-    """A calibration JSON's contents (None if absent or unreadable)."""
+    """A calibration JSON's contents (None if absent, unreadable, or no regular file)."""
+    from wheelcal.io.input_file import read_bounded
+
     try:
-        return json.loads(calibration_path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        document = json.loads(read_bounded(calibration_path, "calibration").decode("utf-8"))
+    except (OSError, ValueError, RecursionError):  # InputError is a ValueError
         return None
+    return document if isinstance(document, dict) else None
 
 
 def run_key_of(document) -> str | None:

@@ -20,6 +20,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import functools
 import hashlib
 import importlib
@@ -34,7 +36,7 @@ from pathlib import Path
 
 from threadpoolctl import ThreadpoolController
 
-from wheelcal.batch.locking import report_lock, session_lock
+from wheelcal.batch.locking import FolderInUseError, pipeline_lock, report_lock, session_lock
 from wheelcal.batch.pipeline import Pipeline, PipelineError
 from wheelcal.batch.provenance import (
     file_sha256,
@@ -45,6 +47,14 @@ from wheelcal.batch.provenance import (
 )
 from wheelcal.batch.session import calibrate_session, check_regular_file, failed_outcome
 from wheelcal.batch.stems import unique_stems
+from wheelcal.batch.termination import (
+    BatchStopped,
+    Terminated,
+    exit_worker,
+    in_worker,
+    terminate_on_signals,
+    worker_signals,
+)
 from wheelcal.batch.workers import (
     SESSION_IMPORTS,
     exit_with_parent,
@@ -74,6 +84,8 @@ class SessionRecord:
     fix: str | None = None  # the likely fix for a refused session
     #: What the reader repaired and the fit's warnings (⚠), for the progress line.
     notes: tuple[str, ...] = ()
+    #: Its outputs could not be written: the disk is full (the batch stops).
+    disk_full: bool = False
 
     @property
     def ok(self) -> bool:
@@ -146,18 +158,25 @@ def _run_task(task: _Task) -> SessionRecord:
     that another batch on the same folder has just written is skipped.
     """
     tune_allocator()
-    with session_lock(task.out_dir, task.stem):
-        if _up_to_date(Path(task.out_dir), task.stem, task.key, task.options):
-            return _up_to_date_record(task.path, Path(task.out_dir), task.stem, task.options.rrd)
-        with _blas_threads().limit(limits=1):
-            outcome = calibrate_session(
-                task.path,
-                task.options,
-                task.out_dir,
-                provenance={"run_key": task.key, "input_sha256": task.input_sha256},
-                durable=False,  # atomic, not fsync-ed one by one: run_batch syncs once
-                stem=task.stem,
-            )
+    try:
+        with session_lock(task.out_dir, task.stem):
+            if _up_to_date(Path(task.out_dir), task.stem, task.key, task.options):
+                return _up_to_date_record(
+                    task.path, Path(task.out_dir), task.stem, task.options.rrd
+                )
+            with _blas_threads().limit(limits=1):
+                outcome = calibrate_session(
+                    task.path,
+                    task.options,
+                    task.out_dir,
+                    provenance={"run_key": task.key, "input_sha256": task.input_sha256},
+                    durable=False,  # atomic, not fsync-ed one by one: run_batch syncs once
+                    stem=task.stem,
+                )
+    except Terminated as exc:
+        if in_worker():  # told to stop by the batch: its temporary files are already gone
+            exit_worker(exc)
+        raise
     session = outcome.session
     notes = (
         () if session is None else (*session.result.notes, *(f"⚠ {w}" for w in session.warnings))
@@ -172,6 +191,7 @@ def _run_task(task: _Task) -> SessionRecord:
         gate=outcome.gate,
         fix=outcome.fix,
         notes=notes,
+        disk_full=outcome.disk_full,
     )
 
 
@@ -297,8 +317,12 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
 
 
 def _execute(
-    pipeline: Pipeline, tasks: list[_Task], on_done: Callable[[SessionRecord], None]
+    pipeline: Pipeline,
+    tasks: list[_Task],
+    on_done: Callable[[SessionRecord], None],
+    stop: Callable[[], bool] = lambda: False,
 ) -> None:
+    """Run the tasks, reporting each record; no new session starts once ``stop()`` is true."""
     executor = pipeline.executor
     if not tasks:
         return
@@ -338,23 +362,27 @@ def _execute(
     workers = min(workers, len(tasks))
     if workers == 1:
         for task in tasks:
+            if stop():
+                return
             try:
                 record = _run_task(task)
             except Exception as exc:  # one session must never stop the batch
                 record = _failed_record(task, exc)
             on_done(record)
         return
-    broken = _run_pool(tasks, workers, on_done)
+    broken = _run_pool(tasks, workers, on_done, stop)
     # A worker that died (killed by the OOM killer, a segfault) breaks the whole pool: every
     # session still pending fails with it.  Re-run those on a fresh pool while that makes
     # progress, then one per fresh worker, so only the session that kills its worker fails.
-    while broken and len(broken) > 1:
-        retry = _run_pool(broken, workers, on_done)
+    while broken and len(broken) > 1 and not stop():
+        retry = _run_pool(broken, workers, on_done, stop)
         if len(retry) == len(broken):  # no session finished: isolate them
             break
         broken = retry
     for task in broken:
-        for lost in _run_pool([task], 1, on_done):
+        if stop():
+            return
+        for lost in _run_pool([task], 1, on_done, stop):
             on_done(_failed_record(lost, BrokenProcessPool()))
 
 
@@ -384,16 +412,25 @@ def _run_group(tasks: tuple[_Task, ...]) -> list[SessionRecord]:
 
 
 def _run_pool(
-    tasks: list[_Task], workers: int, on_done: Callable[[SessionRecord], None]
+    tasks: list[_Task],
+    workers: int,
+    on_done: Callable[[SessionRecord], None],
+    stop: Callable[[], bool] = lambda: False,
 ) -> list[_Task]:
-    """Run tasks on a process pool; returns the tasks lost to a broken pool (not reported)."""
+    """Run tasks on a process pool; returns the tasks lost to a broken pool (not reported).
+
+    Once ``stop()`` is true the sessions not started are cancelled (those running
+    finish).  On an interruption (a signal, ``Ctrl-C``) the workers are stopped
+    at once, each removing its temporary files (:func:`_stop_workers`).
+    """
     broken = []
-    with ProcessPoolExecutor(
+    pool = ProcessPoolExecutor(
         workers,
         mp_context=worker_context(),
-        initializer=exit_with_parent,
+        initializer=_worker_start,
         initargs=(os.getpid(),),
-    ) as pool:
+    )
+    try:
         futures = {}
         for i, task in enumerate(tasks):
             try:
@@ -402,11 +439,45 @@ def _run_pool(
                 broken.extend(tasks[i:])
                 break
         for future in as_completed(futures):
+            if future.cancelled():
+                continue
             if isinstance(future.exception(), BrokenProcessPool):
                 broken.append(futures[future])
             else:
                 on_done(_collect(future, futures[future]))
+            if stop():
+                for pending in futures:
+                    pending.cancel()
+    except BaseException:
+        _stop_workers(pool)
+        raise
+    pool.shutdown(wait=True)
     return sorted(broken, key=lambda t: t.path)
+
+
+def _worker_start(batch_pid: int) -> None:
+    """Pool initializer: die with the batch, and stop cleanly when it says so."""
+    exit_with_parent(batch_pid)
+    worker_signals()
+
+
+#: How long stopped workers get to remove their temporary files, s.
+_STOP_WAIT_S = 20.0
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Cancel what has not started; send the workers SIGTERM; wait for them (then kill)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            process.terminate()  # SIGTERM: its writers remove their temporary files
+    deadline = time.monotonic() + _STOP_WAIT_S
+    for process in processes:
+        with contextlib.suppress(OSError, ValueError, AssertionError, AttributeError):
+            process.join(max(0.0, deadline - time.monotonic()))
+            if process.is_alive():
+                process.kill()
 
 
 def _collect(future, task: _Task) -> SessionRecord:
@@ -428,11 +499,27 @@ def _failed_record(task: _Task, exc: BaseException) -> SessionRecord:
 
 
 def run_batch(
-    pipeline: Pipeline, progress: Callable[[ProgressEvent], None] | None = None
+    pipeline: Pipeline,
+    progress: Callable[[ProgressEvent], None] | None = None,
+    force: bool = False,
 ) -> BatchOutcome:
-    """Run a pipeline end to end (see the module docstring)."""
-    from wheelcal.batch.simulate_inputs import simulate_inputs
+    """Run a pipeline end to end (see the module docstring).
 
+    ``force``: replace outputs wheelcal did not write from these inputs too
+    (the overwrite policy, :mod:`wheelcal.io.ownership`).
+
+    Raises
+    ------
+    PipelineError
+        Before any work: the folder cannot be written, is used by another batch
+        with a different pipeline, or holds outputs the policy does not replace.
+    BatchStopped
+        The disk filled up: the sessions written are complete and kept, the
+        report was not written (an earlier one is unchanged).
+    Terminated
+        A SIGTERM or SIGHUP (with ``done``/``total``): the sessions finished are
+        complete, the others left no file.
+    """
     t0 = time.perf_counter()
     say = progress or (lambda event: None)
     if pipeline.executor.kind == "dask":
@@ -441,6 +528,29 @@ def run_batch(
         prepare_output_folder(pipeline.output)  # before any work: a read-only folder wastes it
     except OutputFolderError as exc:
         raise PipelineError(f"{pipeline.path}: {exc}") from None
+    with contextlib.ExitStack() as stack:
+        who = f"pipeline {pipeline.name!r}, {pipeline.path}"
+        try:
+            alone = stack.enter_context(pipeline_lock(pipeline.output, _identity(pipeline), who))
+        except FolderInUseError as exc:
+            raise PipelineError(f"{pipeline.path}: {exc}") from None
+        if alone:  # no other batch writes here: what temporaries there are, a killed run left
+            removed = _remove_temporaries(pipeline.output)
+            if removed:
+                say(
+                    ProgressEvent(
+                        0,
+                        0,
+                        message=f"removed {removed} temporary file(s) an interrupted run left",
+                    )
+                )
+        return _run_held(pipeline, say, force, t0)
+
+
+def _run_held(pipeline: Pipeline, say, force: bool, t0: float) -> BatchOutcome:
+    """:func:`run_batch` once the output folder is held for this pipeline."""
+    from wheelcal.batch.simulate_inputs import simulate_inputs
+
     made = simulate_inputs(pipeline, lambda msg: say(ProgressEvent(0, 0, message=msg)))
     if not pipeline.calibrate:  # [run] calibrate = false: only make the simulated inputs
         return BatchOutcome(pipeline, (), (), False, len(made), time.perf_counter() - t0)
@@ -450,6 +560,9 @@ def run_batch(
             f"{pipeline.path}: the input globs match no files: {list(pipeline.globs)}"
         )
     tasks, records = _plan(pipeline, files)
+    notes = _claim(pipeline, tasks, force)  # before any session: a refusal costs nothing
+    if notes:
+        say(ProgressEvent(0, 0, message=_replacing(notes)))
     total = len(files)
     if records:
         fresh = sum(r.skipped for r in records)
@@ -458,16 +571,26 @@ def run_batch(
                 len(records), total, message=f"{fresh} session(s) up to date, {len(tasks)} to run"
             )
         )
+    full: list[SessionRecord] = []
 
     def done(record: SessionRecord) -> None:
         records.append(record)
+        if record.disk_full:
+            full.append(record)
         say(ProgressEvent(len(records), total, record=record))
 
-    _execute(pipeline, tasks, done)
-    _sync()  # the sessions' files, durable in one flush (they skipped per-file fsync)
-    records.sort(key=lambda r: r.source)
-    with report_lock(pipeline.output):  # another batch on this folder may be writing it
-        paths, written = _write_report(pipeline, records)
+    try:
+        with terminate_on_signals():
+            _execute(pipeline, tasks, done, stop=lambda: bool(full))
+            _sync()  # the sessions' files, durable in one flush (they skipped per-file fsync)
+            if full:
+                raise BatchStopped(_disk_full_text(pipeline, records, total, full[0]))
+            records.sort(key=lambda r: r.source)
+            with report_lock(pipeline.output):  # another batch on this folder may be writing it
+                paths, written = _write_report(pipeline, records)
+    except Terminated as exc:
+        exc.done, exc.total = sum(r.ok and not r.skipped for r in records), len(tasks)
+        raise
     return BatchOutcome(
         pipeline=pipeline,
         records=tuple(records),
@@ -475,6 +598,81 @@ def run_batch(
         report_written=written,
         simulated=len(made),
         wall_s=time.perf_counter() - t0,
+    )
+
+
+def _identity(pipeline: Pipeline) -> str:
+    """What a pipeline computes, hashed: two runs of it may share a folder, two pipelines not.
+
+    The inputs (globs made absolute), the simulated inputs, the session options and
+    what is run; not the executor (workers) nor the output folder.
+    """
+    payload = {
+        "name": pipeline.name,
+        "globs": [os.path.abspath(g) for g in pipeline.globs],
+        "simulate": pipeline.simulate,
+        "options": dataclasses.asdict(pipeline.options),
+        "run": [pipeline.calibrate, pipeline.diagnose, pipeline.closure, pipeline.rerun],
+    }
+    text = json.dumps(payload, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()
+
+
+def _remove_temporaries(out: Path) -> int:
+    """Remove the hidden temporary files a killed batch left in ``out`` and ``out/sensors``."""
+    from wheelcal.batch.sensors import SENSORS_FOLDER
+    from wheelcal.io.atomic import remove_temporaries
+
+    return len(remove_temporaries(out)) + len(remove_temporaries(out / SENSORS_FOLDER))
+
+
+#: The report set: the files of :func:`_write_report` (sensor files: those that exist).
+_REPORT_FILES = ("report.json", "report.md", "sessions.csv", "overview.png", "batch.rrd")
+
+
+def _claim(pipeline: Pipeline, tasks: list[_Task], force: bool) -> list[str]:
+    """The overwrite policy on every file the batch may write (PipelineError if refused)."""
+    from wheelcal.batch.sensors import SENSORS_FOLDER
+    from wheelcal.batch.session import session_outputs
+    from wheelcal.io.ownership import Output, OutputRefusedError, claim_outputs, origin_of
+
+    out, options = pipeline.output, pipeline.options
+    sessions = [
+        o
+        for t in tasks
+        for o in session_outputs(t.path, out, options.rrd, options.diagnose, t.stem)
+    ]
+    origin, inputs = origin_of([pipeline.path]), (pipeline.path,)
+    sensors = sorted((out / SENSORS_FOLDER).glob("*.calibration.json")) + sorted(
+        (out / SENSORS_FOLDER).glob("*.sensor.json")
+    )
+    report = [
+        Output(p, origin, inputs, follows=p.suffix == ".csv")
+        for p in [out / name for name in _REPORT_FILES] + sensors
+    ]
+    try:
+        return claim_outputs(sessions, force) + claim_outputs(report, force)
+    except OutputRefusedError as exc:
+        raise PipelineError(f"{pipeline.path}: {exc}") from None
+
+
+def _replacing(notes: list[str]) -> str:
+    """One progress line for the earlier outputs the batch replaces."""
+    if len(notes) == 1:
+        return notes[0]
+    return f"{notes[0]}; and {len(notes) - 1} more earlier output(s) of the same inputs"
+
+
+def _disk_full_text(pipeline, records, total: int, first: SessionRecord) -> str:
+    written = sum(r.ok and not r.skipped for r in records)
+    skipped = sum(r.skipped for r in records)
+    reason = first.error.removeprefix(f"{first.source}: ")
+    return (
+        f"the disk of {pipeline.output} is full: the batch stopped at {first.source} "
+        f"({reason}). {written} session(s) were calibrated and written before it filled "
+        f"(complete, kept), {skipped} were up to date, {total - written - skipped} are not "
+        "written; the report was not written (an earlier one is unchanged). Free some space "
+        "and run the batch again: only the sessions without outputs are redone"
     )
 
 
@@ -491,12 +689,12 @@ def _require_dask(pipeline: Pipeline) -> None:
 
 
 def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tuple[str, ...], bool]:
-    from wheelcal.batch.report import report_markdown, sessions_csv
-    from wheelcal.io.atomic import atomic_write_text
-    from wheelcal.io.json_text import dumps_indented, json_safe
+    """The report set, all at once or not at all (staged: a full disk leaves the earlier set)."""
+    from wheelcal.io.atomic import staged_outputs
+    from wheelcal.io.ownership import origin_of, output_mark
 
     out = pipeline.output
-    json_path, md_path, csv_path = out / "report.json", out / "report.md", out / "sessions.csv"
+    json_path = out / "report.json"
     # each calibration JSON read once: its run key now, its Calibration below
     documents = {
         r.calibration_path: read_document(Path(r.calibration_path)) for r in records if r.ok
@@ -512,31 +710,61 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
     calibrations = [
         _calibration(r.calibration_path, documents.pop(r.calibration_path)) for r in records if r.ok
     ]
-    report = _report(pipeline, records, calibrations)
+    origin = origin_of([pipeline.path])
+    mark = output_mark(origin, [pipeline.path])
+    try:
+        # report.json last: its key marks the whole report as complete.
+        with staged_outputs(durable=False, last=(json_path,)) as stage:
+            paths = _stage_report(pipeline, records, calibrations, report_key, stage, mark)
+            _sync()  # every staged file durable, in one flush, before any is installed
+    except OSError as exc:
+        from wheelcal.batch.session import describe_error
+        from wheelcal.batch.termination import disk_full
+
+        if not disk_full(exc, out):
+            raise
+        raise BatchStopped(
+            f"{out}: the disk is full ({describe_error(exc)}): every session is written, but "
+            "the report was not (an earlier one is unchanged). Free some space and run the "
+            "batch again: only the report is made"
+        ) from None
+    return tuple(map(str, paths)), True
+
+
+def _stage_report(pipeline, records, calibrations, report_key: str, stage, mark) -> list[Path]:
+    """Stage every file of the report set (:func:`_write_report`); their paths."""
+    from wheelcal.batch.report import report_markdown, sessions_csv
+    from wheelcal.io.json_text import dumps_indented, json_safe
+    from wheelcal.io.ownership import MARK_KEY, mark_line
+
+    out = pipeline.output
+    json_path, md_path, csv_path = out / "report.json", out / "report.md", out / "sessions.csv"
+    report = _report(pipeline, records, calibrations, stage, mark)
     numbers = [i + 1 for i, r in enumerate(records) if r.ok]  # as report.md's session table
     paths = [
         json_path,
         md_path,
         csv_path,
-        *_sensor_and_overview_files(pipeline, records, calibrations, report, numbers),
+        *_sensor_and_overview_files(pipeline, records, calibrations, report, numbers, stage, mark),
     ]
     batch_rrd = pipeline.rerun and bool(calibrations)  # nothing to draw when every session failed
     if batch_rrd:
         paths.append(out / "batch.rrd")
     elif pipeline.rerun and (out / "batch.rrd").exists():
-        os.replace(out / "batch.rrd", out / "batch.stale.rrd")  # not this run's
+        stage.move(out / "batch.rrd", out / "batch.stale.rrd")  # not this run's
     report["pipeline"] = {"name": pipeline.name, "file": pipeline.path}
     report["provenance"] = {"report_key": report_key, "outputs": [str(p) for p in paths]}
-    atomic_write_text(md_path, report_markdown(report, f"Repeatability report — {pipeline.name}"))
-    atomic_write_text(csv_path, sessions_csv(calibrations, report["per_session"]))
+    report[MARK_KEY] = mark
+    markdown = report_markdown(report, f"Repeatability report — {pipeline.name}")
+    stage.write_text(md_path, markdown + f"\n<!-- {mark_line(mark['origin'])} -->\n")
+    stage.write_text(csv_path, sessions_csv(calibrations, report["per_session"]))
     if batch_rrd:
         from wheelcal.viz.batch_rrd import write_batch_rrd
 
-        write_batch_rrd(out / "batch.rrd", calibrations, numbers, report)
-    _sync()  # the sensor files and the PNG (written without per-file fsync)
-    # report.json last: its key marks the whole report as complete.
-    atomic_write_text(json_path, dumps_indented(json_safe(report)) + "\n")
-    return tuple(map(str, paths)), True
+        with stage.path(out / "batch.rrd") as tmp:
+            write_batch_rrd(tmp, calibrations, numbers, report, durable=False, name="batch")
+    stage.write_text(json_path, dumps_indented(json_safe(report)) + "\n")
+    return paths
 
 
 def _report_key(records: list[SessionRecord], documents: dict[str, dict | None]) -> str:
@@ -549,7 +777,11 @@ def _report_key(records: list[SessionRecord], documents: dict[str, dict | None])
 
 
 def _report(
-    pipeline: Pipeline, records: list[SessionRecord], calibrations: list[Calibration]
+    pipeline: Pipeline,
+    records: list[SessionRecord],
+    calibrations: list[Calibration],
+    stage=None,
+    mark: dict | None = None,
 ) -> dict:
     """``report.json``'s statistics, sessions and (with the closed loop) its closure."""
     from wheelcal.batch.report import build_report
@@ -575,7 +807,7 @@ def _report(
     if pipeline.closure:
         from wheelcal.batch.closure import run_closure
 
-        report["closure"] = run_closure(pipeline, calibrations)
+        report["closure"] = run_closure(pipeline, calibrations, stage=stage, mark=mark)
     return report
 
 
@@ -585,10 +817,11 @@ def _sensor_and_overview_files(
     calibrations: list[Calibration],
     report: dict,
     numbers: list[int],
+    stage,
+    mark: dict,
 ) -> list[Path]:
-    """Write each sensor's pooled calibration and ``overview.png``; note them in ``report``."""
+    """Stage each sensor's pooled calibration and ``overview.png``; note them in ``report``."""
     from wheelcal.batch.sensors import write_sensor_calibrations
-    from wheelcal.io.atomic import atomic_write_bytes
     from wheelcal.viz.batch_png import OVERVIEW_FILE, overview_png
 
     out = pipeline.output
@@ -597,14 +830,20 @@ def _sensor_and_overview_files(
         calibrations,
         {r.source: r.calibration_path for r in records if r.ok},
         report.get("closure"),
+        stage=stage,
+        mark=mark,
     )
     report["sensors"] = [s.summary() for s in sensors]
     paths = [s.path for s in sensors]
     png, note = overview_png(
-        calibrations, [s.doc for s in sensors], title=pipeline.name, numbers=numbers
+        calibrations,
+        [s.doc for s in sensors],
+        title=pipeline.name,
+        numbers=numbers,
+        origin=mark["origin"],
     )
     if png is not None:
-        atomic_write_bytes(out / OVERVIEW_FILE, png, durable=False)
+        stage.write_bytes(out / OVERVIEW_FILE, png)
         paths.append(out / OVERVIEW_FILE)
         report["overview"] = {"file": OVERVIEW_FILE}
     else:
@@ -636,8 +875,9 @@ def _sync() -> None:
 
 def _stored_report(path: Path) -> tuple[str | None, list[str]]:
     """The report key and the output list of an earlier ``report.json`` (None, [] if none)."""
+    document = read_document(path)  # bounded, and never a FIFO put in its place
     try:
-        provenance = json.loads(path.read_text(encoding="utf-8")).get("provenance", {})
-    except (OSError, ValueError, AttributeError):
+        provenance = (document or {}).get("provenance", {})
+        return provenance.get("report_key"), list(provenance.get("outputs", []))
+    except (AttributeError, TypeError):
         return None, []
-    return provenance.get("report_key"), list(provenance.get("outputs", []))

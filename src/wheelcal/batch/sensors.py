@@ -19,10 +19,12 @@ from wheelcal.calibration.document import read_only_document
 from wheelcal.calibration.sensor_json import (
     joint_estimate,
     sensor_calibration_dict,
+    sensor_calibration_text,
     session_estimate,
     write_sensor_calibration,
 )
 from wheelcal.closedloop.pooling import pool_sessions
+from wheelcal.io.ownership import MARK_KEY
 
 SENSORS_FOLDER = "sensors"
 STALE_SUFFIX = ".calibration.stale.json"
@@ -67,12 +69,16 @@ def write_sensor_calibrations(
     calibration_paths: Mapping[str, str] | None = None,
     closure: Mapping | None = None,
     durable: bool = False,
+    stage=None,
+    mark: Mapping | None = None,
 ) -> list[SensorDeliverable]:
     """Pool and write one calibration per sensor; returns them sorted by sensor id.
 
     A sensor file of an earlier run whose sensor has no calibrated session now
     is renamed ``<stem>.calibration.stale.json``: nobody should apply it thinking
-    it is this batch's.
+    it is this batch's.  With ``stage`` (:class:`~wheelcal.io.atomic.StagedOutputs`)
+    the files and the renames wait for the stage's install; ``mark`` is stored
+    as each file's ``wheelcal_output`` (:mod:`wheelcal.io.ownership`).
     """
     by_sensor: dict[str, list[Mapping]] = defaultdict(list)
     for cal in calibrations:
@@ -88,12 +94,21 @@ def write_sensor_calibrations(
         joint = joint_estimate(fits[sensor_id]) if sensor_id in fits else None
         pooled = pool_sessions([session_estimate(c) for c in members], joint)
         doc = sensor_calibration_dict(sensor_id, pooled, members, calibration_paths)
+        if mark is not None:
+            doc[MARK_KEY] = dict(mark)
         path = Path(out_dir) / SENSORS_FOLDER / f"{sensor_file_stem(sensor_id)}.calibration.json"
         path.parent.mkdir(parents=True, exist_ok=True)
-        write_sensor_calibration(path, doc, durable=durable)
+        if stage is not None:
+            stage.write_text(path, sensor_calibration_text(doc))
+        else:
+            write_sensor_calibration(path, doc, durable=durable)
         out.append(SensorDeliverable(sensor_id, path, doc))
     written = {d.path.name for d in out}
     for old in sorted((Path(out_dir) / SENSORS_FOLDER).glob("*.calibration.json")):
         if old.name not in written:
-            old.replace(old.with_name(old.name.replace(".calibration.json", STALE_SUFFIX)))
+            new = old.with_name(old.name.replace(".calibration.json", STALE_SUFFIX))
+            if stage is not None:
+                stage.move(old, new)
+            else:
+                old.replace(new)
     return out

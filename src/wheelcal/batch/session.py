@@ -17,12 +17,13 @@ behave the same.  Computing (the session layer) and writing (here) are separate:
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
+from numpy.linalg import LinAlgError
 
 from wheelcal.io.file_kind import special_file_kind
 from wheelcal.recording import (
@@ -55,6 +56,8 @@ class SessionOutcome:
     #: For a refused calibration: the gate that refused it and the likely fix.
     gate: str | None = None
     fix: str | None = None
+    #: Its files could not be written because the disk is full (the batch stops).
+    disk_full: bool = False
 
     @property
     def ok(self) -> bool:
@@ -108,23 +111,34 @@ def write_session(
     t1 = time.perf_counter()
     stem = outcome.stem
     # The .rrd first: the calibration JSON marks a complete session (the batch's
-    # up-to-date check), so it is written last.
+    # up-to-date check), so it is written last.  If a later file fails (a full
+    # disk), the ones this attempt wrote go too: none may pass for a stale
+    # earlier result, nor for this run's.
     rrd_path = diagnosis_path = None
     document = calibration_dict(outcome.session, provenance)  # the JSON and the view's verdict
-    if options.rrd:
-        rrd_path = str(_write_rrd(out / f"{stem}.rrd", outcome.session, durable, document))
-        timings["rrd"] = time.perf_counter() - t1
-        t1 = time.perf_counter()
-    diagnosis = outcome.session.diagnosis
-    if options.diagnose and diagnosis is not None:
-        from wheelcal.calibration.diagnosis_json import write_diagnosis
+    written: list[Path] = []
+    try:
+        if options.rrd:
+            rrd_path = str(_write_rrd(out / f"{stem}.rrd", outcome.session, durable, document))
+            written.append(Path(rrd_path))
+            timings["rrd"] = time.perf_counter() - t1
+            t1 = time.perf_counter()
+        diagnosis = outcome.session.diagnosis
+        if options.diagnose and diagnosis is not None:
+            from wheelcal.calibration.diagnosis_json import write_diagnosis
 
-        diagnosis_path = str(
-            write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis, durable=durable)
+            diagnosis_path = str(
+                write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis, durable=durable)
+            )
+            written.append(Path(diagnosis_path))
+        json_path = write_calibration(
+            out / f"{stem}.calibration.json", outcome.session, provenance, durable, document
         )
-    json_path = write_calibration(
-        out / f"{stem}.calibration.json", outcome.session, provenance, durable, document
-    )
+    except BaseException:
+        for path in written:
+            with contextlib.suppress(OSError):
+                path.unlink()
+        raise
     timings["write"] = time.perf_counter() - t1
     return replace(
         outcome,
@@ -156,17 +170,32 @@ def calibrate_session(
     stem = stem or session_stem(path)
     try:
         outcome = outcome_of(compute_session(path, options), stem)  # the reader refuses FIFOs
+    except Exception as exc:
+        return _failed_compute(source, stem, out_dir, exc)
+    try:
         return write_session(outcome, options, out_dir, provenance, durable)
-    except (RecordingError, ValueError, ArithmeticError, OSError, np.linalg.LinAlgError) as exc:
+    except Exception as exc:  # a file that cannot be written: the disk may be full
+        from wheelcal.batch.termination import disk_full
+
+        full = disk_full(exc, out_dir)
+        message = describe_error(exc) or f"{type(exc).__name__}: {exc}"
+        if full:
+            message = f"its outputs cannot be written, the disk is full: {message}"
+        return failed_outcome(source, stem, out_dir, message, exc, disk_full=full)
+
+
+def _failed_compute(source: str, stem: str, out_dir, exc: Exception) -> SessionOutcome:
+    """The outcome of a session whose computation raised ``exc``: named, never raised."""
+    if isinstance(exc, RecordingError | ValueError | ArithmeticError | OSError | LinAlgError):
         return failed_outcome(source, stem, out_dir, describe_error(exc), exc)
-    except (MemoryError, RecursionError) as exc:
+    if isinstance(exc, MemoryError | RecursionError):
         # A recording that exhausts memory or the stack fails alone: the next one still runs.
         what = "out of memory" if isinstance(exc, MemoryError) else "input nested too deeply"
         return failed_outcome(source, stem, out_dir, f"{what} ({type(exc).__name__})", exc)
-    except Exception as exc:  # one session must never stop the others
-        return failed_outcome(
-            source, stem, out_dir, f"unexpected error: {type(exc).__name__}: {exc}", exc
-        )
+    # one session must never stop the others
+    return failed_outcome(
+        source, stem, out_dir, f"unexpected error: {type(exc).__name__}: {exc}", exc
+    )
 
 
 def describe_error(exc: BaseException) -> str:
@@ -190,7 +219,12 @@ def check_regular_file(path: str | Path) -> None:
 
 
 def failed_outcome(
-    source: str, stem: str, out_dir: str | Path, message: str, exc: BaseException | None = None
+    source: str,
+    stem: str,
+    out_dir: str | Path,
+    message: str,
+    exc: BaseException | None = None,
+    disk_full: bool = False,
 ) -> SessionOutcome:
     """The outcome of a failed session: the error names the file; earlier outputs go stale."""
     if source not in message:
@@ -205,6 +239,7 @@ def failed_outcome(
         error=message,
         gate=refused.gate if refused else None,
         fix=refused.fix if refused else None,
+        disk_full=disk_full,
     )
 
 
@@ -227,3 +262,17 @@ def keep_as_stale(out: Path, stem: str) -> str | None:
             continue
         kept.append(new.name)
     return ", ".join(kept) or None
+
+
+def session_outputs(
+    path: str, out_dir: str | Path, rrd: bool, diagnose: bool, stem: str | None = None
+) -> list:
+    """The files one session writes, for the overwrite policy (:mod:`wheelcal.io.ownership`)."""
+    from wheelcal.io.ownership import Output, origin_of
+
+    stem = stem or session_stem(path)
+    origin = origin_of([path])
+    names = [f"{stem}.calibration.json"]
+    names += [f"{stem}.rrd"] if rrd else []
+    names += [f"{stem}.diagnosis.json"] if diagnose else []
+    return [Output(Path(out_dir) / name, origin, (str(path),)) for name in names]

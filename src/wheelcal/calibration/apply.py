@@ -39,6 +39,7 @@ from wheelcal.io.mcap_writer import (
 )
 from wheelcal.io.sample_flags import flags_channel
 from wheelcal.recording import Recording
+from wheelcal.io.ownership import MARK_RECORD
 from wheelcal.recording.samples import InputPolicy
 
 CALIBRATION_METADATA_NAME = "wheelcal.calibration"
@@ -90,6 +91,7 @@ def apply_calibration(
     encoding: str | None = None,
     allow_partial: bool = False,
     replace: bool = False,
+    mark: dict | None = None,
 ) -> AppliedCalibration:
     """Write ``destination`` (MCAP): ``source`` with ``<topic>/calibrated`` added.
 
@@ -105,7 +107,8 @@ def apply_calibration(
     (module docstring).  A calibration with undetermined parameters needs
     ``allow_partial``.  An existing ``destination`` is refused unless ``replace``
     (:class:`~wheelcal.io.atomic.OutputExistsError`, before any work and again
-    at the atomic install).
+    at the atomic install).  ``mark``: the copy's ``wheelcal.output`` record
+    (:mod:`wheelcal.io.ownership`; the source's own is not copied).
     """
     if not replace:
         refuse_existing(destination)
@@ -162,6 +165,8 @@ def apply_calibration(
             "flags_topic": flags_topic if marked.any() else "",
         },
     }
+    if mark is not None:
+        metadata[MARK_RECORD] = dict(mark)
     copied = _write(raw, recording, destination, channels, metadata, replace)
     return AppliedCalibration(
         topic=new_topic,

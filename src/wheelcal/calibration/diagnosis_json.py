@@ -16,6 +16,7 @@ from pathlib import Path
 from wheelcal.calibration.session_json import _num, _vec, effects_dict
 from wheelcal.closedloop.loop import Diagnosis
 from wheelcal.io.atomic import atomic_write_text
+from wheelcal.io.ownership import MARK_KEY, origin_of, output_mark
 
 FORMAT = "wheelcal.diagnosis/1"
 
@@ -32,6 +33,7 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
     base, final = diagnosis.base, diagnosis.final
     return {
         "format": FORMAT,
+        MARK_KEY: output_mark(origin_of([base.source]), [base.source]),
         "source": {
             "file": base.source,
             "topic": base.topic,

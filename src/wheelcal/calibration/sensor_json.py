@@ -320,8 +320,12 @@ def _identity_axes(pooled: PooledSensor) -> dict:
     }
 
 
+def sensor_calibration_text(doc: Mapping) -> str:
+    """A sensor calibration dictionary as the file's text."""
+    return json.dumps(doc, indent=2, allow_nan=False) + "\n"
+
+
 def write_sensor_calibration(path: str | os.PathLike, doc: Mapping, durable: bool = True) -> Path:
     """Write a sensor calibration dictionary atomically; returns the path."""
-    text = json.dumps(doc, indent=2, allow_nan=False)
-    atomic_write_text(path, text + "\n", durable=durable)
+    atomic_write_text(path, sensor_calibration_text(doc), durable=durable)
     return Path(path)

@@ -23,6 +23,7 @@ from wheelcal.estimate.joint.systematic import SystematicBudget
 from wheelcal.estimate.residual_profile import residual_by_wheel_angle
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.json_text import dumps_indented
+from wheelcal.io.ownership import MARK_KEY, origin_of, output_mark
 from wheelcal.model import EULER_CONVENTION
 from wheelcal.model.correction import SensorCorrection
 from wheelcal.model.parameters import AXES
@@ -72,6 +73,7 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
     return {
         "format": FORMAT,
         "wheelcal_version": __version__,
+        MARK_KEY: output_mark(origin_of([result.source]), [result.source]),
         "geometry": session.geometry,
         "provenance": provenance or {},
         "source": _source_block(session),
@@ -217,6 +219,16 @@ def _fit_block(session: SessionResult, undetermined: set[str]) -> dict:
     }
 
 
+#: What each systematic source assumes (``systematic.sources.<name>.assumes``).
+_SOURCE_ASSUMES = {
+    "sample_clock": (
+        "the time stamps keep true seconds within ±{std:g} ppm (a crystal clock); a clock "
+        "error ε acts as a radius error of −2ε. A stamped rate off its nominal rate, or a "
+        "gyro that reads the wheel otherwise, is judged in fit.clock_check"
+    ),
+}
+
+
 def _systematic_block(budget: SystematicBudget) -> dict:
     """``systematic``: the budget's total σ, and each unseen source's share."""
     sys_std = dict(zip(budget.names, budget.total_std, strict=True))
@@ -232,6 +244,11 @@ def _systematic_block(budget: SystematicBudget) -> dict:
                 "offset_std_mps2": [_num(v) for v in _pick(s.shift_std, budget.names, "offset")],
                 "tilt_std_deg": _num(
                     dict(zip(budget.names, s.shift_std, strict=True)).get("tilt_deg", 0.0)
+                ),
+                **(
+                    {"assumes": _SOURCE_ASSUMES[s.name].format(std=s.std)}
+                    if s.name in _SOURCE_ASSUMES
+                    else {}
                 ),
             }
             for s in budget.sources
@@ -310,6 +327,8 @@ def _assessment(a: Assessment) -> dict:
     if a.motion is not None:
         out["motion_check"] = _clean(a.motion.to_dict())
     out["rest_checks"] = [_clean(c.to_dict()) for c in a.rest_checks]
+    if a.clock is not None:
+        out["clock_check"] = _clean(a.clock.to_dict())
     out["gates"] = a.gates.to_dict()
     return out
 
@@ -430,12 +449,21 @@ def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> di
     refused unless ``allow_partial``: its correction leaves those axes
     unchanged, which a user must choose knowingly.
     """
+    from wheelcal.io.input_file import read_bounded
+    from wheelcal.recording.errors import InputError
+
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = json.loads(read_bounded(path, "calibration").decode("utf-8"))
     except FileNotFoundError:
         raise CalibrationFileError(f"{path}: no such calibration file") from None
+    except InputError as exc:  # a FIFO, a device, a folder, a file of gigabytes
+        raise CalibrationFileError(str(exc)) from None
+    except OSError as exc:
+        raise CalibrationFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationFileError(f"{path}: not a calibration JSON ({exc})") from None
+    except RecursionError:
+        raise CalibrationFileError(f"{path}: not a calibration JSON (nested too deeply)") from None
     return check_calibration(data, path, allow_partial)
 
 

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 import os
+from pathlib import Path
+
+from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: The command's one-line help and its --help description.
 HELP = "write a copy of a recording with a calibrated accelerometer topic added"
@@ -19,13 +22,11 @@ DESCRIPTION = (
 
 def register(sub) -> None:
     """Add the ``apply`` parser."""
-    p = sub.add_parser("apply", help=HELP, description=DESCRIPTION)
+    p = sub.add_parser("apply", help=HELP, description=DESCRIPTION, epilog=POLICY_EPILOG)
     p.add_argument("calibration", metavar="CAL.json")
     p.add_argument("source", metavar="IN")
     p.add_argument("destination", metavar="OUT.mcap")
-    p.add_argument(
-        "--force", action="store_true", help="replace OUT.mcap if it exists (default: refuse)"
-    )
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--topic", help="accelerometer topic to correct (default: the calibration's)")
     p.add_argument("--out-topic", help="name of the calibrated topic (default <topic>/calibrated)")
     p.add_argument("--format", choices=("ros2", "json"), help="encoding of the calibrated topic")
@@ -42,26 +43,24 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.batch.session import describe_error
     from wheelcal.calibration.apply import apply_calibration
     from wheelcal.cli.errors import SessionsFailed, UsageError
-    from wheelcal.io.atomic import OutputExistsError
+    from wheelcal.cli.options import readable_inputs
+    from wheelcal.cli.overwrite import claim
     from wheelcal.io.file_kind import special_file_kind
+    from wheelcal.io.ownership import Output, origin_of, output_mark
 
-    for what, path in (("CAL.json", args.calibration), ("IN", args.source)):
-        kind = special_file_kind(path)
-        if (
-            kind == "a folder"
-            and what == "IN"
-            and os.path.isfile(os.path.join(path, "metadata.yaml"))
-        ):
-            continue  # a rosbag2 folder
-        if kind is not None:
-            raise UsageError(f"{what} {path} is {kind}, not a file to read")
+    readable_inputs(("CAL.json", args.calibration))
+    kind = special_file_kind(args.source)
+    rosbag2 = kind == "a folder" and os.path.isfile(os.path.join(args.source, "metadata.yaml"))
+    if kind is not None and not rosbag2:
+        raise UsageError(f"IN {args.source} is {kind}, not a file to read")
     if os.path.isdir(args.destination):
         raise UsageError(f"OUT.mcap {args.destination} is a folder; give the file to write")
     if os.path.exists(args.source) and os.path.exists(args.destination):
         if os.path.samefile(args.source, args.destination):
             raise UsageError(f"OUT.mcap {args.destination} is IN itself; give a new file")
-    if not args.force and os.path.lexists(args.destination):
-        raise UsageError(str(OutputExistsError(args.destination)))
+    inputs = (args.calibration, args.source)
+    origin = origin_of(inputs)
+    exists = claim([Output(Path(args.destination), origin, inputs)], args.force, "apply")
     try:
         applied = apply_calibration(
             args.calibration,
@@ -71,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
             args.out_topic,
             args.format,
             allow_partial=args.allow_partial,
-            replace=args.force,
+            replace=exists,
+            mark=output_mark(origin, inputs),
         )
     except Exception as exc:  # incl. MemoryError, RecursionError: named, never a traceback
         if getattr(args, "debug", False):

@@ -6,7 +6,13 @@ import argparse
 import sys
 
 from wheelcal.cli.errors import SessionsFailed
-from wheelcal.cli.options import add_session_arguments, output_folder, session_options
+from wheelcal.cli.options import (
+    add_session_arguments,
+    claim_sessions,
+    output_folder,
+    session_options,
+)
+from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: The command's one-line help and its --help description.
 HELP = "calibrate recordings (MCAP, .db3, .bag, CSV exports) → <stem>.calibration.json"
@@ -24,11 +30,12 @@ DESCRIPTION = (
 
 def register(sub) -> None:
     """Add the ``calibrate`` parser."""
-    p = sub.add_parser("calibrate", help=HELP, description=DESCRIPTION)
+    p = sub.add_parser("calibrate", help=HELP, description=DESCRIPTION, epilog=POLICY_EPILOG)
     p.add_argument("files", nargs="+", metavar="FILE")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--rrd", action="store_true", help="also write a Rerun recording per session")
     p.add_argument("--quiet", action="store_true", help="print only failures")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     add_session_arguments(p)
     p.set_defaults(handler=run)
 
@@ -40,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
 
     options = session_options(args, rrd=args.rrd)
     output_folder(args.out)  # before any session: a read-only folder is found now
+    claim_sessions(args, "calibrate", rrd=args.rrd, diagnose=False)
     failed = []
     for path in args.files:
         outcome = calibrate_session(path, options, args.out)

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: The command's one-line help and its --help description.
 HELP = "convert a CSV log (time, acceleration, optional gyro) into a contract MCAP"
@@ -28,12 +31,10 @@ DESCRIPTION = (
 
 def register(sub) -> None:
     """Add the ``convert`` parser."""
-    p = sub.add_parser("convert", help=HELP, description=DESCRIPTION)
+    p = sub.add_parser("convert", help=HELP, description=DESCRIPTION, epilog=POLICY_EPILOG)
     p.add_argument("source", metavar="IN.csv")
     p.add_argument("destination", metavar="OUT.mcap")
-    p.add_argument(
-        "--force", action="store_true", help="replace OUT.mcap if it exists (default: refuse)"
-    )
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--time-column", help="header name or 0-based index (default: recognised)")
     _xyz_columns(p, "--accel-columns", "header names or indices (default: recognised)")
     p.add_argument(
@@ -123,14 +124,15 @@ def _column(text: str | None) -> str | int | None:
 def run(args: argparse.Namespace) -> int:
     """Convert and report."""
     from wheelcal.cli.errors import UsageError
-    from wheelcal.io.atomic import OutputExistsError, refuse_existing
+    from wheelcal.cli.options import readable_inputs
+    from wheelcal.cli.overwrite import claim
     from wheelcal.io.csv_convert import CsvLayout, convert_csv
+    from wheelcal.io.ownership import MARK_RECORD, Output, origin_of, output_mark
 
-    if not args.force:
-        try:
-            refuse_existing(args.destination)  # before reading the CSV
-        except OutputExistsError as exc:
-            raise UsageError(str(exc)) from None
+    readable_inputs(("IN.csv", args.source))  # a FIFO would wait forever, /dev/zero never end
+    origin = origin_of([args.source])
+    output = Output(Path(args.destination), origin, (args.source,))
+    exists = claim([output], args.force, "convert")  # before reading the CSV
 
     def triple(values):
         return None if values is None else tuple(_column(c) for c in values)
@@ -168,7 +170,8 @@ def run(args: argparse.Namespace) -> int:
         layout,
         encoding=args.format,
         session=session,
-        replace=args.force,
+        replace=exists,
+        metadata={MARK_RECORD: output_mark(origin, [args.source])},
     )
     used = ", ".join(f"{role} {cols}" for role, cols in result.columns.items() if cols is not None)
     print(

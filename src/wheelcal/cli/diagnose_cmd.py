@@ -6,7 +6,13 @@ import argparse
 import sys
 
 from wheelcal.cli.errors import SessionsFailed
-from wheelcal.cli.options import add_session_arguments, output_folder, session_options
+from wheelcal.cli.options import (
+    add_session_arguments,
+    claim_sessions,
+    output_folder,
+    session_options,
+)
+from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: The command's one-line help and its --help description.
 HELP = "calibrate, showing the closed loop's steps before and after"
@@ -22,7 +28,7 @@ DESCRIPTION = (
 
 def register(sub) -> None:
     """Add the ``diagnose`` parser."""
-    p = sub.add_parser("diagnose", help=HELP, description=DESCRIPTION)
+    p = sub.add_parser("diagnose", help=HELP, description=DESCRIPTION, epilog=POLICY_EPILOG)
     p.add_argument("files", nargs="+", metavar="FILE")
     p.add_argument(
         "--out",
@@ -32,6 +38,7 @@ def register(sub) -> None:
         "with --rrd)",
     )
     p.add_argument("--rrd", action="store_true", help="Rerun recording with residuals before/after")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     add_session_arguments(p)
     p.set_defaults(handler=run)
 
@@ -48,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("diagnose shows the closed loop: it cannot use --model paper")
     options = dataclasses.replace(session_options(args, rrd=args.rrd), diagnose=True)
     output_folder(args.out)  # before any session: a read-only folder is found now
+    claim_sessions(args, "diagnose", rrd=args.rrd, diagnose=True)
     failed = 0
     for path in args.files:
         outcome = calibrate_session(path, options, args.out)

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
+
+from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: imu_tk's calibration files: the accelerometer's and (from a pooled sensor file) the gyro's.
 IMU_TK_FORMATS = ("imu_tk_acc", "imu_tk_gyro")
@@ -24,7 +25,7 @@ DESCRIPTION = (
 
 def register(sub) -> None:
     """Add the ``export`` parser."""
-    p = sub.add_parser("export", help=HELP, description=DESCRIPTION)
+    p = sub.add_parser("export", help=HELP, description=DESCRIPTION, epilog=POLICY_EPILOG)
     p.add_argument("calibration", metavar="CAL.json")
     p.add_argument(
         "--format",
@@ -34,9 +35,7 @@ def register(sub) -> None:
         "package's file; c: a C header; imu_tk_acc, imu_tk_gyro: imu_tk's CalibratedTriad files",
     )
     p.add_argument("--out", metavar="FILE", help="write here (atomically) instead of stdout")
-    p.add_argument(
-        "--force", action="store_true", help="replace the --out file if it exists (default: refuse)"
-    )
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("--prefix", default="WHEELCAL", help="C identifier prefix")
     p.add_argument(
         "--allow-partial",
@@ -52,12 +51,19 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.calibration.export import to_c_header, to_imu_calib, to_imu_tk, to_yaml
     from wheelcal.calibration.session_json import load_calibration
     from wheelcal.cli.errors import UsageError
+    from wheelcal.cli.options import readable_inputs
+    from wheelcal.cli.overwrite import claim
     from wheelcal.io.atomic import OutputExistsError, atomic_write_text
+    from wheelcal.io.ownership import Output, mark_line, origin_of
 
+    readable_inputs(("CAL.json", args.calibration))  # a FIFO would wait forever
     if args.out and Path(args.out).is_dir():
         raise UsageError(f"--out {args.out} is a folder; give the file to write")
-    if args.out and not args.force and os.path.lexists(args.out):
-        raise UsageError(str(OutputExistsError(args.out)))
+    origin = origin_of([args.calibration])
+    exists = False
+    if args.out:
+        output = Output(Path(args.out), origin, (args.calibration,))
+        exists = claim([output], args.force, "export")
     calibration = load_calibration(args.calibration, allow_partial=args.allow_partial)
     try:
         if args.format == "yaml":
@@ -71,8 +77,10 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     if args.out:
+        line = mark_line(origin)  # marks the file as wheelcal's (no path: a comment stays one)
+        text = text + f"/* {line} */\n" if args.format == "c" else f"# {line}\n" + text
         try:
-            atomic_write_text(args.out, text, replace=args.force)
+            atomic_write_text(args.out, text, replace=exists)
         except OutputExistsError as exc:  # created meanwhile by someone else
             raise UsageError(str(exc)) from None
     else:

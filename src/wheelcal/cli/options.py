@@ -113,6 +113,8 @@ GATE_FLAGS = {
     "lean_z": "the lean check: a camber free to move must shift a gain, offset or the radius "
     "by more than this many σ of the shift's own σ to count (default 4)",
     "lean_shift_sigma": "… and by more than this many σ of the fit (default 1)",
+    "clock_tolerance": "judge the sample clock only when the stamped rate is further than this "
+    "(relative) from its nominal rate (default 0.001 = 1000 ppm)",
 }
 
 
@@ -185,3 +187,26 @@ def output_folder(path: str):
         return prepare_output_folder(path, what="--out folder")
     except OutputFolderError as exc:
         raise UsageError(str(exc)) from None
+
+
+def readable_inputs(*inputs: tuple[str, str]) -> None:
+    """Refuse (UsageError, exit 2) an input that is a FIFO, device or folder, before reading.
+
+    ``inputs`` are (what, path) pairs, e.g. ``("IN.csv", args.source)``: reading
+    a FIFO waits for a writer forever and ``/dev/zero`` never ends.
+    """
+    from wheelcal.io.file_kind import special_file_kind
+
+    for what, path in inputs:
+        kind = special_file_kind(path)
+        if kind is not None:
+            raise UsageError(f"{what} {path} is {kind}, not a file to read")
+
+
+def claim_sessions(args: argparse.Namespace, command: str, rrd: bool, diagnose: bool) -> None:
+    """Claim every session's outputs before the first is computed (UsageError if refused)."""
+    from wheelcal.batch.session import session_outputs
+    from wheelcal.cli.overwrite import claim
+
+    outputs = [o for path in args.files for o in session_outputs(path, args.out, rrd, diagnose)]
+    claim(outputs, args.force, command)

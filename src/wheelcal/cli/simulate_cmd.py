@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 from wheelcal.cli.errors import UsageError
 from wheelcal.cli.options import positive_float
+from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: The simulated gyro's range without --gyro-full-scale-dps, °/s.
 DEFAULT_GYRO_FULL_SCALE_DPS = 2000.0
@@ -39,7 +41,7 @@ DESCRIPTION = (
 
 def register(sub) -> None:
     """Add the ``simulate`` parser."""
-    p = sub.add_parser("simulate", help=HELP, description=DESCRIPTION)
+    p = sub.add_parser("simulate", help=HELP, description=DESCRIPTION, epilog=POLICY_EPILOG)
     p.add_argument("out", metavar="OUT.mcap")
     p.add_argument(
         "--preset",
@@ -98,7 +100,23 @@ def register(sub) -> None:
         help="mounting_id stored in the file (default sim-mounting)",
     )
     p.add_argument("--truth", metavar="JSON", help="also write the ground truth here")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.set_defaults(handler=run)
+
+
+def _claim(args: argparse.Namespace) -> tuple[dict, bool]:
+    """The outputs' mark, and whether they exist (claimed first: before any work).
+
+    ``simulate`` reads no file: the same *options* are its same input.
+    """
+    from wheelcal.cli.overwrite import claim
+    from wheelcal.io.ownership import Output, origin_of, output_mark
+
+    skip = {"out", "truth", "force", "debug", "handler", "command"}
+    origin = origin_of(options={k: v for k, v in vars(args).items() if k not in skip})
+    paths = [args.out] + ([args.truth] if args.truth else [])
+    exists = claim([Output(Path(p), origin) for p in paths], args.force, "simulate")
+    return output_mark(origin), exists
 
 
 def run(args: argparse.Namespace) -> int:
@@ -109,6 +127,7 @@ def run(args: argparse.Namespace) -> int:
 
     from wheelcal.io import write_recording
     from wheelcal.io.atomic import atomic_write_text
+    from wheelcal.io.ownership import MARK_KEY, MARK_RECORD
     from wheelcal.model import SpinParams
     from wheelcal.simulate import (
         GyroSpec,
@@ -120,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from wheelcal.simulate.session import simulate_session
 
+    mark, exists = _claim(args)
     rng = np.random.default_rng(args.seed)
     if args.preset not in (*BENCH_PRESETS, *FIELD_PRESETS):
         raise UsageError(
@@ -127,8 +147,11 @@ def run(args: argparse.Namespace) -> int:
             f"({', '.join(BENCH_PRESETS)}) or a wheel in the field ({', '.join(FIELD_PRESETS)})"
         )
     if args.preset in FIELD_PRESETS:
-        return _run_field(args, rng)
-    scenario = preset(args.preset, rng=rng)
+        return _run_field(args, rng, mark, exists)
+    try:
+        scenario = preset(args.preset, rng=rng)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     if args.noise is not None or args.bandwidth_hz is not None:
         std = args.noise if args.noise is not None else scenario.noise.std_mps2
         scenario = dataclasses.replace(
@@ -162,9 +185,12 @@ def run(args: argparse.Namespace) -> int:
         encoding=args.format,
         batch_size=args.batch,
         temperature_stride=TEMPERATURE_STRIDE,
+        replace=exists,
+        metadata={MARK_RECORD: mark},
     )
     if args.truth:
-        atomic_write_text(args.truth, json.dumps(truth_dict(scenario, window), indent=2) + "\n")
+        truth = {**truth_dict(scenario, window), MARK_KEY: mark}
+        atomic_write_text(args.truth, json.dumps(truth, indent=2) + "\n", replace=exists)
     spin = f"free spin {window[0]:.2f}–{window[1]:.2f} s"
     extras = [name for name, on in (("gyro", args.gyro), ("temperature", args.temperature)) if on]
     also = f", with {' and '.join(extras)}" if extras else ""
@@ -214,12 +240,13 @@ def gyro_truth(scenario) -> dict:
     }
 
 
-def _run_field(args: argparse.Namespace, rng) -> int:
+def _run_field(args: argparse.Namespace, rng, mark: dict, exists: bool) -> int:
     """A wheel in the field (``--preset car|robot|wheelchair|stand``) and its truth."""
     import dataclasses
 
     from wheelcal.io import write_recording
     from wheelcal.io.atomic import atomic_write_text
+    from wheelcal.io.ownership import MARK_KEY, MARK_RECORD
     from wheelcal.simulate import (
         NoiseSpec,
         car_drive,
@@ -253,10 +280,17 @@ def _run_field(args: argparse.Namespace, rng) -> int:
     sim = simulate_field(scenario, rng)
     info = sim.recording.info.merged(sensor_id=args.sensor_id, mounting_id=args.mounting_id)
     recording = dataclasses.replace(sim.recording, info=info, source=args.out)
-    write_recording(recording, args.out, encoding=args.format, batch_size=args.batch)
+    write_recording(
+        recording,
+        args.out,
+        encoding=args.format,
+        batch_size=args.batch,
+        replace=exists,
+        metadata={MARK_RECORD: mark},
+    )
     if args.truth:
-        text = json.dumps(field_truth_dict(sim.truth), indent=2) + "\n"
-        atomic_write_text(args.truth, text)
+        text = json.dumps({**field_truth_dict(sim.truth), MARK_KEY: mark}, indent=2) + "\n"
+        atomic_write_text(args.truth, text, replace=exists)
     w0, w1 = sim.truth.window_s
     print(
         f"wrote {args.out}: {recording.samples} samples at {recording.rate_hz:.0f} Hz, "

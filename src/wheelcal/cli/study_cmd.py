@@ -15,6 +15,7 @@ import sys
 import time
 
 from wheelcal.cli.errors import UsageError
+from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: Overrides of ``--quick``: the Table I levels only, few runs, a short duration sweep.
 QUICK = {
@@ -59,6 +60,7 @@ def register(subparsers) -> None:
         help="synthetic accuracy study (paper Table I, Fig. 7-8; static poses; duration)",
         description=_plain(__doc__.split("\n\n", 1)[1]),
         formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=POLICY_EPILOG,
     )
     p.add_argument("--out", required=True, help="output directory (created if missing)")
     p.add_argument("--config", help="study settings (TOML), e.g. pipelines/table1-study.toml")
@@ -77,6 +79,7 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, help="master seed")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-rrd", action="store_true", help="skip the Rerun recording")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.set_defaults(handler=run)
 
 
@@ -131,13 +134,15 @@ def run(args: argparse.Namespace) -> int:
     """Run the study and write its outputs."""
     from pathlib import Path
 
+    from wheelcal.cli.overwrite import claim
+    from wheelcal.io.ownership import origin_of, output_mark
     from wheelcal.study.config import (
         StudyConfig,
         StudyConfigError,
         load_config,
         with_overrides,
     )
-    from wheelcal.study.output import write_outputs
+    from wheelcal.study.output import study_outputs, write_outputs
     from wheelcal.study.runner import run_study
 
     out = Path(args.out)
@@ -145,6 +150,9 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--out {out}: exists and is not a directory")
     try:
         if args.config:
+            from wheelcal.cli.options import readable_inputs
+
+            readable_inputs(("--config", args.config))  # a FIFO would wait forever
             if not Path(args.config).is_file():
                 raise UsageError(f"--config {args.config}: no such file")
             config = load_config(args.config)
@@ -158,6 +166,11 @@ def run(args: argparse.Namespace) -> int:
     except StudyConfigError as exc:
         raise UsageError(str(exc)) from None
 
+    # The study's input: its --config file (else the built-in settings); claimed first.
+    inputs = (args.config,) if args.config else ()
+    origin = origin_of(inputs, None if args.config else {"study": "built-in settings"})
+    plots, rrd = not args.no_plots, not args.no_rrd
+    claim(study_outputs(out, origin, inputs, plots, rrd), args.force, "study")
     progress = _Progress()
     command = command_line(args)
     sys.stderr.write(
@@ -167,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
     )
     result = run_study(config, progress)
     written = write_outputs(
-        result, out, command=command, plots=not args.no_plots, rrd=not args.no_rrd
+        result, out, command=command, plots=plots, rrd=rrd, mark=output_mark(origin, inputs)
     )
     sys.stderr.write(
         f"wheelcal study: {result.fits} fits in {result.wall_s:.0f} s on {result.workers} "

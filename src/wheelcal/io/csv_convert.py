@@ -32,6 +32,7 @@ def convert_csv(
     session: Mapping[str, str] | None = None,
     compression: Compression = "zstd",
     replace: bool = False,
+    metadata: Mapping[str, Mapping[str, str]] | None = None,
 ) -> CsvConversion:
     """Convert a CSV IMU log into a contract MCAP file.
 
@@ -61,6 +62,9 @@ def convert_csv(
         Replace an existing ``mcap_path`` (default ``False``: refused with
         :class:`~wheelcal.io.atomic.OutputExistsError` before the CSV is read,
         and again at the atomic install).
+    metadata:
+        More metadata records for the MCAP (``wheelcal convert`` adds its mark,
+        :mod:`wheelcal.io.ownership`).
 
     Returns
     -------
@@ -93,5 +97,6 @@ def convert_csv(
         gyro_unit=log.gyro_unit,
         temperature_c=log.temperature_c,
         replace=replace,
+        metadata=metadata,  # e.g. the wheelcal.output mark (io/ownership.py)
     )
     return log.conversion

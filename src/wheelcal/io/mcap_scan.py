@@ -48,6 +48,13 @@ from typing import Protocol
 
 import numpy as np
 
+from wheelcal.io.bounded_decompress import (
+    MAX_BYTES,
+    MAX_RATIO,
+    PIECE_BYTES,
+    SLACK_BYTES,
+    decompress_sized,
+)
 from wheelcal.io.errors import CorruptFileError, NotMcapError
 from wheelcal.io.file_kind import special_kind
 
@@ -364,89 +371,25 @@ def _message_index_offsets(buf: bytes, starts, lengths) -> np.ndarray:
     return np.concatenate(out) if out else np.empty(0, np.int64)
 
 
-#: Largest plausible ratio of a chunk's claimed uncompressed size to its compressed size.
-#: ROS 2 Imu and AccelBatch chunks reach ~40× with zstd (a sensor at rest, exactly
-#: constant samples; noisy floats ~11×) and ~17× with lz4 (measured with this writer):
-#: 200× leaves a margin of five, while a zero-filled "decompression bomb" claims
-#: thousands.  ``MAX_CHUNK_SLACK_BYTES`` lets tiny chunks (headers, a few records) pass.
-MAX_CHUNK_RATIO = 200
-MAX_CHUNK_SLACK_BYTES = 1 << 16
-#: Absolute cap on one chunk's uncompressed size (writers use 1–8 MiB chunks).
-MAX_CHUNK_BYTES = 512 << 20
-_PIECE_BYTES = 4 << 20  # decompress in pieces of at most this size
+#: The caps of :mod:`wheelcal.io.bounded_decompress` (the same for every reader).
+MAX_CHUNK_RATIO = MAX_RATIO
+MAX_CHUNK_SLACK_BYTES = SLACK_BYTES
+MAX_CHUNK_BYTES = MAX_BYTES
+_PIECE_BYTES = PIECE_BYTES  # CRCs are computed in pieces of this size
 
 
 def _decompress(path: str, compression: str, data, size: int, where: str):
     """The chunk's records, decompressed into one buffer of the claimed ``size``.
 
-    The claimed size is judged *before* anything is allocated (at most
-    ``MAX_CHUNK_RATIO`` × the compressed size, and ``MAX_CHUNK_BYTES``), and
-    the data are decompressed in bounded pieces into that buffer, so a chunk
-    whose data would expand beyond its claim (or a zstd frame that states no
-    content size, or a false one) fails after at most ``size`` bytes.
+    MCAP chunks are stored as is, or compressed with zstd or lz4 (spec); the
+    claim is judged before anything is allocated and the data decompressed in
+    bounded pieces (:func:`~wheelcal.io.bounded_decompress.decompress_sized`).
     """
-    if compression == "":
-        if len(data) != size:
-            raise CorruptFileError(
-                path, f"{where}: holds {len(data)} bytes of records, the chunk says {size}"
-            )
-        return data
-    if compression not in ("zstd", "lz4"):
+    if compression not in ("", "zstd", "lz4"):
         raise CorruptFileError(
             path, f"{where}: unsupported chunk compression {compression!r} (need zstd, lz4, none)"
         )
-    limit = min(MAX_CHUNK_RATIO * len(data) + MAX_CHUNK_SLACK_BYTES, MAX_CHUNK_BYTES)
-    if size > limit:
-        raise CorruptFileError(
-            path,
-            f"{where}: claims {size} bytes uncompressed from {len(data)} compressed bytes "
-            f"(ratio {size / max(len(data), 1):.0f}); wheelcal accepts at most "
-            f"{MAX_CHUNK_RATIO}× and {MAX_CHUNK_BYTES >> 20} MiB per chunk (a damaged file "
-            "or a decompression bomb)",
-        )
-    out = bytearray(size)
-    pos = 0
-    try:
-        if compression == "zstd":
-            import zstandard
-
-            reader = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True)
-            view = memoryview(out)
-            while pos < size:
-                got = reader.readinto(view[pos : pos + min(_PIECE_BYTES, size - pos)])
-                if got == 0:
-                    break
-                pos += got
-            extra = reader.read(1) if pos == size else b""
-        else:
-            import lz4.frame
-
-            decompressor = lz4.frame.LZ4FrameDecompressor()
-            source = data
-            extra = b""
-            while True:
-                piece = decompressor.decompress(
-                    source, max_length=min(_PIECE_BYTES, size - pos + 1)
-                )
-                source = b""
-                if pos + len(piece) > size:
-                    extra = piece
-                    break
-                out[pos : pos + len(piece)] = piece
-                pos += len(piece)
-                if decompressor.eof or (not piece and decompressor.needs_input):
-                    break
-    except Exception as exc:  # zstandard.ZstdError, lz4's RuntimeError: damaged data
-        raise CorruptFileError(
-            path, f"{where}: {compression} data is damaged ({type(exc).__name__}: {exc})"
-        ) from None
-    if extra:
-        raise CorruptFileError(
-            path, f"{where}: decompresses to more than the {size} bytes the chunk says"
-        )
-    if pos != size:
-        raise CorruptFileError(path, f"{where}: decompressed to {pos} bytes, the chunk says {size}")
-    return out
+    return decompress_sized(path, compression, data, size, where)
 
 
 class MessageSink(Protocol):
@@ -484,14 +427,39 @@ class _Collector:
             cur = _Cursor(buf, start + 9, start + 9 + length, self.fail(f"{where}, byte {start}"))
             if op == Opcode.SCHEMA:
                 sid, name, enc = cur.u16(), cur.string(), cur.string()
-                self.schemas[sid] = SchemaRecord(sid, name, enc, cur.raw(cur.u32()))
+                schema = SchemaRecord(sid, name, enc, cur.raw(cur.u32()))
+                self._define(self.schemas, schema, f"{where}, byte {start}", "schema")
             elif op == Opcode.CHANNEL:
                 cid, sid, topic, enc = cur.u16(), cur.u16(), cur.string(), cur.string()
                 meta = MappingProxyType(cur.string_map())
-                self.channels[cid] = ChannelRecord(cid, sid, topic, enc, meta)
+                channel = ChannelRecord(cid, sid, topic, enc, meta)
+                self._define(self.channels, channel, f"{where}, byte {start}", "channel")
             else:
                 name = cur.string()
                 self.metadata.append((name, MappingProxyType(cur.string_map())))
+
+    def _define(self, table: dict, record, where: str, kind: str) -> None:
+        """Add a Schema or Channel record; the same id defined otherwise is refused.
+
+        The spec lets a writer repeat a record (in chunks, in the summary) but
+        never give one id two meanings: the messages of the two could not be
+        told apart (they would pass for one stream, with repeated stamps).
+        """
+        known = table.get(record.id)
+        if known is not None and _differs(known, record):
+            what = (
+                f"topic {known.topic!r} and topic {record.topic!r}"
+                if kind == "channel"
+                else f"{known.name!r} and {record.name!r}"
+            )
+            if kind == "channel" and known.topic == record.topic:
+                what = f"topic {known.topic!r} twice with different encodings, schemas or metadata"
+            raise CorruptFileError(
+                self.path,
+                f"{where}: {kind} id {record.id} is defined twice, as {what}: their messages "
+                "cannot be told apart (a file merged from two recordings without renumbering?)",
+            )
+        table[record.id] = record
 
     def chunk(self, buf, i: int, stop: int, table: tuple[np.ndarray, ...]) -> None:
         """Record ``i`` of the data section's ``table``, a Chunk: decompressed, checked, read.
@@ -755,3 +723,15 @@ def _is_text(buf: bytes) -> bool:
     except UnicodeDecodeError:
         return False
     return b"\x00" not in head
+
+
+def _differs(known, record) -> bool:
+    """Whether two Schema or Channel records with one id say different things."""
+    if isinstance(known, ChannelRecord):
+        return (known.schema_id, known.topic, known.message_encoding, dict(known.metadata)) != (
+            record.schema_id,
+            record.topic,
+            record.message_encoding,
+            dict(record.metadata),
+        )
+    return (known.name, known.encoding, known.data) != (record.name, record.encoding, record.data)

@@ -42,6 +42,7 @@ from wheelcal.io.channel_format import ChannelFormat
 from wheelcal.io.errors import CorruptFileError
 from wheelcal.io.imu_cdr import IMU_FORMAT, encode_imu_messages
 from wheelcal.io.mcap_scan import scan_mcap
+from wheelcal.io.ownership import MARK_RECORD
 from wheelcal.io.session_meta import SESSION_METADATA_NAME
 from wheelcal.io.temperature_cdr import TEMPERATURE_FORMAT, encode_temperature_messages
 from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording, SessionInfo
@@ -389,6 +390,7 @@ def write_accel_mcap(
     temperature_c: np.ndarray | None = None,
     temperature_stride: int = 1,
     replace: bool = True,
+    metadata: Mapping[str, Mapping[str, str]] | None = None,
 ) -> None:
     """Write raw stamps and samples as a contract MCAP (no validation of the data).
 
@@ -416,6 +418,9 @@ def write_accel_mcap(
     replace:
         ``False`` refuses an existing ``path``
         (:class:`~wheelcal.io.atomic.OutputExistsError`).
+    metadata:
+        More metadata records, ``{name: {key: value}}`` (e.g. the
+        ``wheelcal.output`` mark of :mod:`wheelcal.io.ownership`).
     """
     ros2 = encoding == "ros2"
     channels = [
@@ -440,10 +445,12 @@ def write_accel_mcap(
         )
     values = session_metadata(info) if info is not None else {}
     values.update(session or {})
+    records = {SESSION_METADATA_NAME: values} if values else {}
+    records.update(metadata or {})
     write_channels(
         path,
         channels,
-        {SESSION_METADATA_NAME: values} if values else None,
+        records or None,
         profile="ros2" if encoding == "ros2" else "",
         compression=compression,
         replace=replace,
@@ -465,6 +472,8 @@ def write_recording(
     frame_id: str = "imu",
     compression: Compression = "zstd",
     temperature_stride: int = 1,
+    replace: bool = True,
+    metadata: Mapping[str, Mapping[str, str]] | None = None,
 ) -> None:
     """Write a recording as a contract MCAP with its ``wheelcal.session`` record.
 
@@ -488,6 +497,8 @@ def write_recording(
         ROS 2 only: write every n-th temperature reading to the
         ``sensor_msgs/msg/Temperature`` topic (a driver publishes it slower
         than the samples; the reader interpolates).
+    replace, metadata:
+        As :func:`write_accel_mcap`.
     """
     write_accel_mcap(
         path,
@@ -502,6 +513,8 @@ def write_recording(
         gyro=recording.gyro_radps,
         temperature_c=recording.temperature_c,
         temperature_stride=temperature_stride,
+        replace=replace,
+        metadata=metadata,
     )
 
 
@@ -604,8 +617,8 @@ def _copy_definitions(source, writer) -> tuple[list, list, list]:
                     )
                 elif isinstance(record, Attachment):
                     attachments.append(record)
-                elif isinstance(record, Metadata):
-                    metadata_records.append(record)
+                elif isinstance(record, Metadata) and record.name != MARK_RECORD:
+                    metadata_records.append(record)  # the copy gets its own mark
     except (McapError, KeyError, EOFError) as exc:
         raise CorruptFileError(source, f"cannot be copied: {exc}") from None
     return originals, attachments, metadata_records

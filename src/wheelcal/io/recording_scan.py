@@ -7,7 +7,8 @@ topic choice, the decoders and the sample checks of
 
 * ``\x89MCAP0\r\n`` — MCAP (:func:`~wheelcal.io.mcap_scan.scan_mcap`), ROS 2 CDR,
   ROS 1 (``mcap convert``) or wheelcal's JSON messages;
-* ``#ROSBAG V2.0`` — a ROS 1 bag (:func:`~wheelcal.io.rosbag1_scan.scan_rosbag1`);
+* ``#ROSBAG V2.0`` — a ROS 1 bag (:func:`~wheelcal.io.rosbag1_scan.scan_rosbag1`;
+  a bag of another version, e.g. 1.2, is named as such there);
 * ``SQLite format 3`` — a rosbag2 ``.db3`` (:func:`~wheelcal.io.rosbag2_scan.scan_rosbag2`),
   as is a rosbag2 folder (``metadata.yaml`` beside its ``.db3`` or ``.mcap``);
 * text whose first line is a delimited table — a CSV export, read by
@@ -25,7 +26,7 @@ from pathlib import Path
 from wheelcal.io.mcap_scan import MAGIC as MCAP_MAGIC
 from wheelcal.io.mcap_scan import McapScan, scan_mcap
 
-ROSBAG1_MAGIC = b"#ROSBAG V2.0\n"
+ROSBAG1_MAGIC = b"#ROSBAG V"  # any version: the ROS 1 reader names one it cannot read
 SQLITE_MAGIC = b"SQLite format 3\x00"
 
 

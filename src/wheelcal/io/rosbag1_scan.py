@@ -20,13 +20,14 @@ off) is refused with the fix (``rosbag reindex``); bags carry no checksums.
 
 from __future__ import annotations
 
-import bz2
 import os
+import re
 import struct
 from types import MappingProxyType
 
 import numpy as np
 
+from wheelcal.io.bounded_decompress import decompress_sized
 from wheelcal.io.errors import CorruptFileError, NotMcapError
 from wheelcal.io.mcap_scan import (
     ChannelRecord,
@@ -37,8 +38,18 @@ from wheelcal.io.mcap_scan import (
 )
 
 MAGIC = b"#ROSBAG V2.0\n"
+#: ``#ROSBAG V<major>.<minor>`` — the line every bag version starts with.
+_VERSION_LINE = re.compile(rb"#ROSBAG V(\d+)\.(\d+)\n")
 _OP_MSG_DATA, _OP_BAG_HEADER, _OP_INDEX_DATA = 0x02, 0x03, 0x04
 _OP_CHUNK, _OP_CHUNK_INFO, _OP_CONNECTION = 0x05, 0x06, 0x07
+_RECORD_NAMES = {
+    _OP_MSG_DATA: "message data",
+    _OP_BAG_HEADER: "bag header",
+    _OP_INDEX_DATA: "index data",
+    _OP_CHUNK: "chunk",
+    _OP_CHUNK_INFO: "chunk info",
+    _OP_CONNECTION: "connection",
+}
 _U32 = struct.Struct("<I")
 _INDEX_ENTRY = np.dtype([("sec", "<u4"), ("nsec", "<u4"), ("offset", "<u4")])
 
@@ -67,6 +78,20 @@ class _Reader:
             raise self.fail(at, "a record runs past the end of the file")
         return fields, data_at, data_len, data_at + data_len
 
+    def integer(self, fields: dict[str, bytes], name: str, at: int, width: int = 4) -> int:
+        """The little-endian ``width``-byte field ``name`` of the record at ``at``, checked."""
+        what = _RECORD_NAMES.get(_op(fields), "a")
+        if name not in fields:
+            raise self.fail(at, f"the {what} record's header has no {name!r} field")
+        raw = fields[name]
+        if len(raw) != width:
+            raise self.fail(
+                at,
+                f"the {what} record's {name!r} field holds {len(raw)} bytes, not {width} "
+                f"(a {8 * width}-bit integer)",
+            )
+        return int.from_bytes(raw, "little")
+
     def fields(self, at: int, length: int) -> dict[str, bytes]:
         fields, end = {}, at + length
         if end > self.size:
@@ -83,7 +108,23 @@ class _Reader:
 
 
 def _op(fields: dict[str, bytes]) -> int:
-    return fields.get("op", b"\xff")[0]
+    """The record's op code (0xff, no known record, when the field is missing or empty)."""
+    op = fields.get("op", b"")
+    return op[0] if len(op) == 1 else 0xFF
+
+
+def _refuse_other_version(name: str, head: bytes) -> None:
+    """A bag of another format version is named as such (not "not an MCAP file")."""
+    version = _VERSION_LINE.match(head)
+    if version is None:
+        raise NotMcapError(name, "not a ROS 1 bag of format 2.0")
+    major, minor = (int(v) for v in version.groups())
+    raise NotMcapError(
+        name,
+        f"a ROS bag of format {major}.{minor}; wheelcal reads format 2.0 (ROS 1 since "
+        "C Turtle, 2010): rewrite it with ROS 1's rosbag, which writes 2.0 "
+        "(`rosbag fix old.bag new.bag`)",
+    )
 
 
 def scan_rosbag1(path: str | os.PathLike, sink_for=None) -> McapScan:
@@ -99,12 +140,12 @@ def scan_rosbag1(path: str | os.PathLike, sink_for=None) -> McapScan:
     name = str(path)
     buf = _map_file(name)
     if bytes(buf[: len(MAGIC)]) != MAGIC:
-        raise NotMcapError(name, "not a ROS 1 bag of format 2.0")
+        _refuse_other_version(name, bytes(buf[:32]))
     reader = _Reader(name, buf)
     fields, _, _, _ = reader.record(len(MAGIC))
-    if _op(fields) != _OP_BAG_HEADER or len(fields.get("index_pos", b"")) != 8:
+    if _op(fields) != _OP_BAG_HEADER:
         raise reader.fail(len(MAGIC), "the bag header record is missing")
-    index_pos = struct.unpack("<Q", fields["index_pos"])[0]
+    index_pos = reader.integer(fields, "index_pos", len(MAGIC), width=8)
     if index_pos == 0 or index_pos >= reader.size:
         raise CorruptFileError(
             name,
@@ -116,10 +157,11 @@ def scan_rosbag1(path: str | os.PathLike, sink_for=None) -> McapScan:
     chunk_positions = []
     at = index_pos
     while at < reader.size:
+        record_at = at
         fields, data_at, data_len, at = reader.record(at)
         op = _op(fields)
         if op == _OP_CONNECTION:
-            conn = _U32.unpack(fields["conn"])[0]
+            conn = reader.integer(fields, "conn", record_at)
             info = reader.fields(data_at, data_len)
             type_name = info.get("type", b"").decode("utf-8", "replace")
             schemas[conn] = SchemaRecord(
@@ -130,7 +172,7 @@ def scan_rosbag1(path: str | os.PathLike, sink_for=None) -> McapScan:
             topic = fields.get("topic", info.get("topic", b"")).decode("utf-8", "replace")
             channels[conn] = ChannelRecord(conn, conn, topic, "ros1", MappingProxyType(meta))
         elif op == _OP_CHUNK_INFO:
-            chunk_positions.append(struct.unpack("<Q", fields["chunk_pos"])[0])
+            chunk_positions.append(reader.integer(fields, "chunk_pos", record_at, width=8))
     sinks = {}
     for conn, channel in channels.items():
         sink = sink_for(channel, schemas[conn]) if sink_for is not None else None
@@ -157,13 +199,14 @@ def _read_chunk(reader: _Reader, at: int, sinks: dict) -> None:
     fields, data_at, data_len, after = reader.record(at)
     if _op(fields) != _OP_CHUNK:
         raise reader.fail(at, "a chunk info points to no chunk")
-    size = _U32.unpack(fields["size"])[0]
+    size = reader.integer(fields, "size", at)
     indexes = []
     while after < reader.size:  # the chunk's index data records follow it
         index, index_at, index_len, next_at = reader.record(after)
         if _op(index) != _OP_INDEX_DATA:
             break
-        indexes.append((_U32.unpack(index["conn"])[0], _U32.unpack(index["count"])[0], index_at))
+        conn, count = reader.integer(index, "conn", after), reader.integer(index, "count", after)
+        indexes.append((conn, count, index_at))
         after = next_at
         if index_len != 12 * indexes[-1][1]:
             raise reader.fail(index_at, "an index data record has the wrong length")
@@ -200,24 +243,16 @@ def _gather_u32(arr: np.ndarray, at: np.ndarray) -> np.ndarray:
 
 
 def _decompress(reader: _Reader, fields, data_at: int, data_len: int, size: int, at: int):
-    """The chunk's records, uncompressed (none, bz2 or lz4 — roslz4 is the LZ4 frame format)."""
+    """The chunk's records, uncompressed (none, bz2 or lz4 — roslz4 is the LZ4 frame format).
+
+    Bounded as every reader's (:mod:`wheelcal.io.bounded_decompress`): the
+    chunk's ``size`` is judged before anything is allocated.
+    """
     compression = fields.get("compression", b"none").decode("ascii", "replace")
     raw = reader.buf[data_at : data_at + data_len]
-    try:
-        if compression == "none":
-            out = raw
-        elif compression == "bz2":
-            out = bz2.decompress(raw)
-        elif compression == "lz4":
-            import lz4.frame
-
-            out = lz4.frame.decompress(raw)
-        else:
-            raise reader.fail(at, f"unknown chunk compression {compression!r}")
-    except (OSError, ValueError, RuntimeError) as exc:
-        if isinstance(exc, CorruptFileError):
-            raise
-        raise reader.fail(at, f"a {compression} chunk cannot be decompressed ({exc})") from None
-    if len(out) != size:
-        raise reader.fail(at, f"a chunk decompresses to {len(out)} bytes, not {size}")
-    return out
+    if compression not in ("none", "bz2", "lz4"):
+        raise reader.fail(at, f"unknown chunk compression {compression!r} (need none, bz2, lz4)")
+    where = f"chunk at byte {at}"
+    return decompress_sized(
+        reader.name, "" if compression == "none" else compression, raw, size, where
+    )

@@ -35,7 +35,9 @@ from types import MappingProxyType
 
 import numpy as np
 
+from wheelcal.io.bounded_decompress import decompress_unsized, limit_bytes
 from wheelcal.io.errors import CorruptFileError, NotMcapError
+from wheelcal.io.input_file import read_bounded
 from wheelcal.io.mcap_scan import ChannelRecord, McapScan, MessageBlock, SchemaRecord, scan_mcap
 
 #: Messages per block handed to a sink (bounded memory for long bags).
@@ -60,12 +62,24 @@ def _bag_files(path: Path) -> tuple[list[Path], dict]:
     """The storage files of a rosbag2 folder (from metadata.yaml) and its bag information."""
     import yaml
 
+    where = path / "metadata.yaml"
     try:
-        meta = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
+        text = read_bounded(where, "rosbag2 metadata").decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CorruptFileError(
+            where, f"is not UTF-8 text (byte {exc.start}: {exc.reason}), so not rosbag2 metadata"
+        ) from None
+    except OSError as exc:
+        raise CorruptFileError(where, f"cannot be read ({exc.strerror or exc})") from None
+    try:
+        meta = yaml.safe_load(text)
         info = meta["rosbag2_bagfile_information"]
         files = [path / Path(name).name for name in info["relative_file_paths"]]
-    except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
-        raise CorruptFileError(path, f"metadata.yaml is not rosbag2 metadata ({exc})") from None
+        info.get("compression_mode")
+    except RecursionError:
+        raise CorruptFileError(where, "is not rosbag2 metadata (nested too deeply)") from None
+    except (yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
+        raise CorruptFileError(where, f"is not rosbag2 metadata ({exc})") from None
     missing = [f.name for f in files if not f.is_file()]
     if missing:
         raise CorruptFileError(path, f"storage files named in metadata.yaml are missing: {missing}")
@@ -183,7 +197,9 @@ class _Rosbag2Collector:
             "SELECT id, name, type, serialization_format FROM topics ORDER BY id"
         ).fetchall()
         counted = []
-        for topic_id, topic, type_name, encoding in topics:
+        for row in topics:
+            _check_topic_row(file, row)
+            topic_id, topic, type_name, encoding = row
             channel, schema = self._channel(topic, type_name, encoding, definitions)
             sink = self.sinks.get(channel.id)
             if sink is None and self.sink_for is not None:
@@ -193,7 +209,7 @@ class _Rosbag2Collector:
             if sink is None:
                 continue
             if getattr(sink, "decodes", True):
-                self._feed(connection, topic_id, sink)
+                self._feed(connection, file, topic_id, topic, sink)
             else:
                 counted.append((topic_id, sink))
         if counted:  # channels no one decodes: their counts only (for listings)
@@ -222,34 +238,102 @@ class _Rosbag2Collector:
             )
         return self.channels[channel_id], self.schemas[schema_id]
 
-    def _feed(self, connection, topic_id: int, sink) -> None:
+    def _feed(self, connection, file: Path, topic_id: int, topic: str, sink) -> None:
         """The topic's messages, in batches, as message blocks for ``sink``."""
         rows = iter(
             connection.execute(
-                "SELECT timestamp, data FROM messages WHERE topic_id = ?", (topic_id,)
+                "SELECT id, timestamp, data FROM messages WHERE topic_id = ?", (topic_id,)
             )
         )
         while batch := list(itertools.islice(rows, BATCH_ROWS)):
-            sink.add(self._block(batch))
+            try:
+                block = self._block(batch, topic)
+            except (TypeError, ValueError, OverflowError) as exc:
+                if isinstance(exc, CorruptFileError):
+                    raise
+                raise _bad_cell(file, topic, batch) from None
+            sink.add(block)
 
-    def _block(self, batch: list) -> MessageBlock:
+    def _block(self, batch: list, topic: str) -> MessageBlock:
         n = len(batch)
-        log_time = np.fromiter((row[0] for row in batch), np.int64, n)
-        data = [row[1] for row in batch]
+        log_time = np.fromiter((row[1] for row in batch), np.int64, n)
+        data = [row[2] for row in batch]
         if self.zstd_messages or (data and bytes(data[0][:4]) == _ZSTD_MAGIC):
-            data = _decompressed(self.name, data)
+            data = _decompressed(self.name, batch, topic)
         lengths = np.fromiter(map(len, data), np.int64, n)
         offsets = np.zeros(n, np.int64)
         np.cumsum(lengths[:-1], out=offsets[1:])
         return MessageBlock(b"".join(data), offsets, lengths, log_time)
 
 
-def _decompressed(name: str, data: list) -> list[bytes]:
-    """Messages compressed one by one (rosbag2 ``compression_mode: message``, zstd)."""
+def _check_topic_row(file: Path, row) -> None:
+    """A ``topics`` row: an integer id and three text cells (NULL or a blob named)."""
+    names = ("id", "name", "type", "serialization_format")
+    for index, (name, value) in enumerate(zip(names, row, strict=True)):
+        wanted = int if index == 0 else str
+        if not isinstance(value, wanted) or isinstance(value, bool):
+            raise CorruptFileError(
+                file,
+                f"the topics table's row with id {row[0]!r}: {name} is "
+                f"{_cell_kind(value)}, not {'an integer' if wanted is int else 'text'} "
+                "(a damaged .db3, or not written by rosbag2)",
+            )
+
+
+def _cell_kind(value) -> str:
+    if value is None:
+        return "NULL"
+    if isinstance(value, bytes | memoryview):
+        return f"a blob of {len(value)} bytes"
+    if isinstance(value, str):
+        return f"the text {value[:40]!r}"
+    return f"the {type(value).__name__} {value!r}"
+
+
+def _bad_cell(file: Path, topic: str, batch: list) -> CorruptFileError:
+    """The first message row of ``batch`` with a cell of the wrong type, named."""
+    for row_id, stamp, data in batch:
+        if not isinstance(stamp, int) or isinstance(stamp, bool):
+            what, cell, wanted = "timestamp", stamp, "an integer (ns)"
+        elif not isinstance(data, bytes | memoryview):
+            what, cell, wanted = "data", data, "a blob (the serialised message)"
+        else:
+            continue
+        return CorruptFileError(
+            file,
+            f"the messages table's row with id {row_id!r} (topic {topic!r}): {what} is "
+            f"{_cell_kind(cell)}, not {wanted} (a damaged .db3, or not written by rosbag2)",
+        )
+    return CorruptFileError(file, f"topic {topic!r}: a message row cannot be read")
+
+
+def _decompressed(name: str, batch: list, topic: str) -> list[bytes]:
+    """Messages compressed one by one (rosbag2 ``compression_mode: message``, zstd).
+
+    Bounded as every reader's (:mod:`wheelcal.io.bounded_decompress`): a block
+    of messages may decompress to at most the caps of one MCAP chunk of the
+    same compressed size, and a frame that declares more is refused before
+    anything is allocated.  The common case — a frame that states its size,
+    within the budget — is one call; anything else goes the careful way,
+    which names the message and what is wrong.
+    """
     import zstandard
 
-    try:
-        decompressor = zstandard.ZstdDecompressor()
-        return [decompressor.decompress(bytes(d)) for d in data]
-    except zstandard.ZstdError as exc:
-        raise CorruptFileError(name, f"a zstd-compressed message is damaged ({exc})") from None
+    budget = limit_bytes(sum(len(row[2]) for row in batch))
+    decompressor = zstandard.ZstdDecompressor()
+    content_size = zstandard.frame_content_size
+    out = []
+    for row_id, _, data in batch:
+        try:
+            size = content_size(data)
+            message = decompressor.decompress(data) if 0 <= size <= budget else None
+        except zstandard.ZstdError:
+            message = None
+        if message is None:
+            where = f"message row {row_id} (topic {topic!r})"
+            message = decompress_unsized(
+                name, "zstd", data, budget, where, zstd_decompressor=decompressor
+            )
+        budget -= len(message)
+        out.append(message)
+    return out

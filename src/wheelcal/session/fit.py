@@ -40,6 +40,7 @@ from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.rests import RestSegment, find_rests
 from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
+from wheelcal.session.clock_check import check_clock
 from wheelcal.session.gates import (
     Assessment,
     Gates,
@@ -164,8 +165,16 @@ class SessionFit:
                 block = gyro_by_product(result, gyro_t, gyro, reading=self.fitter.gyro_reading())
             findings = tuple(gyro_findings(result.source, block, outcome.rests, self.gates))
             assessment = outcome.assessment
+            # The clock judged again, with the gyro's evidence (it may refuse, or clear).
+            bad = set(assessment.undetermined_names)
+            clock = check_clock(result, bad, self.gates.clock_tolerance, block)
+            kept = tuple(w for w in assessment.warnings if not _is_clock_warning(w, assessment))
+            clock_warning = (clock.warning,) if clock.warning else ()
             assessment = dataclasses.replace(
-                assessment, gyro=block, warnings=assessment.warnings + findings
+                assessment,
+                gyro=block,
+                clock=clock,
+                warnings=kept + findings + clock_warning,
             )
             outcome = dataclasses.replace(outcome, assessment=assessment)
             if self.start_s is None:  # every second the gyro measures counts
@@ -504,6 +513,11 @@ def _theta(result: CalibrationResult, evaluated: EvaluatedModel | None = None) -
     return theta
 
 
+def _is_clock_warning(warning: str, assessment: Assessment) -> bool:
+    clock = assessment.clock
+    return clock is not None and clock.warning is not None and warning == clock.warning
+
+
 def _usable_gyro(recording: Recording) -> bool:
     gyro = getattr(recording, "gyro_radps", None)
     return gyro is not None and int(np.sum(np.all(np.isfinite(gyro), axis=1))) >= 100
@@ -535,12 +549,14 @@ def assess(
     refuse_misfit(result.source, noise, gates)
     checks = () if bad else check_rests(result, rests, gates.rest_alpha)
     gyro_notes = [] if gyro is None else gyro_findings(result.source, gyro, rests, gates)
+    clock = check_clock(result, bad, gates.clock_tolerance, gyro)
     warnings = (
         gyro_notes
         + tolerance_warnings(result, gates, bad)
         + noise_warnings(noise, gates, result.residual_mps2, result.time_s)
         + rest_warnings(checks, gates)
         + [f"{name} is undetermined: {reason}" for name, reason in undetermined]
+        + ([clock.warning] if clock.warning else [])
     )
     return Assessment(
         gates=gates,
@@ -550,6 +566,7 @@ def assess(
         undetermined=tuple(undetermined),
         warnings=tuple(warnings),
         gyro=gyro,
+        clock=clock,
     )
 
 

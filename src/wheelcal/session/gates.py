@@ -32,12 +32,16 @@ driven rather than free.  Two bands (defaults justified in the README,
   of the gyro's track), would shift an in-plane gain or offset or the radius
   significantly and by more than its σ (:mod:`wheelcal.estimate.field.lean_check`);
   shifts of the axle axis's own gain and offset only make those null instead.
+* ``clock`` — the samples are stamped off their nominal rate and the gyro
+  confirms that the clock, not the sensor, is off
+  (:mod:`wheelcal.session.clock_check`).
 
 **Warn** (exit 0, the warning names the cause and the fix): a gain or offset
 outside datasheet tolerances; the mean gain γ̄ far from 1 (a radius error
 r → βr scales every gain by 1/β, eq. 9; the implied radius is r·γ̄); a
 residual well above the independent noise floor; a rest that does not read
-|a| = g after calibration.
+|a| = g after calibration; a stamped rate off its nominal rate by enough to
+bias the calibration beyond 2 σ if the clock were the cause (``clock:``).
 
 **Undetermined** parameters — statistical σ above the datasheet tolerance,
 i.e. the recording tells less than the datasheet — are reported as ``null``
@@ -96,6 +100,9 @@ class Gates:
     mean_gain_tolerance: float = 0.05
     unexplained_ratio: float = 1.5
     rest_alpha: float = 0.01
+    #: The sample clock is judged only when the stamped rate is further than this
+    #: (relative) from its nominal rate (10× a crystal's 100 ppm).
+    clock_tolerance: float = 0.001
 
     def __post_init__(self) -> None:
         lo, hi = (float(x) for x in self.gain_range)
@@ -116,6 +123,7 @@ class Gates:
             "lean_z",
             "lean_shift_sigma",
             "field_axle_offset_std_mps2",
+            "clock_tolerance",
         ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -158,6 +166,8 @@ class Assessment:
     extra: dict = field(default_factory=dict)
     #: The gyroscope's calibration (wheelcal.estimate.gyro.block), when there is one.
     gyro: object | None = None
+    #: The sample clock's check (wheelcal.session.clock_check), its warning among ``warnings``.
+    clock: object | None = None
 
     @property
     def undetermined_names(self) -> tuple[str, ...]:

@@ -211,3 +211,13 @@ def rescaled(session: SimulatedFullSession, factor: float, name: str) -> Recordi
     """The session's recording with every sample × ``factor`` (a unit stated wrongly)."""
     rec = session.recording
     return replace(rec, accel_mps2=rec.accel_mps2 * factor, source=f"<{name}>")
+
+
+def clock_scaled(session: SimulatedFullSession, factor: float, name: str) -> Recording:
+    """The session's recording with every time stamp × ``factor`` (a slow or fast clock).
+
+    ``factor`` 0.98: the clock that stamped the samples runs 2 % slow, so the
+    samples of a 200 Hz sensor read as 204.08 Hz.
+    """
+    rec = session.recording
+    return replace(rec, time_s=rec.time_s * factor, source=f"<{name}>")

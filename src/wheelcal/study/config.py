@@ -245,9 +245,20 @@ def config_from_dict(data: dict, source: str = "<dict>") -> StudyConfig:
 
 def load_config(path: str | Path) -> StudyConfig:
     """Read a study TOML file (e.g. ``pipelines/table1-study.toml``)."""
+    from wheelcal.io.input_file import read_bounded
+    from wheelcal.recording.errors import InputError
+
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(read_bounded(path, "study settings").decode("utf-8"))
+    except InputError as exc:  # a FIFO, a device, a folder, a file of gigabytes
+        raise StudyConfigError(str(exc)) from None
+    except OSError as exc:
+        raise StudyConfigError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise StudyConfigError(f"{path}: not valid TOML (not UTF-8: {exc.reason})") from None
+    except RecursionError:
+        raise StudyConfigError(f"{path}: not valid TOML (nested too deeply)") from None
     except tomllib.TOMLDecodeError as exc:
         raise StudyConfigError(f"{path}: not valid TOML: {exc}") from None
     return config_from_dict(data, str(path))

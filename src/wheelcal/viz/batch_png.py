@@ -28,6 +28,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from wheelcal.calibration.document import read_only_document
+from wheelcal.io.ownership import MARK_TEXT
 from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
 
 OVERVIEW_FILE = "overview.png"
@@ -62,6 +63,7 @@ def overview_png(
     title: str = "",
     numbers: Sequence[int] | None = None,
     dpi: int = 80,
+    origin: str | None = None,
 ) -> tuple[bytes | None, str]:
     """The overview as PNG bytes, or ``(None, why not)``.
 
@@ -78,6 +80,9 @@ def overview_png(
         The sessions' numbers in ``report.md`` (default 1, 2, …).
     dpi:
         Resolution; the figure is 14.4 in wide.
+    origin:
+        The mark of wheelcal's outputs (:mod:`wheelcal.io.ownership`), stored as
+        the PNG's ``wheelcal-output`` text.
     """
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -114,7 +119,9 @@ def overview_png(
         _residual_panel(bottom[k], k, axis, calibrations, groups, colours)
     _legend_panel(bottom[3], groups, colours)
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", metadata={"Software": None})
+    # the mark of wheelcal's outputs (wheelcal.io.ownership): a PNG text chunk
+    marked = {MARK_TEXT: origin} if origin else {}
+    fig.savefig(buffer, format="png", metadata={"Software": None, **marked})
     return buffer.getvalue(), ""
 
 

@@ -484,6 +484,8 @@ def write_batch_rrd(
     sessions: Sequence[Mapping],
     numbers: Sequence[int] | None = None,
     report: Mapping | None = None,
+    durable: bool = True,
+    name: str | None = None,
 ) -> Path:
     """Write the batch ``.rrd`` (see the module docstring) atomically.
 
@@ -500,6 +502,10 @@ def write_batch_rrd(
         The batch's ``report.json`` dictionary (``sensors``, ``groups``,
         ``per_session``): the values to apply, the ratios' p, σ sys, and every
         session's status; without it the file shows the sessions' own numbers.
+    durable:
+        fsync the file (see :func:`~wheelcal.viz.rrd_file.rrd_file`).
+    name:
+        The recording's name in the viewer (default: the file's stem).
 
     Returns
     -------
@@ -521,7 +527,7 @@ def write_batch_rrd(
     sensors = {str(s.get("sensor_id") or ""): s for s in (report or {}).get("sensors", [])}
     entries = _sessions_by_number(report)
     problems = frozenset(n for n, e in entries.items() if _problem(e))
-    with rrd_file(path, APPLICATION_ID, Path(path).stem) as stream:
+    with rrd_file(path, APPLICATION_ID, name or Path(path).stem, durable=durable) as stream:
         # The shared x-range lives on the blueprint's global view (not a public part).
         every = sorted(set(numbers) | set(entries))
         axis = _GlobalSessionAxis(min(every) - 1, max(every) + 1)
