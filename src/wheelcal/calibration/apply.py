@@ -37,9 +37,9 @@ from wheelcal.io.mcap_writer import (
     session_metadata,
     write_channels,
 )
+from wheelcal.io.ownership import MARK_RECORD
 from wheelcal.io.sample_flags import flags_channel
 from wheelcal.recording import Recording
-from wheelcal.io.ownership import MARK_RECORD
 from wheelcal.recording.samples import InputPolicy
 
 CALIBRATION_METADATA_NAME = "wheelcal.calibration"
