@@ -49,10 +49,16 @@ def test_a_fifo_a_device_and_a_folder_are_refused_unread(tmp_path, capsys):
 
     threading.Thread(target=unblock, daemon=True).start()
     started = time.monotonic()
-    assert f"{fifo}: is a FIFO (named pipe), not a CSV file" in _convert(fifo, tmp_path, capsys)
+    # the command line refuses them before the reader is reached (usage, exit 2) …
+    out = tmp_path / "out.mcap"
+    for path, kind in ((fifo, "a FIFO"), ("/dev/zero", "a device"), (tmp_path, "a folder")):
+        assert main(["convert", str(path), str(out), "--accel-unit", "m/s^2"]) == 2
+        assert f"{path} is {kind}" in capsys.readouterr().err and not out.exists()
     assert time.monotonic() - started < 4
-    assert "/dev/zero: is a device, not a CSV file" in _convert("/dev/zero", tmp_path, capsys)
-    assert f"{tmp_path}: is a folder, not a CSV file" in _convert(tmp_path, tmp_path, capsys)
+    # … and the reader itself, for the API
+    for path, kind in ((fifo, "a FIFO (named pipe)"), ("/dev/zero", "a device")):
+        with pytest.raises(InputError, match=f"is {re.escape(kind)}, not a CSV file"):
+            convert_csv(str(path), out, CsvLayout(accel_unit="m/s^2"))
 
 
 def test_a_sparse_file_is_refused_at_its_first_hole(tmp_path, capsys):
