@@ -7,32 +7,17 @@ defects with wheelcal's own writer.
 """
 
 import os
-import resource
-import subprocess
-import sys
 import zlib
 
 import numpy as np
 import pytest
 
+from bombs import MIB, lz4_zeros, mcap_record, mcap_string, read_limited, zstd_zeros
 from wheelcal.io import CorruptFileError, InputError, read_recording, write_accel_mcap
 from wheelcal.io.mcap_scan import MAGIC
 from wheelcal.io.mcap_writer import recording_stamps_ns
 
-MIB = 1 << 20
-LIMIT_BYTES = 1536 * MIB  # the reader's process may use this much data at most
-
-
 # --- raw MCAP records -------------------------------------------------------------------
-
-
-def _record(op: int, content: bytes) -> bytes:
-    return bytes([op]) + len(content).to_bytes(8, "little") + content
-
-
-def _string(text: str) -> bytes:
-    raw = text.encode()
-    return len(raw).to_bytes(4, "little") + raw
 
 
 def _chunk(compression: str, data: bytes, claimed_size: int, crc: int = 0) -> bytes:
@@ -41,17 +26,17 @@ def _chunk(compression: str, data: bytes, claimed_size: int, crc: int = 0) -> by
         + (0).to_bytes(8, "little")
         + claimed_size.to_bytes(8, "little")
         + crc.to_bytes(4, "little")
-        + _string(compression)
+        + mcap_string(compression)
         + len(data).to_bytes(8, "little")
         + data
     )
-    return _record(0x06, content)
+    return mcap_record(0x06, content)
 
 
 def _mcap(*records: bytes) -> bytes:
-    header = _record(0x01, _string("") + _string("hostile"))
-    data_end = _record(0x0F, (0).to_bytes(4, "little"))
-    footer = _record(0x02, bytes(20))
+    header = mcap_record(0x01, mcap_string("") + mcap_string("hostile"))
+    data_end = mcap_record(0x0F, (0).to_bytes(4, "little"))
+    footer = mcap_record(0x02, bytes(20))
     return MAGIC + header + b"".join(records) + data_end + footer + MAGIC
 
 
@@ -62,76 +47,30 @@ def _zeros_crc(size: int) -> int:
     return crc
 
 
-def _zstd_zeros(size: int, content_size: bool) -> bytes:
-    import zstandard
-
-    comp = zstandard.ZstdCompressor(write_content_size=content_size).compressobj(size=size)
-    block = bytes(MIB)
-    return b"".join(comp.compress(block) for _ in range(size // MIB)) + comp.flush()
-
-
-def _lz4_zeros(size: int) -> bytes:
-    import lz4.frame
-
-    comp = lz4.frame.LZ4FrameCompressor()
-    block = bytes(MIB)
-    parts = [comp.begin()] + [comp.compress(block) for _ in range(size // MIB)]
-    return b"".join(parts) + comp.flush()
-
-
-def _limit_memory():
-    resource.setrlimit(resource.RLIMIT_DATA, (LIMIT_BYTES, LIMIT_BYTES))
-
-
-_READ_SCRIPT = """
-import sys
-from wheelcal.io import InputError, read_recording
-try:
-    read_recording(sys.argv[1])
-except InputError as exc:
-    print(type(exc).__name__, exc)
-"""
-
-
-def _read_limited(path) -> str:
-    """``read_recording(path)`` in a memory-limited subprocess: what it printed."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
-    out = subprocess.run(
-        [sys.executable, "-c", _READ_SCRIPT, str(path)],
-        capture_output=True,
-        text=True,
-        preexec_fn=_limit_memory,
-        env=env,
-        timeout=60,
-    )
-    assert out.returncode == 0, out.stderr[-2000:]
-    return out.stdout
-
-
 # --- item 3: decompression bombs --------------------------------------------------------
 
 
 def test_zstd_bomb_with_a_true_size_and_crc_is_refused_before_allocating(tmp_path):
     size = 512 * MIB
-    data = _zstd_zeros(size, content_size=True)
+    data = zstd_zeros(size, content_size=True)
     assert len(data) < 64 * 1024  # 16 KB of file, 512 MiB of zeros
     path = tmp_path / "bomb.mcap"
     path.write_bytes(_mcap(_chunk("zstd", data, size, _zeros_crc(size))))
-    said = _read_limited(path)
+    said = read_limited(path)
     assert said.startswith("CorruptFileError")
     assert "bomb.mcap" in said and "decompression bomb" in said
 
 
 def test_zstd_chunk_without_content_size_claiming_a_tebibyte(tmp_path):
-    data = _zstd_zeros(64 * MIB, content_size=False)
+    data = zstd_zeros(64 * MIB, content_size=False)
     path = tmp_path / "tib.mcap"
     path.write_bytes(_mcap(_chunk("zstd", data, 1 << 40)))
-    said = _read_limited(path)
+    said = read_limited(path)
     assert said.startswith("CorruptFileError") and "claims 1099511627776 bytes" in said
 
 
 def test_zstd_chunk_that_expands_beyond_its_claim_stops_at_the_claim(tmp_path):
-    data = _zstd_zeros(256 * MIB, content_size=False)
+    data = zstd_zeros(256 * MIB, content_size=False)
     claimed = 100 * len(data)  # plausible, but the frame holds far more
     path = tmp_path / "more.mcap"
     path.write_bytes(_mcap(_chunk("zstd", data, claimed)))
@@ -141,16 +80,16 @@ def test_zstd_chunk_that_expands_beyond_its_claim_stops_at_the_claim(tmp_path):
 
 def test_lz4_bomb_is_refused_before_decompressing(tmp_path):
     size = 1024 * MIB
-    data = _lz4_zeros(size)
+    data = lz4_zeros(size)
     path = tmp_path / "lz4bomb.mcap"
     path.write_bytes(_mcap(_chunk("lz4", data, size)))
     assert path.stat().st_size < 8 * MIB
-    said = _read_limited(path)
+    said = read_limited(path)
     assert said.startswith("CorruptFileError") and "decompression bomb" in said
 
 
 def test_lz4_chunk_that_expands_beyond_its_claim_stops_at_the_claim(tmp_path):
-    data = _lz4_zeros(64 * MIB)
+    data = lz4_zeros(64 * MIB)
     path = tmp_path / "lz4more.mcap"
     path.write_bytes(_mcap(_chunk("lz4", data, 2 * len(data))))
     with pytest.raises(CorruptFileError, match=r"lz4more\.mcap: .*decompresses to more than"):
@@ -371,15 +310,8 @@ def test_good_data_has_no_gross_outliers():
 def test_a_fifo_is_refused_without_waiting_for_a_writer(tmp_path):
     fifo = tmp_path / "live.mcap"
     os.mkfifo(fifo)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
-    out = subprocess.run(
-        [sys.executable, "-c", _READ_SCRIPT, str(fifo)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=30,
-    )
-    assert out.stdout.startswith("NotMcapError") and "live.mcap: is a FIFO" in out.stdout
+    said = read_limited(fifo)  # a reader that waited for a writer would time out
+    assert said.startswith("NotMcapError") and "live.mcap: is a FIFO" in said
 
 
 def test_a_directory_is_refused(tmp_path):

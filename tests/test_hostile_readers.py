@@ -10,22 +10,16 @@
   MCAP file").
 """
 
-import os
-import resource
 import sqlite3
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from bombs import MIB, bz2_zeros, lz4_zeros, mcap_record, mcap_string, read_limited, zstd_zeros
 from robot_logs import imu_messages, raw_bag, write_db3
 from wheelcal.cli.main import main
 from wheelcal.io import CorruptFileError, NotMcapError, read_recording
 from wheelcal.io.mcap_scan import MAGIC
-
-MIB = 1 << 20
-LIMIT_BYTES = 1536 * MIB
 
 
 @pytest.fixture(scope="module")
@@ -37,70 +31,18 @@ def short():
     return time_ns, accel
 
 
-def _limit_memory():
-    resource.setrlimit(resource.RLIMIT_DATA, (LIMIT_BYTES, LIMIT_BYTES))
-
-
-_READ_SCRIPT = """
-import sys
-from wheelcal.io import InputError, read_recording
-try:
-    read_recording(sys.argv[1])
-except InputError as exc:
-    print(type(exc).__name__, exc)
-"""
-
-
-def _read_limited(path) -> str:
-    """``read_recording(path)`` in a memory-limited subprocess: what it printed."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
-    out = subprocess.run(
-        [sys.executable, "-c", _READ_SCRIPT, str(path)],
-        capture_output=True,
-        text=True,
-        preexec_fn=_limit_memory,
-        env=env,
-        timeout=60,
-    )
-    assert out.returncode == 0, out.stderr[-2000:]
-    return out.stdout
-
-
 # --- item 1: bombs ------------------------------------------------------------------------
-
-
-def _bz2_zeros(mib: int) -> bytes:
-    """``mib`` MiB of zeros as concatenated bz2 streams of 1 MiB each (≈ 40 bytes apiece)."""
-    import bz2
-
-    return bz2.compress(bytes(MIB)) * mib
-
-
-def _lz4_zeros(size: int) -> bytes:
-    import lz4.frame
-
-    comp = lz4.frame.LZ4FrameCompressor()
-    block = bytes(MIB)
-    return comp.begin() + b"".join(comp.compress(block) for _ in range(size // MIB)) + comp.flush()
-
-
-def _zstd_zeros(size: int, content_size: bool) -> bytes:
-    import zstandard
-
-    comp = zstandard.ZstdCompressor(write_content_size=content_size).compressobj(size=size)
-    block = bytes(MIB)
-    return b"".join(comp.compress(block) for _ in range(size // MIB)) + comp.flush()
 
 
 def test_a_bz2_bag_chunk_claiming_gigabytes_is_refused_before_decompressing(tmp_path, short):
     time_ns, accel = short
     messages = imu_messages(time_ns, accel, ros1=True)
-    data = _bz2_zeros(3000)  # 3000 MiB of zeros in ~120 KB
+    data = bz2_zeros(3000)  # 3000 MiB of zeros in ~120 KB
     path = tmp_path / "bomb.bag"
     path.write_bytes(
         raw_bag(time_ns, messages, compression="bz2", chunk_data=data, chunk_size=3000 * MIB)
     )
-    said = _read_limited(path)
+    said = read_limited(path)
     assert said.startswith("CorruptFileError"), said
     assert "bomb.bag" in said and "decompression bomb" in said and "200×" in said
 
@@ -108,25 +50,25 @@ def test_a_bz2_bag_chunk_claiming_gigabytes_is_refused_before_decompressing(tmp_
 def test_a_bz2_bag_chunk_expanding_beyond_its_claim_stops_at_the_claim(tmp_path, short):
     time_ns, accel = short
     messages = imu_messages(time_ns, accel, ros1=True)
-    data = _bz2_zeros(3000)
+    data = bz2_zeros(3000)
     path = tmp_path / "liar.bag"
     claim = 100 * len(data)  # plausible (100×), but the streams hold 3000 MiB
     path.write_bytes(
         raw_bag(time_ns, messages, compression="bz2", chunk_data=data, chunk_size=claim)
     )
-    said = _read_limited(path)
+    said = read_limited(path)
     assert said.startswith("CorruptFileError") and "decompresses to more than" in said, said
 
 
 def test_an_lz4_bag_chunk_of_a_gibibyte_is_refused(tmp_path, short):
     time_ns, accel = short
-    data = _lz4_zeros(1024 * MIB)
+    data = lz4_zeros(1024 * MIB)
     path = tmp_path / "lz4bomb.bag"
     messages = imu_messages(time_ns, accel, ros1=True)
     path.write_bytes(
         raw_bag(time_ns, messages, compression="lz4", chunk_data=data, chunk_size=1024 * MIB)
     )
-    said = _read_limited(path)
+    said = read_limited(path)
     assert said.startswith("CorruptFileError") and "decompression bomb" in said, said
 
 
@@ -151,14 +93,14 @@ def _zstd_frame_declaring(size: int) -> bytes:
 @pytest.mark.parametrize(
     "name, bomb, said",
     [
-        ("sized", lambda: _zstd_zeros(1024 * MIB, True), "declares 1073741824 bytes"),
-        ("unsized", lambda: _zstd_zeros(1024 * MIB, False), "decompress to more than"),
+        ("sized", lambda: zstd_zeros(1024 * MIB, True), "declares 1073741824 bytes"),
+        ("unsized", lambda: zstd_zeros(1024 * MIB, False), "decompress to more than"),
         ("six_gb", lambda: _zstd_frame_declaring(6_000_000_000), "declares 6000000000 bytes"),
     ],
 )
 def test_a_zstd_message_bomb_in_a_rosbag2_is_refused(tmp_path, short, name, bomb, said):
     folder = _zstd_bag(tmp_path, short, name, bomb())
-    text = _read_limited(folder)
+    text = read_limited(folder)
     assert text.startswith("CorruptFileError"), text
     assert str(folder) in text and "message row" in text and said in text
 
@@ -270,48 +212,44 @@ def test_a_metadata_yaml_that_is_not_utf8_is_named(tmp_path, short, capsys):
         read_recording(db3.parent)
 
 
-def _record(op: int, content: bytes) -> bytes:
-    return bytes([op]) + len(content).to_bytes(8, "little") + content
-
-
-def _string(text: str) -> bytes:
-    raw = text.encode()
-    return len(raw).to_bytes(4, "little") + raw
-
-
 def test_two_mcap_channels_with_one_id_are_named_as_the_clash(tmp_path, short):
     time_ns, accel = short
     payloads = imu_messages(time_ns, accel)
-    schema = _record(
+    schema = mcap_record(
         0x03,
         (1).to_bytes(2, "little")
-        + _string("sensor_msgs/msg/Imu")
-        + _string("ros2msg")
-        + _string(""),
+        + mcap_string("sensor_msgs/msg/Imu")
+        + mcap_string("ros2msg")
+        + mcap_string(""),
     )
 
     def channel(topic):
-        return _record(
+        return mcap_record(
             0x04,
             (1).to_bytes(2, "little")
             + (1).to_bytes(2, "little")
-            + _string(topic)
-            + _string("cdr")
+            + mcap_string(topic)
+            + mcap_string("cdr")
             + bytes(4),
         )
 
     def message(seq, ns, data):
         head = (1).to_bytes(2, "little") + seq.to_bytes(4, "little") + ns.to_bytes(8, "little") * 2
-        return _record(0x05, head + data)
+        return mcap_record(0x05, head + data)
 
     half = len(payloads) // 2
     body = [schema, channel("/imu/a")]
     body += [message(i, int(time_ns[i]), payloads[i]) for i in range(half)]
     body += [channel("/imu/b")]
     body += [message(i, int(time_ns[i - half]), payloads[i]) for i in range(half, len(payloads))]
-    header = _record(0x01, _string("ros2") + _string("merged"))
+    header = mcap_record(0x01, mcap_string("ros2") + mcap_string("merged"))
     data = (
-        MAGIC + header + b"".join(body) + _record(0x0F, bytes(4)) + _record(0x02, bytes(20)) + MAGIC
+        MAGIC
+        + header
+        + b"".join(body)
+        + mcap_record(0x0F, bytes(4))
+        + mcap_record(0x02, bytes(20))
+        + MAGIC
     )
     path = tmp_path / "merged.mcap"
     path.write_bytes(data)
