@@ -219,11 +219,17 @@ def _zstd_into(data, out: bytearray) -> tuple[int, bool]:
     return pos, pos == size and bool(reader.read(1))
 
 
-def _lz4_into(data, out: bytearray) -> tuple[int, bool]:
-    import lz4.frame
+def _streams_into(new_decompressor, data, out: bytearray, *, truncated: str | None):
+    """Decompress concatenated streams into ``out``, never beyond one byte past its size.
 
+    ``new_decompressor()`` makes a decompressor with ``decompress(data,
+    max_length)``, ``eof``, ``unused_data`` and ``needs_input``; a stream that
+    ends before its end marker raises ``OSError(truncated)`` (or stops short
+    when ``truncated`` is None).  Returns the bytes written and whether there
+    was more than ``out`` holds.
+    """
     size = len(out)
-    decompressor = lz4.frame.LZ4FrameDecompressor()
+    decompressor = new_decompressor()
     source, pos = data, 0
     while True:
         piece = decompressor.decompress(source, max_length=min(PIECE_BYTES, size - pos + 1))
@@ -236,28 +242,25 @@ def _lz4_into(data, out: bytearray) -> tuple[int, bool]:
             rest = decompressor.unused_data
             if not rest:
                 return pos, False
-            decompressor, source = lz4.frame.LZ4FrameDecompressor(), rest  # concatenated frames
+            decompressor, source = new_decompressor(), rest  # concatenated frames / streams
         elif not piece and decompressor.needs_input:
-            return pos, False
+            if truncated is None:
+                return pos, False
+            raise OSError(truncated)
+
+
+def _lz4_into(data, out: bytearray) -> tuple[int, bool]:
+    import lz4.frame
+
+    return _streams_into(lz4.frame.LZ4FrameDecompressor, data, out, truncated=None)
 
 
 def _bz2_into(data, out: bytearray) -> tuple[int, bool]:
     import bz2
 
-    size = len(out)
-    decompressor = bz2.BZ2Decompressor()
-    source, pos = bytes(data), 0
-    while True:
-        piece = decompressor.decompress(source, max_length=min(PIECE_BYTES, size - pos + 1))
-        source = b""
-        if pos + len(piece) > size:
-            return pos, True
-        out[pos : pos + len(piece)] = piece
-        pos += len(piece)
-        if decompressor.eof:
-            rest = decompressor.unused_data
-            if not rest:
-                return pos, False
-            decompressor, source = bz2.BZ2Decompressor(), rest  # concatenated streams (pbzip2)
-        elif not piece and decompressor.needs_input:
-            raise OSError("the bz2 stream ends before its end-of-stream marker")
+    return _streams_into(
+        bz2.BZ2Decompressor,
+        bytes(data),
+        out,
+        truncated="the bz2 stream ends before its end-of-stream marker",
+    )
