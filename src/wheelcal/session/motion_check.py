@@ -29,11 +29,13 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy import special
 
 from wheelcal.estimate.joint.fisher_quadrature import quadrature_rows, stride_for
+from wheelcal.estimate.joint.freed_check import FreedCheck
 from wheelcal.estimate.joint.information import scaled_pinv
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES
@@ -50,38 +52,19 @@ MAX_KNOTS = 40
 
 
 @dataclass(frozen=True)
-class MotionCheck:
-    """What freeing the motion (a spline of ϑ) would change in the sensor's parameters."""
+class MotionCheck(FreedCheck):
+    """What freeing the motion (a spline of ϑ) would change (``fit.motion_check``)."""
 
-    statistic: float  # score χ² of the spline coefficients
-    dof: int
-    p_value: float
-    shift_sigma: dict[str, float]  # |Δ| / σ of the cubic fit, per gain/offset
-    shift_z: dict[str, float]  # |Δ| / √(σ²_flexible − σ²_cubic)
-    spacing_s: float
+    ALTERNATIVE: ClassVar[str] = "cubic B-spline correction of the wheel angle"
 
     def inadequate(self, z_limit: float, material_sigma: float) -> bool:
         """True when some gain or offset moves significantly and materially."""
-        return any(
-            self.shift_z[n] > z_limit and self.shift_sigma[n] > material_sigma for n in self.shift_z
-        )
+        return bool(self.moved(z_limit, material_sigma))
 
     def worst(self) -> str:
         """The gain/offset that moves most, as text."""
         name = max(self.shift_sigma, key=self.shift_sigma.get)
         return f"{name} by {self.shift_sigma[name]:.1f} σ (z = {self.shift_z[name]:.1f})"
-
-    def to_dict(self) -> dict:
-        """For the calibration JSON (``fit.motion_check``)."""
-        return {
-            "alternative": "cubic B-spline correction of the wheel angle",
-            "knot_spacing_s": self.spacing_s,
-            "statistic": self.statistic,
-            "dof": self.dof,
-            "p_value": self.p_value,
-            "shift_sigma": self.shift_sigma,
-            "shift_z": self.shift_z,
-        }
 
 
 def broadband_noise(noise: NoiseModel, broadband_mps2: np.ndarray) -> NoiseModel:

@@ -28,11 +28,13 @@ model.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy import special
 
 from wheelcal.estimate.field.robust import Extension, WideNormal
+from wheelcal.estimate.joint.freed_check import FreedCheck
 from wheelcal.estimate.joint.information import scaled_pinv
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model.effects import cubic_bspline_basis
@@ -50,35 +52,10 @@ RANK_RTOL = 1e-10
 
 
 @dataclass(frozen=True)
-class LeanCheck:
-    """What freeing the camber (a spline Δγ(t)) would change in the sensor's parameters."""
+class LeanCheck(FreedCheck):
+    """What freeing the camber (a spline Δγ(t)) would change (``bench.lean.check``)."""
 
-    statistic: float  # score χ² of the spline coefficients
-    dof: int
-    p_value: float
-    shift_sigma: dict[str, float]  # |Δ| / σ of the fit, per checked parameter
-    shift_z: dict[str, float]  # |Δ| / √(σ²_free − σ²_fit)
-    spacing_s: float
-
-    def moved(self, z_limit: float, material_sigma: float) -> tuple[str, ...]:
-        """The parameters that move significantly and materially."""
-        return tuple(
-            n
-            for n in self.shift_z
-            if self.shift_z[n] > z_limit and self.shift_sigma[n] > material_sigma
-        )
-
-    def to_dict(self) -> dict:
-        """For the calibration JSON (``bench.lean.check``)."""
-        return {
-            "alternative": "cubic B-spline correction of the camber",
-            "knot_spacing_s": self.spacing_s,
-            "statistic": self.statistic,
-            "dof": self.dof,
-            "p_value": self.p_value,
-            "shift_sigma": self.shift_sigma,
-            "shift_z": self.shift_z,
-        }
+    ALTERNATIVE: ClassVar[str] = "cubic B-spline correction of the camber"
 
 
 def camber_extension(result: CalibrationResult, spacing_s: float = KNOT_SPACING_S):
