@@ -82,14 +82,21 @@ def curve_of(block: Mapping) -> AllanDeviation:
     )
 
 
-def pooled_allan(blocks: Sequence[Mapping | None]) -> dict | None:
-    """One ``fit.allan`` from several sessions' (of the most common rate; exact pooling)."""
+def of_the_common_rate(blocks: Sequence[Mapping | None]) -> tuple[float, list[Mapping]]:
+    """The most common ``rate_hz`` among the blocks given, and those blocks (none: [])."""
     blocks = [b for b in blocks if b]
     if not blocks:
-        return None
+        return float("nan"), []
     rates = [round(float(b["rate_hz"]), 6) for b in blocks]
     rate = max(set(rates), key=rates.count)
-    same = [b for b, r in zip(blocks, rates, strict=True) if r == rate]
+    return rate, [b for b, r in zip(blocks, rates, strict=True) if r == rate]
+
+
+def pooled_allan(blocks: Sequence[Mapping | None]) -> dict | None:
+    """One ``fit.allan`` from several sessions' (of the most common rate; exact pooling)."""
+    rate, same = of_the_common_rate(blocks)
+    if not same:
+        return None
     taus = sorted({t for b in same for t in b["tau_s"]})
     weighted = np.zeros((len(taus), len(same[0]["adev_mps2"][0])))
     counts = np.zeros(len(taus), dtype=np.int64)

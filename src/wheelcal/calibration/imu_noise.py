@@ -60,6 +60,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from wheelcal.calibration.allan_json import of_the_common_rate
 from wheelcal.estimate.allan import WHITE_NOISE_TAU_S, AllanSums
 
 #: The per-sensor sub-blocks: JSON name, unit of a sample, of the density, of the walk.
@@ -286,12 +287,9 @@ def pooled_imu_noise(blocks: Sequence[Mapping | None]) -> dict | None:
     largest (the walk's bound holds for each; the largest is the one that holds
     for all).
     """
-    blocks = [b for b in blocks if b]
-    if not blocks:
+    rate, same = of_the_common_rate(blocks)
+    if not same:
         return None
-    rates = [round(float(b["rate_hz"]), 6) for b in blocks]
-    rate = max(set(rates), key=rates.count)
-    same = [b for b, r in zip(blocks, rates, strict=True) if r == rate]
     out: dict = {"rate_hz": rate, "definition": DEFINITION}
     for kind, (sample, density_unit, walk_unit) in SENSORS.items():
         parts = [b[kind] for b in same if b.get(kind)]
