@@ -17,7 +17,7 @@ from wheelcal.closedloop.sensor_closure import SessionInput, close_sensor
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.json_text import dumps_indented, json_safe
 from wheelcal.io.ownership import MARK_KEY
-from wheelcal.model.effects import make_effect
+from wheelcal.model import make_effect
 
 
 def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[SessionInput]:

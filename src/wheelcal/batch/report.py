@@ -40,7 +40,7 @@ from scipy import special
 
 from wheelcal.calibration.angles import as_angles
 from wheelcal.calibration.document import Calibration, read_only_document
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES
 
 REPORT_PARAMETERS = (
     "tilt_deg",

@@ -41,8 +41,7 @@ from types import MappingProxyType
 import numpy as np
 
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model.correction import SensorCorrection
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES, SensorCorrection
 from wheelcal.session.gates import Assessment
 from wheelcal.session.result import SessionResult
 

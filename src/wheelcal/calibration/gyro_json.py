@@ -40,7 +40,7 @@ from wheelcal.closedloop.gyro_matrix import (
     geometry_covariance,
     pool_gyro,
 )
-from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+from wheelcal.model import STANDARD_GRAVITY_MPS2
 
 _GEOMETRY_NAMES = ("euler_1_deg", "euler_2_deg", "euler_3_deg", "tilt_deg")
 _NOTE = (

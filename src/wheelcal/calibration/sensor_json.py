@@ -53,7 +53,7 @@ from wheelcal.closedloop.pooling import (
     SessionEstimate,
 )
 from wheelcal.io.atomic import atomic_write_text
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES
 
 _DESCRIPTION = {
     JOINT_FIT: (

@@ -24,9 +24,7 @@ from wheelcal.estimate.residual_profile import residual_by_wheel_angle
 from wheelcal.io.atomic import atomic_write_text
 from wheelcal.io.json_text import dumps_indented
 from wheelcal.io.ownership import MARK_KEY, origin_of, output_mark
-from wheelcal.model import EULER_CONVENTION
-from wheelcal.model.correction import SensorCorrection
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES, EULER_CONVENTION, SensorCorrection
 from wheelcal.session.gates import Assessment
 from wheelcal.session.result import SessionResult
 from wheelcal.session.window import fitted_stretches

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from wheelcal.batch.session import SessionOutcome
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES
 
 
 def _pm(value: float, std: float, sys_std: float, digits: int) -> str:

@@ -44,8 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.joint.information import covariance_from_fisher
-from wheelcal.model import Rotation
-from wheelcal.model.rotation import hat
+from wheelcal.model import Rotation, hat
 
 #: Entries of M with a larger σ carry no usable number (the scale is 1, a gyro's
 #: misalignment 0.01–0.03): null, with the reason.

@@ -24,10 +24,14 @@ from wheelcal.closedloop.score import ScoreTest, gyro_stream, score_tests, scree
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.rests import RestSegment
-from wheelcal.model.effects import Effect, default_candidates
-from wheelcal.model.forward import EvaluatedModel
-from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
-from wheelcal.model.temperature_offset import temperature_candidates
+from wheelcal.model import (
+    GAIN_NAMES,
+    OFFSET_NAMES,
+    Effect,
+    EvaluatedModel,
+    default_candidates,
+    temperature_candidates,
+)
 from wheelcal.recording import Recording
 
 #: Parameters whose base-model bias is reported in σ units.

@@ -55,8 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import special
 
-from wheelcal.model.correction import SensorCorrection
-from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
+from wheelcal.model import GAIN_NAMES, OFFSET_NAMES, SensorCorrection
 
 POOLED_PARAMETERS = (*GAIN_NAMES, *OFFSET_NAMES)
 JOINT_FIT = "joint_sensor_fit"

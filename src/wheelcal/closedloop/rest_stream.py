@@ -27,10 +27,15 @@ import numpy as np
 
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.rests import RestSegment
-from wheelcal.model import CalibrationParams, ParameterLayout, SpinParams, evaluate
-from wheelcal.model.effects import Effect
-from wheelcal.model.forward import candidate_columns
-from wheelcal.model.parameters import spin_coefficient_names
+from wheelcal.model import (
+    CalibrationParams,
+    Effect,
+    ParameterLayout,
+    SpinParams,
+    candidate_columns,
+    evaluate,
+    spin_coefficient_names,
+)
 
 
 def usable_rests(fit: CalibrationResult, rests: tuple[RestSegment, ...]) -> tuple:

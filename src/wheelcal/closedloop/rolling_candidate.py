@@ -17,7 +17,7 @@ import numpy as np
 
 from wheelcal.estimate.gyro.yaw import demodulate_yaw
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model.rolling import Rolling
+from wheelcal.model import Rolling
 from wheelcal.recording import Recording
 
 MAX_TILT_FROM_VERTICAL_DEG = 15.0

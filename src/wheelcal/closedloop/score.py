@@ -44,11 +44,15 @@ from wheelcal.estimate.joint.normal_equations import (
 )
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.rests import RestSegment
-from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
-from wheelcal.model.effects import Effect, GyroReading
-from wheelcal.model.forward import (
+from wheelcal.model import (
+    CalibrationParams,
+    Effect,
     EvaluatedModel,
+    GyroReading,
+    ModelOutput,
+    ParameterLayout,
     candidate_columns,
+    evaluate,
     reverse_pass,
 )
 from wheelcal.recording import Recording

@@ -35,8 +35,7 @@ from wheelcal.closedloop.score import ScoreTest, pooled_score_tests
 from wheelcal.closedloop.sensor_fit import SensorFit, SensorFitResult
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model.effects import CrossAxis, Effect, intrinsic_candidates
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES, CrossAxis, Effect, intrinsic_candidates
 from wheelcal.recording import Recording
 
 SPREAD_PARAMETERS = (

@@ -30,9 +30,14 @@ from wheelcal.estimate.joint.information import block_information_fraction, cova
 from wheelcal.estimate.joint.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.joint.normal_equations import NormalEquations, accumulate
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import CalibrationParams, ParameterLayout, SensorParams
-from wheelcal.model.effects import Effect
-from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
+from wheelcal.model import (
+    GAIN_NAMES,
+    OFFSET_NAMES,
+    CalibrationParams,
+    Effect,
+    ParameterLayout,
+    SensorParams,
+)
 from wheelcal.recording import Recording
 
 

@@ -69,7 +69,7 @@ import numpy as np
 from wheelcal.io.csv_formats import ExportFormat, export_format, lost_packets
 from wheelcal.io.csv_table import TableColumns, TableHead, open_table, read_table
 from wheelcal.io.errors import InputError
-from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+from wheelcal.model import STANDARD_GRAVITY_MPS2
 from wheelcal.recording.samples import rest_level
 
 TIME_UNITS_NS = {"s": 1_000_000_000, "ms": 1_000_000, "us": 1_000, "ns": 1}

@@ -31,9 +31,7 @@ from wheelcal.closedloop.gyro_matrix import (
     pool_gyro,
 )
 from wheelcal.estimate.joint.decimation import decimation_stride
-from wheelcal.model.bench import bench_force
-from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading
-from wheelcal.model.kinematics import spin_kinematics
+from wheelcal.model import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, bench_force, spin_kinematics
 from wheelcal.plan.bench_plan import PlannedSetup
 from wheelcal.plan.fisher import bound_from_fisher, fisher_information
 from wheelcal.simulate.gyro import GyroSpec

@@ -26,7 +26,7 @@ from threadpoolctl import threadpool_limits
 
 from wheelcal.estimate.joint.decimation import decimation_stride
 from wheelcal.estimate.joint.systematic import nuisance_columns
-from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
+from wheelcal.model import GAIN_NAMES, OFFSET_NAMES
 from wheelcal.plan.bench_plan import VERTICAL_TILT_DEG, PlannedSetup
 from wheelcal.plan.budget import plan_budget
 from wheelcal.plan.fisher import bound_from_fisher, fisher_information

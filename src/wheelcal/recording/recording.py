@@ -36,7 +36,7 @@ from functools import cached_property
 
 import numpy as np
 
-from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+from wheelcal.model import STANDARD_GRAVITY_MPS2
 from wheelcal.recording.errors import CalibrationRefused, RecordingError  # noqa: F401
 from wheelcal.recording.gyro import RADPS_PER_DPS, align_to_samples, check_gyro
 from wheelcal.recording.samples import CleanSamples, InputPolicy, clean_samples

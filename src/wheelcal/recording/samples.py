@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+from wheelcal.model import STANDARD_GRAVITY_MPS2
 from wheelcal.recording.errors import SampleError
 
 

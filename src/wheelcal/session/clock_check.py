@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES
 from wheelcal.recording import CalibrationRefused
 
 #: Round sample rates (Hz): 1–1.2–1.25–1.5–2–2.5–3–4–5–6–8 × 10ᵏ, the 12.5·2ᵏ family and

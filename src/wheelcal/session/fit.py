@@ -38,7 +38,7 @@ from wheelcal.estimate.joint.initial import InitialGuess
 from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.rests import RestSegment, find_rests
-from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
+from wheelcal.model import EvaluatedModel, wheel_kinematics
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.clock_check import check_clock
 from wheelcal.session.gates import (

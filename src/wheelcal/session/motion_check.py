@@ -40,10 +40,14 @@ from wheelcal.estimate.joint.information import scaled_pinv
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import evaluate
-from wheelcal.model.effects import SpinSpline, cubic_bspline_slots
-from wheelcal.model.forward import EvaluatedModel, spin_columns
-from wheelcal.model.parameters import AXES
+from wheelcal.model import (
+    AXES,
+    EvaluatedModel,
+    SpinSpline,
+    cubic_bspline_slots,
+    evaluate,
+    spin_columns,
+)
 from wheelcal.session.motion_quadrature import normal_by_quadrature
 
 #: Knots of the alternative motion, and the fewest turns between two of them.

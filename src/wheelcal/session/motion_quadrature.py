@@ -29,10 +29,11 @@ from wheelcal.estimate.joint.fisher_quadrature import QuadratureRows, whitened_r
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES, whitened_back
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import evaluate
-from wheelcal.model.effects import SpinSpline, cubic_bspline_slots
-from wheelcal.model.forward import (
+from wheelcal.model import (
     EvaluatedModel,
+    SpinSpline,
+    cubic_bspline_slots,
+    evaluate,
     jacobian_transpose_times,
     spin_adjoint,
     spin_columns,

@@ -32,7 +32,7 @@ from scipy import special
 
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.rests import RestSegment
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES
 
 
 @dataclass(frozen=True)

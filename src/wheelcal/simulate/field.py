@@ -41,8 +41,7 @@ from typing import Literal
 
 import numpy as np
 
-from wheelcal.model import Rotation, SensorParams, SpinParams
-from wheelcal.model.rotation import exp_so3
+from wheelcal.model import Rotation, SensorParams, SpinParams, exp_so3
 from wheelcal.simulate.field_drives import CAR_PLAN, ROBOT_PLAN, DrivePlan, coast_path, drive_path
 from wheelcal.simulate.field_kinematics import wheel_kinematics
 from wheelcal.simulate.field_motion import AxleSpin, MotionState, SmoothLaw, VehiclePath

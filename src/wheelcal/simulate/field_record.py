@@ -30,11 +30,11 @@ from wheelcal.model import (
     STANDARD_GRAVITY_MPS2,
     BenchParams,
     CalibrationParams,
+    Kinematics,
     Rotation,
     SensorParams,
     SpinParams,
 )
-from wheelcal.model.kinematics import Kinematics
 from wheelcal.recording import Recording, SessionInfo
 from wheelcal.simulate.field_kinematics import Lean, wheel_kinematics
 from wheelcal.simulate.field_motion import AxleSpin, MotionState, VehiclePath

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
+from wheelcal.model import STANDARD_GRAVITY_MPS2
 
 RADPS_PER_DPS = np.pi / 180.0
 

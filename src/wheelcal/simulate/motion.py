@@ -17,8 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.model.kinematics import Kinematics, spin_kinematics
-from wheelcal.model.parameters import SpinParams
+from wheelcal.model import Kinematics, SpinParams, spin_kinematics
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.model.ar_process import ar_variance_gain
+from wheelcal.model import ar_variance_gain
 
 
 @dataclass(frozen=True)

@@ -18,9 +18,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
-from wheelcal.model.kinematics import Kinematics
-from wheelcal.model.rolling import Rolling
+from wheelcal.model import (
+    BenchParams,
+    CalibrationParams,
+    Kinematics,
+    Rolling,
+    Rotation,
+    SensorParams,
+    SpinParams,
+)
 from wheelcal.recording import SessionInfo
 from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.motion import RateProfile

@@ -35,8 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from wheelcal.model import CalibrationParams, ModelOutput, evaluate
-from wheelcal.model.kinematics import Kinematics, spin_kinematics
+from wheelcal.model import CalibrationParams, Kinematics, ModelOutput, evaluate, spin_kinematics
 from wheelcal.recording import Recording
 from wheelcal.simulate.simulator import Scenario
 

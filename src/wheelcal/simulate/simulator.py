@@ -22,8 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wheelcal.model import CalibrationParams, evaluate
-from wheelcal.model.forward import ModelOutput
+from wheelcal.model import CalibrationParams, ModelOutput, evaluate
 from wheelcal.recording import Recording, SessionInfo
 from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.noise import NoiseSpec, Quantiser

@@ -34,9 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.model import STANDARD_GRAVITY_MPS2, SensorParams
-from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
-from wheelcal.model.rotation import exp_so3
+from wheelcal.model import GAIN_NAMES, OFFSET_NAMES, STANDARD_GRAVITY_MPS2, SensorParams, exp_so3
 from wheelcal.simulate import NoiseSpec
 
 #: Names of the static method's parameters (a subset of the wheel's).

@@ -29,7 +29,7 @@ import numpy as np
 
 from wheelcal.calibration.document import read_only_document
 from wheelcal.io.ownership import MARK_TEXT
-from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
+from wheelcal.model import GAIN_NAMES, OFFSET_NAMES
 
 OVERVIEW_FILE = "overview.png"
 MISSING_MATPLOTLIB = "matplotlib is not installed (pip install 'wheelcal[plots]')"

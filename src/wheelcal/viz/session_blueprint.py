@@ -57,7 +57,7 @@ import rerun.blueprint as rrb
 from rerun.blueprint.encodings import VisualizerComponentMapping
 from rerun.chunk import Chunk
 
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES
 from wheelcal.viz.arrow_chunks import ArrowColumn, column
 from wheelcal.viz.blueprint_chunks import blueprint_chunk, blueprint_chunks, blueprint_rows
 

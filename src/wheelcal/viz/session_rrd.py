@@ -97,9 +97,7 @@ import rerun as rr
 from rerun.chunk import Chunk
 
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import predict
-from wheelcal.model.forward import wheel_kinematics
-from wheelcal.model.parameters import AXES, STANDARD_GRAVITY_MPS2
+from wheelcal.model import AXES, STANDARD_GRAVITY_MPS2, predict, wheel_kinematics
 from wheelcal.recording import Recording
 from wheelcal.session.result import SessionResult
 from wheelcal.session.window import FreeSpinWindow

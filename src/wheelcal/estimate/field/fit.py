@@ -58,12 +58,18 @@ from wheelcal.estimate.field.robust import robust_result_with
 from wheelcal.estimate.field.start import field_start
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import CalibrationParams, Rotation, SpinParams, evaluate
-from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, CrossAxis
-from wheelcal.model.forward import wheel_kinematics
-from wheelcal.model.gyro_angle import GyroAngle
-from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
-from wheelcal.model.rolling import Rolling
+from wheelcal.model import (
+    G_SENSITIVITY_PRIOR_DPS_PER_G,
+    STANDARD_GRAVITY_MPS2,
+    CalibrationParams,
+    CrossAxis,
+    GyroAngle,
+    Rolling,
+    Rotation,
+    SpinParams,
+    evaluate,
+    wheel_kinematics,
+)
 from wheelcal.recording import Recording, RecordingError
 
 #: ρ / σ_ρ above which the hub travels (pass 2): a rolling wheel.

@@ -37,9 +37,7 @@ from wheelcal.estimate.field.robust import Extension, WideNormal
 from wheelcal.estimate.joint.freed_check import FreedCheck
 from wheelcal.estimate.joint.information import scaled_pinv
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model.effects import cubic_bspline_basis
-from wheelcal.model.layout import GAIN_NAMES, OFFSET_NAMES
-from wheelcal.model.rolling import Rolling
+from wheelcal.model import GAIN_NAMES, OFFSET_NAMES, Rolling, cubic_bspline_basis
 
 #: Knots of the free camber (s): a road's camber changes over tens of metres.
 KNOT_SPACING_S = 10.0

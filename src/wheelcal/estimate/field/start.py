@@ -30,8 +30,14 @@ from scipy import signal
 
 from wheelcal.estimate.field.gyro_axle import GyroAxle
 from wheelcal.estimate.joint.initial import scaled_gains
-from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
-from wheelcal.model.gyro_angle import GyroAngle
+from wheelcal.model import (
+    BenchParams,
+    CalibrationParams,
+    GyroAngle,
+    Rotation,
+    SensorParams,
+    SpinParams,
+)
 from wheelcal.recording import RecordingError
 
 #: Low-pass of the demodulated gravity (Hz): the phase error the gyro leaves is slow.

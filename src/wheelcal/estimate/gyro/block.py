@@ -29,9 +29,13 @@ from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.information import scaled_pinv
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import CalibrationParams, ParameterLayout
-from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading
-from wheelcal.model.forward import wheel_kinematics
+from wheelcal.model import (
+    G_SENSITIVITY_PRIOR_DPS_PER_G,
+    CalibrationParams,
+    GyroReading,
+    ParameterLayout,
+    wheel_kinematics,
+)
 
 #: A typical MEMS gyro's sensitivity to linear acceleration (MPU-9250: 0.1 °/s/g).
 G_SENSITIVITY_DPS_PER_G = G_SENSITIVITY_PRIOR_DPS_PER_G
@@ -152,7 +156,7 @@ def _wheel_axis(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray]:
     R → R exp([δ]×) turns d by R [e_Z]× δ, and the angles by ε = J δ
     (:meth:`~wheelcal.model.Rotation.euler_jacobian_deg`).
     """
-    from wheelcal.model.rotation import hat
+    from wheelcal.model import hat
 
     rotation = result.params.bench.misalignment
     names = [f"euler_{k}_deg" for k in (1, 2, 3)]

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solveh_banded
 
-from wheelcal.model.effects import cubic_bspline_slots
+from wheelcal.model import cubic_bspline_slots
 
 MIN_SPACING_S = 0.5
 MAX_SPACING_S = 16.0

@@ -24,8 +24,7 @@ from wheelcal.estimate.gyro.yaw import demodulate_yaw
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.initial import InitialGuess
 from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.model import CalibrationParams
-from wheelcal.model.rolling import Rolling
+from wheelcal.model import CalibrationParams, Rolling
 from wheelcal.recording import Recording, RecordingError
 
 #: Passes of (demodulate the yaw with the latest fit, refit).

@@ -33,10 +33,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.joint.gyro_equations import gyro_effect
-from wheelcal.model import CalibrationParams, ParameterLayout
-from wheelcal.model.bench import bench_force
-from wheelcal.model.forward import wheel_kinematics
-from wheelcal.model.rolling import Rolling
+from wheelcal.model import (
+    CalibrationParams,
+    ParameterLayout,
+    Rolling,
+    bench_force,
+    wheel_kinematics,
+)
 
 #: Low-pass corner of the demodulated yaw rate (Hz).
 YAW_BAND_HZ = 2.0

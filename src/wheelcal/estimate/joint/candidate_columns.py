@@ -12,9 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.model import CalibrationParams, ModelOutput
-from wheelcal.model.effects import Effect, OffsetWarmup
-from wheelcal.model.forward import candidate_columns, spin_columns
+from wheelcal.model import (
+    CalibrationParams,
+    Effect,
+    ModelOutput,
+    OffsetWarmup,
+    candidate_columns,
+    spin_columns,
+)
 
 
 def candidate_extra(candidates: tuple[Effect, ...], layout):

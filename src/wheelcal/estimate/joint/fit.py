@@ -70,10 +70,17 @@ from wheelcal.estimate.joint.systematic import (
     systematic_budget,
 )
 from wheelcal.estimate.joint.twins import TwinChoice, choose_twin, twin_of
-from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
-from wheelcal.model.bench import bench_force
-from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, SpinSpline
-from wheelcal.model.forward import EvaluatedModel, wheel_kinematics
+from wheelcal.model import (
+    G_SENSITIVITY_PRIOR_DPS_PER_G,
+    CalibrationParams,
+    EvaluatedModel,
+    GyroReading,
+    ParameterLayout,
+    SpinSpline,
+    bench_force,
+    evaluate,
+    wheel_kinematics,
+)
 from wheelcal.recording import Recording, RecordingError, SessionInfo
 
 GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling", "free")

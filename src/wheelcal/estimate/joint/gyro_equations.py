@@ -25,9 +25,13 @@ import numpy as np
 from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import NormalEquations, add_gram, chunking, local_view
-from wheelcal.model import CalibrationParams, ParameterLayout
-from wheelcal.model.bench import BenchForce, bench_force
-from wheelcal.model.forward import wheel_kinematics
+from wheelcal.model import (
+    BenchForce,
+    CalibrationParams,
+    ParameterLayout,
+    bench_force,
+    wheel_kinematics,
+)
 
 
 def gyro_effect(layout: ParameterLayout):

@@ -18,8 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.model import CalibrationParams
-from wheelcal.model.parameters import AXES
+from wheelcal.model import AXES, CalibrationParams
 
 #: Above these predicted σ a parameter is reported as poorly determined.
 GAIN_STD_LIMIT = 5e-3

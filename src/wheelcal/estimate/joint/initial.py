@@ -32,8 +32,14 @@ from scipy.fft import fft
 from wheelcal.estimate.joint.columns import centred_rows, column_means, row_gram
 from wheelcal.estimate.joint.decimation import thinning_stride
 from wheelcal.estimate.joint.rotating import revolution_mean, rotating_phase
-from wheelcal.model import BenchParams, CalibrationParams, Rotation, SensorParams, SpinParams
-from wheelcal.model.effects import cubic_bspline_basis
+from wheelcal.model import (
+    BenchParams,
+    CalibrationParams,
+    Rotation,
+    SensorParams,
+    SpinParams,
+    cubic_bspline_basis,
+)
 
 _TREND_DEGREE = 6
 _MAX_SAMPLES = 4000

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.joint.columns import column_means, row_gram
-from wheelcal.model.ar_process import ar_variance_gain, fir_filter
+from wheelcal.model import ar_variance_gain, fir_filter
 
 #: Whitening a Jacobian takes one 3 × 3 product per tap up to this AR order (fewer passes
 #: over the columns); above it the per-axis FIR wins (``benchmarks/bench_whiten.py``).

@@ -31,8 +31,15 @@ from wheelcal.estimate.joint.fisher_quadrature import (
     whitened_rows,
 )
 from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.model import CalibrationParams, ModelOutput, ParameterLayout, evaluate
-from wheelcal.model.forward import ReverseAt, output_at_samples, reverse_pass
+from wheelcal.model import (
+    CalibrationParams,
+    ModelOutput,
+    ParameterLayout,
+    ReverseAt,
+    evaluate,
+    output_at_samples,
+    reverse_pass,
+)
 
 #: Samples per chunk: ~12 MB of Jacobian for 18 columns; one chunk for a typical
 #: 90 s / 200 Hz recording, bounded memory for long or fast ones.

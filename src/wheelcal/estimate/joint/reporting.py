@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.model import CalibrationParams, ParameterLayout
-from wheelcal.model.parameters import AXES, spin_coefficient_names
+from wheelcal.model import AXES, CalibrationParams, ParameterLayout, spin_coefficient_names
 
 EULER_NAMES = tuple(f"euler_{k}_deg" for k in (1, 2, 3))
 GAIN_NAMES = tuple(f"gain_{a}" for a in AXES)
