@@ -14,9 +14,7 @@ from wheelcal.batch.pipeline import Pipeline
 from wheelcal.batch.sensors import SENSORS_FOLDER, sensor_file_stem
 from wheelcal.calibration.document import Calibration
 from wheelcal.closedloop.sensor_closure import SessionInput, close_sensor
-from wheelcal.io.atomic import atomic_write_text
-from wheelcal.io.json_text import dumps_indented, json_safe
-from wheelcal.io.ownership import MARK_KEY
+from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, json_safe
 from wheelcal.model import make_effect
 
 

@@ -307,8 +307,8 @@ def _read_toml(path: str) -> dict:
     A FIFO or a device is refused unread, and a file larger than any pipeline
     (:data:`~wheelcal.io.input_file.MAX_SMALL_INPUT_BYTES`) before it is read.
     """
-    from wheelcal.io.input_file import SpecialFileError, read_bounded
-    from wheelcal.recording.errors import InputError
+    from wheelcal.io import SpecialFileError, read_bounded
+    from wheelcal.recording import InputError
 
     try:
         return tomllib.loads(read_bounded(path, "pipeline").decode("utf-8"))

@@ -58,7 +58,7 @@ def stored_run_key(calibration_path: Path) -> str | None:
 
 def read_document(calibration_path: Path) -> dict | None:
     """A calibration JSON's contents (None if absent, unreadable, or no regular file)."""
-    from wheelcal.io.input_file import read_bounded
+    from wheelcal.io import read_bounded
 
     try:
         document = json.loads(read_bounded(calibration_path, "calibration").decode("utf-8"))

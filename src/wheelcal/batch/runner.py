@@ -63,7 +63,7 @@ from wheelcal.batch.workers import (
     worker_context,
 )
 from wheelcal.calibration.document import Calibration
-from wheelcal.io.atomic import OutputFolderError, prepare_output_folder
+from wheelcal.io import OutputFolderError, prepare_output_folder
 from wheelcal.recording import RecordingError
 from wheelcal.runtime import tune_allocator
 from wheelcal.session.compute import SessionOptions
@@ -621,7 +621,7 @@ def _identity(pipeline: Pipeline) -> str:
 def _remove_temporaries(out: Path) -> int:
     """Remove the hidden temporary files a killed batch left in ``out`` and ``out/sensors``."""
     from wheelcal.batch.sensors import SENSORS_FOLDER
-    from wheelcal.io.atomic import remove_temporaries
+    from wheelcal.io import remove_temporaries
 
     return len(remove_temporaries(out)) + len(remove_temporaries(out / SENSORS_FOLDER))
 
@@ -634,7 +634,7 @@ def _claim(pipeline: Pipeline, tasks: list[_Task], force: bool) -> list[str]:
     """The overwrite policy on every file the batch may write (PipelineError if refused)."""
     from wheelcal.batch.sensors import SENSORS_FOLDER
     from wheelcal.batch.session import session_outputs
-    from wheelcal.io.ownership import Output, OutputRefusedError, claim_outputs, origin_of
+    from wheelcal.io import Output, OutputRefusedError, claim_outputs, origin_of
 
     out, options = pipeline.output, pipeline.options
     sessions = [
@@ -690,8 +690,7 @@ def _require_dask(pipeline: Pipeline) -> None:
 
 def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tuple[str, ...], bool]:
     """The report set, all at once or not at all (staged: a full disk leaves the earlier set)."""
-    from wheelcal.io.atomic import staged_outputs
-    from wheelcal.io.ownership import origin_of, output_mark
+    from wheelcal.io import origin_of, output_mark, staged_outputs
 
     out = pipeline.output
     json_path = out / "report.json"
@@ -734,8 +733,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
 def _stage_report(pipeline, records, calibrations, report_key: str, stage, mark) -> list[Path]:
     """Stage every file of the report set (:func:`_write_report`); their paths."""
     from wheelcal.batch.report import report_markdown, sessions_csv
-    from wheelcal.io.json_text import dumps_indented, json_safe
-    from wheelcal.io.ownership import MARK_KEY, mark_line
+    from wheelcal.io import MARK_KEY, dumps_indented, json_safe, mark_line
 
     out = pipeline.output
     json_path, md_path, csv_path = out / "report.json", out / "report.md", out / "sessions.csv"

@@ -24,7 +24,7 @@ from wheelcal.calibration.sensor_json import (
     write_sensor_calibration,
 )
 from wheelcal.closedloop.pooling import pool_sessions
-from wheelcal.io.ownership import MARK_KEY
+from wheelcal.io import MARK_KEY
 
 SENSORS_FOLDER = "sensors"
 STALE_SUFFIX = ".calibration.stale.json"

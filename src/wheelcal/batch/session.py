@@ -25,7 +25,7 @@ from pathlib import Path
 
 from numpy.linalg import LinAlgError
 
-from wheelcal.io.file_kind import special_file_kind
+from wheelcal.io import special_file_kind
 from wheelcal.recording import (
     CalibrationRefused,
     RecordingError,
@@ -268,7 +268,7 @@ def session_outputs(
     path: str, out_dir: str | Path, rrd: bool, diagnose: bool, stem: str | None = None
 ) -> list:
     """The files one session writes, for the overwrite policy (:mod:`wheelcal.io.ownership`)."""
-    from wheelcal.io.ownership import Output, origin_of
+    from wheelcal.io import Output, origin_of
 
     stem = stem or session_stem(path)
     origin = origin_of([path])

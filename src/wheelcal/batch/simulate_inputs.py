@@ -30,8 +30,7 @@ def simulate_inputs(
     if spec is None:  # before the imports: the simulator costs ~1 s to import (scipy.signal)
         return []
     from wheelcal.io import write_recording
-    from wheelcal.simulate import NoiseSpec, Quantiser, preset, simulate
-    from wheelcal.simulate.session import simulate_session
+    from wheelcal.simulate import NoiseSpec, Quantiser, preset, simulate, simulate_session
 
     made = []
     for i, path in enumerate(pipeline.simulated_paths()):

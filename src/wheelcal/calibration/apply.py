@@ -26,21 +26,22 @@ import numpy as np
 
 from wheelcal.calibration.gyro_apply import gyro_correction_from, why_no_gyro_correction
 from wheelcal.calibration.session_json import load_calibration, load_correction_from
-from wheelcal.io.atomic import refuse_existing
-from wheelcal.io.mcap_reader import RawImuSamples, read_raw_samples, read_recording
-from wheelcal.io.mcap_scan import MAGIC as MCAP_MAGIC
-from wheelcal.io.mcap_writer import (
+from wheelcal.io import (
+    MARK_RECORD,
     ChannelData,
+    RawImuSamples,
     accel_channel,
     copy_with_channels,
+    flags_channel,
+    is_mcap_file,
+    read_raw_samples,
+    read_recording,
     recording_stamps_ns,
+    refuse_existing,
     session_metadata,
     write_channels,
 )
-from wheelcal.io.ownership import MARK_RECORD
-from wheelcal.io.sample_flags import flags_channel
-from wheelcal.recording import Recording
-from wheelcal.recording.samples import InputPolicy
+from wheelcal.recording import InputPolicy, Recording
 
 CALIBRATION_METADATA_NAME = "wheelcal.calibration"
 APPLY_METADATA_NAME = "wheelcal.apply"
@@ -251,14 +252,6 @@ def _calibration_record(calibration, correction, source_topic, new_topic, covari
     }
 
 
-def _is_mcap_file(path: str | os.PathLike) -> bool:
-    try:
-        with open(path, "rb") as stream:
-            return stream.read(len(MCAP_MAGIC)) == MCAP_MAGIC
-    except OSError:  # a folder (a rosbag2) or unreadable: not one MCAP file to copy
-        return False
-
-
 def _write(
     raw: RawImuSamples,
     recording: Recording,
@@ -268,7 +261,7 @@ def _write(
     replace: bool,
 ) -> str:
     """Copy an MCAP source with the channels added; else a new MCAP with the raw topic too."""
-    if _is_mcap_file(raw.source):
+    if is_mcap_file(raw.source):
         copy_with_channels(raw.source, destination, channels, metadata, replace=replace)
         return ""
     order = np.argsort(raw.time_ns, kind="stable")

@@ -15,8 +15,7 @@ from pathlib import Path
 
 from wheelcal.calibration.session_json import _num, _vec, effects_dict
 from wheelcal.closedloop.loop import Diagnosis
-from wheelcal.io.atomic import atomic_write_text
-from wheelcal.io.ownership import MARK_KEY, origin_of, output_mark
+from wheelcal.io import MARK_KEY, atomic_write_text, origin_of, output_mark
 
 FORMAT = "wheelcal.diagnosis/1"
 

@@ -178,7 +178,7 @@ class Calibration(Mapping):
 
     def to_json(self, path: str | os.PathLike, durable: bool = True) -> Path:
         """Write the contract JSON atomically; returns the path."""
-        from wheelcal.io.atomic import atomic_write_text
+        from wheelcal.io import atomic_write_text
 
         text = json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
         atomic_write_text(path, text, durable=durable)

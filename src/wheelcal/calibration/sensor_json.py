@@ -52,7 +52,7 @@ from wheelcal.closedloop.pooling import (
     PooledSensor,
     SessionEstimate,
 )
-from wheelcal.io.atomic import atomic_write_text
+from wheelcal.io import atomic_write_text
 from wheelcal.model import AXES
 
 _DESCRIPTION = {

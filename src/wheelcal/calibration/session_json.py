@@ -21,9 +21,7 @@ from wheelcal.calibration.imu_noise import imu_noise_block
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.joint.systematic import SystematicBudget
 from wheelcal.estimate.residual_profile import residual_by_wheel_angle
-from wheelcal.io.atomic import atomic_write_text
-from wheelcal.io.json_text import dumps_indented
-from wheelcal.io.ownership import MARK_KEY, origin_of, output_mark
+from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, origin_of, output_mark
 from wheelcal.model import AXES, EULER_CONVENTION, SensorCorrection
 from wheelcal.session.gates import Assessment
 from wheelcal.session.result import SessionResult
@@ -447,8 +445,8 @@ def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> di
     refused unless ``allow_partial``: its correction leaves those axes
     unchanged, which a user must choose knowingly.
     """
-    from wheelcal.io.input_file import read_bounded
-    from wheelcal.recording.errors import InputError
+    from wheelcal.io import read_bounded
+    from wheelcal.recording import InputError
 
     try:
         data = json.loads(read_bounded(path, "calibration").decode("utf-8"))

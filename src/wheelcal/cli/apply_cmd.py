@@ -45,8 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.cli.options import readable_inputs
     from wheelcal.cli.overwrite import claim
-    from wheelcal.io.file_kind import special_file_kind
-    from wheelcal.io.ownership import Output, origin_of, output_mark
+    from wheelcal.io import Output, origin_of, output_mark, special_file_kind
 
     readable_inputs(("CAL.json", args.calibration))
     kind = special_file_kind(args.source)

@@ -126,8 +126,7 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.cli.errors import UsageError
     from wheelcal.cli.options import readable_inputs
     from wheelcal.cli.overwrite import claim
-    from wheelcal.io.csv_convert import CsvLayout, convert_csv
-    from wheelcal.io.ownership import MARK_RECORD, Output, origin_of, output_mark
+    from wheelcal.io import MARK_RECORD, CsvLayout, Output, convert_csv, origin_of, output_mark
 
     readable_inputs(("IN.csv", args.source))  # a FIFO would wait forever, /dev/zero never end
     origin = origin_of([args.source])

@@ -53,8 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.cli.errors import UsageError
     from wheelcal.cli.options import readable_inputs
     from wheelcal.cli.overwrite import claim
-    from wheelcal.io.atomic import OutputExistsError, atomic_write_text
-    from wheelcal.io.ownership import Output, mark_line, origin_of
+    from wheelcal.io import Output, OutputExistsError, atomic_write_text, mark_line, origin_of
 
     readable_inputs(("CAL.json", args.calibration))  # a FIFO would wait forever
     if args.out and Path(args.out).is_dir():

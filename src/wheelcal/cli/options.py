@@ -181,7 +181,7 @@ def session_options(args: argparse.Namespace, rrd: bool = False):
 
 def output_folder(path: str):
     """The ``--out`` folder, created and proven writable (UsageError naming it otherwise)."""
-    from wheelcal.io.atomic import OutputFolderError, prepare_output_folder
+    from wheelcal.io import OutputFolderError, prepare_output_folder
 
     try:
         return prepare_output_folder(path, what="--out folder")
@@ -195,7 +195,7 @@ def readable_inputs(*inputs: tuple[str, str]) -> None:
     ``inputs`` are (what, path) pairs, e.g. ``("IN.csv", args.source)``: reading
     a FIFO waits for a writer forever and ``/dev/zero`` never ends.
     """
-    from wheelcal.io.file_kind import special_file_kind
+    from wheelcal.io import special_file_kind
 
     for what, path in inputs:
         kind = special_file_kind(path)

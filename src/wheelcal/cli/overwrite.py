@@ -37,7 +37,7 @@ def claim(outputs: Sequence, force: bool, command: str) -> bool:
     Prints a note per file replaced (a few, then a count) on stderr.  Returns
     whether any of them exists (then the writer replaces, else it must not clobber).
     """
-    from wheelcal.io.ownership import OutputRefusedError, claim_outputs
+    from wheelcal.io import OutputRefusedError, claim_outputs
 
     try:
         notes = claim_outputs(outputs, force)

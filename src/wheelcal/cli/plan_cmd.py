@@ -150,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     from wheelcal.plan import PAPER_MOUNTING_EULER_DEG, MountingSearch, PlannedSetup, plan_report
     from wheelcal.plan.text import render
     from wheelcal.plan.tradeoff import DEFAULT_TILTS_DEG
-    from wheelcal.simulate.gyro import GyroSpec
+    from wheelcal.simulate import GyroSpec
 
     mounting, search_mounting = _mounting(args.mounting, PAPER_MOUNTING_EULER_DEG)
     tilt = args.tilt_deg

@@ -110,7 +110,7 @@ def _claim(args: argparse.Namespace) -> tuple[dict, bool]:
     ``simulate`` reads no file: the same *options* are its same input.
     """
     from wheelcal.cli.overwrite import claim
-    from wheelcal.io.ownership import Output, origin_of, output_mark
+    from wheelcal.io import Output, origin_of, output_mark
 
     skip = {"out", "truth", "force", "debug", "handler", "command"}
     origin = origin_of(options={k: v for k, v in vars(args).items() if k not in skip})
@@ -125,9 +125,7 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from wheelcal.io import write_recording
-    from wheelcal.io.atomic import atomic_write_text
-    from wheelcal.io.ownership import MARK_KEY, MARK_RECORD
+    from wheelcal.io import MARK_KEY, MARK_RECORD, atomic_write_text, write_recording
     from wheelcal.model import SpinParams
     from wheelcal.simulate import (
         GyroSpec,
@@ -136,8 +134,8 @@ def run(args: argparse.Namespace) -> int:
         TemperatureSpec,
         preset,
         simulate,
+        simulate_session,
     )
-    from wheelcal.simulate.session import simulate_session
 
     mark, exists = _claim(args)
     rng = np.random.default_rng(args.seed)
@@ -244,9 +242,7 @@ def _run_field(args: argparse.Namespace, rng, mark: dict, exists: bool) -> int:
     """A wheel in the field (``--preset car|robot|wheelchair|stand``) and its truth."""
     import dataclasses
 
-    from wheelcal.io import write_recording
-    from wheelcal.io.atomic import atomic_write_text
-    from wheelcal.io.ownership import MARK_KEY, MARK_RECORD
+    from wheelcal.io import MARK_KEY, MARK_RECORD, atomic_write_text, write_recording
     from wheelcal.simulate import (
         NoiseSpec,
         car_drive,

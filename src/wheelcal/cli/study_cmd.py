@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wheelcal.cli.overwrite import claim
-    from wheelcal.io.ownership import origin_of, output_mark
+    from wheelcal.io import origin_of, output_mark
     from wheelcal.study.config import (
         StudyConfig,
         StudyConfigError,

@@ -70,7 +70,7 @@ from wheelcal.io.csv_formats import ExportFormat, export_format, lost_packets
 from wheelcal.io.csv_table import TableColumns, TableHead, open_table, read_table
 from wheelcal.io.errors import InputError
 from wheelcal.model import STANDARD_GRAVITY_MPS2
-from wheelcal.recording.samples import rest_level
+from wheelcal.recording import rest_level
 
 TIME_UNITS_NS = {"s": 1_000_000_000, "ms": 1_000_000, "us": 1_000, "ns": 1}
 ACCEL_UNITS = ("m/s^2", "g", "mg", "counts")

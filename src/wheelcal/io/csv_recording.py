@@ -41,9 +41,7 @@ from pathlib import Path
 from wheelcal.io.csv_log import CsvLayout, CsvPlan, plan_csv_log, read_csv_log
 from wheelcal.io.errors import InputError, TopicError
 from wheelcal.io.session_meta import session_info
-from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording
-from wheelcal.recording.samples import InputPolicy
-from wheelcal.recording.temperature import TemperatureReadings
+from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, InputPolicy, Recording, TemperatureReadings
 
 #: Column names that say "accelerometer" (bare ``X (g)`` may be linear or earth acceleration).
 _ACCELEROMETER = re.compile(r"^(?:a|acc|accel|accelerometer|acceleration)[\s._-]*[xyz]\b", re.I)

@@ -8,7 +8,7 @@ caller that handles bad recordings handles bad files too.
 
 from __future__ import annotations
 
-from wheelcal.recording.errors import InputError, RecordingError, SampleError
+from wheelcal.recording import InputError, RecordingError, SampleError
 
 __all__ = [
     "CorruptFileError",

@@ -16,7 +16,7 @@ import os
 import stat
 
 from wheelcal.io.file_kind import special_kind
-from wheelcal.recording.errors import InputError
+from wheelcal.recording import InputError
 
 #: Largest pipeline file, calibration JSON or rosbag2 metadata.yaml read (bytes).
 #: The largest wheelcal writes (a pooled sensor calibration with its covariance)

@@ -60,9 +60,7 @@ from wheelcal.io.recording_scan import recording_kind, scan_recording
 from wheelcal.io.session_meta import SESSION_METADATA_NAME, session_info
 from wheelcal.io.temperature_cdr import TEMPERATURE_FORMAT, decode_temperature_blocks
 from wheelcal.model import STANDARD_GRAVITY_MPS2
-from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, Recording
-from wheelcal.recording.samples import InputPolicy
-from wheelcal.recording.temperature import TemperatureReadings
+from wheelcal.recording import ACCEL_UNITS, GYRO_UNITS, InputPolicy, Recording, TemperatureReadings
 
 #: The channels the reader takes, by kind, in the order they are tried.
 _FORMATS = {

@@ -72,6 +72,15 @@ _GALLOP_MIN = 16  # try the vectorised stride test only with this many candidate
 _GALLOP_COOLDOWN = 32  # after a failed gallop, walk at least this many records one by one
 
 
+def is_mcap_file(path: str | os.PathLike) -> bool:
+    """Whether *path* is one file that starts with MCAP's magic bytes."""
+    try:
+        with open(path, "rb") as stream:
+            return stream.read(len(MAGIC)) == MAGIC
+    except OSError:  # a folder (a rosbag2) or unreadable: not one MCAP file to copy
+        return False
+
+
 class Opcode(IntEnum):
     """MCAP record opcodes (spec, "Records")."""
 

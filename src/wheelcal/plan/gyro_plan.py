@@ -34,8 +34,7 @@ from wheelcal.estimate.joint.decimation import decimation_stride
 from wheelcal.model import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, bench_force, spin_kinematics
 from wheelcal.plan.bench_plan import PlannedSetup
 from wheelcal.plan.fisher import bound_from_fisher, fisher_information
-from wheelcal.simulate.gyro import GyroSpec
-from wheelcal.simulate.mountings import mounting_near
+from wheelcal.simulate import GyroSpec, mounting_near
 
 #: The mountings the full matrix needs: the wheel axis near each of the sensor's axes.
 FULL_MATRIX_AXES = ("x", "y", "z")

@@ -40,7 +40,7 @@ from wheelcal.estimate.joint.systematic import nuisance_columns
 from wheelcal.model import BenchParams, Rotation
 from wheelcal.plan.bench_plan import PlannedSetup
 from wheelcal.plan.fisher import fisher_information
-from wheelcal.simulate.presets import random_rotation
+from wheelcal.simulate import random_rotation
 
 OBJECTIVES = ("statistical", "total")
 

@@ -36,7 +36,7 @@ from wheelcal.plan.fisher import bound_from_fisher, fisher_information
 from wheelcal.plan.gyro_plan import GyroPlan, plan_gyro
 from wheelcal.plan.mounting import MountingResult, MountingSearch
 from wheelcal.plan.tradeoff import DEFAULT_TILTS_DEG, TradeoffRow, geometry_tradeoffs
-from wheelcal.simulate.gyro import GyroSpec
+from wheelcal.simulate import GyroSpec
 
 FORMAT = "wheelcal.plan/1"
 #: Fewer turns than this leave the spin polynomial and the offsets poorly sampled.

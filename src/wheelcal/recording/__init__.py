@@ -8,6 +8,7 @@ temperature's :mod:`.temperature`) and the errors that name a recording and what
 is wrong with it.
 """
 
+from wheelcal.recording.errors import InputError, SampleError
 from wheelcal.recording.recording import (
     ACCEL_UNITS,
     DEFAULT_RADIUS_STD_M,
@@ -18,6 +19,8 @@ from wheelcal.recording.recording import (
     RecordingError,
     SessionInfo,
 )
+from wheelcal.recording.samples import InputPolicy, rest_level
+from wheelcal.recording.temperature import TemperatureReadings
 
 __all__ = [
     "ACCEL_UNITS",
@@ -25,7 +28,12 @@ __all__ = [
     "GYRO_UNITS",
     "SESSION_FACT_KEYS",
     "CalibrationRefused",
+    "InputError",
+    "InputPolicy",
     "Recording",
     "RecordingError",
+    "SampleError",
     "SessionInfo",
+    "TemperatureReadings",
+    "rest_level",
 ]

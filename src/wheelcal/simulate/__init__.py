@@ -15,8 +15,17 @@ from wheelcal.simulate.field import (
     wheelchair_coast,
 )
 from wheelcal.simulate.gyro import GyroSpec
+from wheelcal.simulate.mountings import mounting_near
 from wheelcal.simulate.noise import NoiseSpec, Quantiser
-from wheelcal.simulate.presets import PRESETS, hand_spin, preset, random_setup, table1, table2
+from wheelcal.simulate.presets import (
+    PRESETS,
+    hand_spin,
+    preset,
+    random_rotation,
+    random_setup,
+    table1,
+    table2,
+)
 from wheelcal.simulate.session import SessionPlan, SimulatedFullSession, simulate_session
 from wheelcal.simulate.simulator import Scenario, SimulatedSession, simulate
 from wheelcal.simulate.temperature import TemperatureSpec
@@ -40,7 +49,9 @@ __all__ = [
     "bench_spin",
     "car_drive",
     "hand_spin",
+    "mounting_near",
     "preset",
+    "random_rotation",
     "random_setup",
     "robot_drive",
     "simulate",

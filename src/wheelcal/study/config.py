@@ -245,8 +245,8 @@ def config_from_dict(data: dict, source: str = "<dict>") -> StudyConfig:
 
 def load_config(path: str | Path) -> StudyConfig:
     """Read a study TOML file (e.g. ``pipelines/table1-study.toml``)."""
-    from wheelcal.io.input_file import read_bounded
-    from wheelcal.recording.errors import InputError
+    from wheelcal.io import read_bounded
+    from wheelcal.recording import InputError
 
     path = Path(path)
     try:

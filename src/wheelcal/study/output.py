@@ -12,8 +12,7 @@ import io
 import json
 from pathlib import Path
 
-from wheelcal.io.atomic import atomic_write_bytes, atomic_write_text
-from wheelcal.io.ownership import MARK_KEY, mark_line
+from wheelcal.io import MARK_KEY, atomic_write_bytes, atomic_write_text, mark_line
 from wheelcal.study.report import csv_tables, summary_markdown, to_json
 from wheelcal.study.runner import StudyResult
 
@@ -50,7 +49,7 @@ def study_outputs(
 
     The CSV tables and figures carry no mark: they follow ``study.json``.
     """
-    from wheelcal.io.ownership import Output
+    from wheelcal.io import Output
     from wheelcal.study.plots import FIGURES
 
     out = Path(out_dir)

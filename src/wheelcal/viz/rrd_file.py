@@ -37,7 +37,7 @@ from pathlib import Path
 import rerun as rr
 from rerun.error_utils import catch_and_log_exceptions
 
-from wheelcal.io.atomic import atomic_path
+from wheelcal.io import atomic_path
 
 #: The last bytes of a complete RRD stream (rerun-sdk 0.41): ``RRF2`` ``FOOT`` and
 #: a 4-byte version follow the footer, which the sink writes when it closes.
