@@ -24,7 +24,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from wheelcal.estimate.allan import AllanDeviation, AllanSums
+from wheelcal.estimate import AllanDeviation, AllanSums
 
 
 def _floats(values) -> list:

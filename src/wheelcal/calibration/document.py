@@ -40,7 +40,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES, SensorCorrection
 from wheelcal.session.gates import Assessment
 from wheelcal.session.result import SessionResult

@@ -61,7 +61,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from wheelcal.calibration.allan_json import of_the_common_rate
-from wheelcal.estimate.allan import WHITE_NOISE_TAU_S, AllanSums
+from wheelcal.estimate import WHITE_NOISE_TAU_S, AllanSums
 
 #: The per-sensor sub-blocks: JSON name, unit of a sample, of the density, of the walk.
 SENSORS = {

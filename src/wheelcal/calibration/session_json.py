@@ -18,9 +18,8 @@ import numpy as np
 from wheelcal import __version__
 from wheelcal.calibration.allan_json import rests_allan
 from wheelcal.calibration.imu_noise import imu_noise_block
-from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.estimate.joint.systematic import SystematicBudget
-from wheelcal.estimate.residual_profile import residual_by_wheel_angle
+from wheelcal.estimate import residual_by_wheel_angle
+from wheelcal.estimate.joint import CalibrationResult, SystematicBudget
 from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, origin_of, output_mark
 from wheelcal.model import AXES, EULER_CONVENTION, SensorCorrection
 from wheelcal.session.gates import Assessment

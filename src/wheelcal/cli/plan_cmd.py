@@ -145,7 +145,7 @@ def _search_arguments(o) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Plan and print."""
-    from wheelcal.estimate.joint.systematic import DEFAULT_GRAVITY_STD_MPS2, GIVEN_GRAVITY_STD_MPS2
+    from wheelcal.estimate.joint import DEFAULT_GRAVITY_STD_MPS2, GIVEN_GRAVITY_STD_MPS2
     from wheelcal.model import STANDARD_GRAVITY_MPS2
     from wheelcal.plan import PAPER_MOUNTING_EULER_DEG, MountingSearch, PlannedSetup, plan_report
     from wheelcal.plan.text import render

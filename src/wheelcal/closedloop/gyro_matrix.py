@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.information import covariance_from_fisher
+from wheelcal.estimate.joint import covariance_from_fisher
 from wheelcal.model import Rotation, hat
 
 #: Entries of M with a larger σ carry no usable number (the scale is 1, a gyro's

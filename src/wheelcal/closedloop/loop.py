@@ -21,9 +21,8 @@ from dataclasses import dataclass, field
 from wheelcal.closedloop.harmonics import wheel_harmonics
 from wheelcal.closedloop.rolling_candidate import rolling_candidates
 from wheelcal.closedloop.score import ScoreTest, gyro_stream, score_tests, screen
-from wheelcal.estimate.joint.fit import JointFit
-from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.estimate.rests import RestSegment
+from wheelcal.estimate import RestSegment
+from wheelcal.estimate.joint import CalibrationResult, JointFit
 from wheelcal.model import (
     GAIN_NAMES,
     OFFSET_NAMES,

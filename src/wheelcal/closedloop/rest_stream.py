@@ -25,8 +25,8 @@ import dataclasses
 
 import numpy as np
 
-from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.estimate.rests import RestSegment
+from wheelcal.estimate import RestSegment
+from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import (
     CalibrationParams,
     Effect,

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.estimate.gyro.yaw import demodulate_yaw
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.gyro import demodulate_yaw
+from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import Rolling
 from wheelcal.recording import Recording
 

@@ -28,22 +28,25 @@ import numpy as np
 from scipy import special
 
 from wheelcal.closedloop.rest_stream import rest_normal, usable_rests
-from wheelcal.estimate.gyro.block import regress_gyro
-from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_scores
-from wheelcal.estimate.joint.fisher_quadrature import quadrature_rows, stride_for
-from wheelcal.estimate.joint.fit import gyro_samples
-from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect
-from wheelcal.estimate.joint.gyro_rests import GyroRests
-from wheelcal.estimate.joint.information import scaled_pinv
-from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.estimate.joint.normal_equations import (
+from wheelcal.estimate import RestSegment
+from wheelcal.estimate.gyro import regress_gyro
+from wheelcal.estimate.joint import (
     CHUNK_SAMPLES,
+    CalibrationResult,
+    GyroRests,
+    NoiseModel,
     accumulate,
+    accumulate_gyro,
+    candidate_extra,
+    gyro_effect,
+    gyro_samples,
+    lean_scores,
     quadrature_hessian,
+    quadrature_rows,
+    scaled_pinv,
+    stride_for,
     whitened_back,
 )
-from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.estimate.rests import RestSegment
 from wheelcal.model import (
     CalibrationParams,
     Effect,

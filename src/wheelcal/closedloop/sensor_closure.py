@@ -33,8 +33,7 @@ from scipy import special
 
 from wheelcal.closedloop.score import ScoreTest, pooled_score_tests
 from wheelcal.closedloop.sensor_fit import SensorFit, SensorFitResult
-from wheelcal.estimate.joint.fit import JointFit
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult, JointFit
 from wheelcal.model import AXES, CrossAxis, Effect, intrinsic_candidates
 from wheelcal.recording import Recording
 

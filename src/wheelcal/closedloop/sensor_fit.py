@@ -26,10 +26,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.closedloop.score import IDENTIFIABLE_FRACTION
-from wheelcal.estimate.joint.information import block_information_fraction, covariance_from_fisher
-from wheelcal.estimate.joint.levenberg_marquardt import levenberg_marquardt
-from wheelcal.estimate.joint.normal_equations import NormalEquations, accumulate
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import (
+    CalibrationResult,
+    NormalEquations,
+    accumulate,
+    block_information_fraction,
+    covariance_from_fisher,
+    levenberg_marquardt,
+)
 from wheelcal.model import (
     GAIN_NAMES,
     OFFSET_NAMES,

@@ -12,3 +12,17 @@ Layer 4 (above ``recording``, ``io`` and ``simulate``; below ``closedloop``).
 
 Subsystems import ``joint``, never the reverse.
 """
+
+from wheelcal.estimate.allan import WHITE_NOISE_TAU_S, AllanDeviation, AllanSums
+from wheelcal.estimate.residual_profile import residual_by_wheel_angle
+from wheelcal.estimate.rests import RestSegment, find_rests, pooled_noise_std
+
+__all__ = [
+    "WHITE_NOISE_TAU_S",
+    "AllanDeviation",
+    "AllanSums",
+    "RestSegment",
+    "find_rests",
+    "pooled_noise_std",
+    "residual_by_wheel_angle",
+]

@@ -8,7 +8,7 @@ Layers: :mod:`~wheelcal.plan.bench_plan` (the planned truth) →
 :mod:`~wheelcal.plan.text` (the terminal table).
 """
 
-from wheelcal.estimate.joint.decimation import decimation_stride
+from wheelcal.estimate.joint import decimation_stride
 from wheelcal.plan.absorb import AssumedErrors, absorbed_fit, reported_shift
 from wheelcal.plan.bench_plan import PAPER_MOUNTING_EULER_DEG, PlannedSetup, drag_spin
 from wheelcal.plan.budget import PlanBudget, SourceEffect, plan_budget

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.reporting import report_transform
+from wheelcal.estimate.joint import report_transform
 from wheelcal.model import BenchParams, CalibrationParams, ParameterLayout, SensorParams, SpinParams
 
 #: The fixed quantities a fit can get wrong, with the unit of their error.

@@ -22,9 +22,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from wheelcal.estimate.joint.fit import GEOMETRY_MODES, JointFit
-from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.estimate.joint.systematic import DEFAULT_CLOCK_STD_PPM, DEFAULT_GRAVITY_STD_MPS2
+from wheelcal.estimate.joint import (
+    DEFAULT_CLOCK_STD_PPM,
+    DEFAULT_GRAVITY_STD_MPS2,
+    GEOMETRY_MODES,
+    JointFit,
+    NoiseModel,
+)
 from wheelcal.model import (
     STANDARD_GRAVITY_MPS2,
     BenchParams,

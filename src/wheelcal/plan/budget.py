@@ -26,8 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.reporting import report_transform
-from wheelcal.estimate.joint.systematic import SystematicBudget, nuisance_columns, systematic_budget
+from wheelcal.estimate.joint import (
+    SystematicBudget,
+    nuisance_columns,
+    report_transform,
+    systematic_budget,
+)
 from wheelcal.plan.absorb import AssumedErrors, NotAbsorbable, reported_shift
 from wheelcal.plan.bench_plan import PlannedSetup
 

@@ -35,12 +35,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.estimate.joint.crlb import Bound
-from wheelcal.estimate.joint.information import covariance_from_fisher
-from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.estimate.joint.normal_equations import accumulate
-from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
-from wheelcal.estimate.joint.systematic import nuisance_extra
+from wheelcal.estimate.joint import (
+    Bound,
+    NoiseModel,
+    accumulate,
+    covariance_from_fisher,
+    nuisance_extra,
+    report_transform,
+    transform_covariance,
+)
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate, nuisance_sensitivity
 
 #: Bound on the retained instants per chunk (memory: (P + Q) × 3 × chunk × (p + 1)).

@@ -30,7 +30,7 @@ from wheelcal.closedloop.gyro_matrix import (
     geometry_covariance,
     pool_gyro,
 )
-from wheelcal.estimate.joint.decimation import decimation_stride
+from wheelcal.estimate.joint import decimation_stride
 from wheelcal.model import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, bench_force, spin_kinematics
 from wheelcal.plan.bench_plan import PlannedSetup
 from wheelcal.plan.fisher import bound_from_fisher, fisher_information

@@ -34,9 +34,12 @@ import numpy as np
 from scipy import optimize
 from threadpoolctl import threadpool_limits
 
-from wheelcal.estimate.joint.decimation import SAMPLES_PER_TURN, decimation_stride
-from wheelcal.estimate.joint.information import covariance_from_fisher
-from wheelcal.estimate.joint.systematic import nuisance_columns
+from wheelcal.estimate.joint import (
+    SAMPLES_PER_TURN,
+    covariance_from_fisher,
+    decimation_stride,
+    nuisance_columns,
+)
 from wheelcal.model import BenchParams, Rotation
 from wheelcal.plan.bench_plan import PlannedSetup
 from wheelcal.plan.fisher import fisher_information

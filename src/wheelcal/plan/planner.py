@@ -26,9 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from wheelcal.estimate.joint.identifiability import Identifiability, check_identifiability
-from wheelcal.estimate.joint.systematic import nuisance_columns
-from wheelcal.estimate.joint.twins import choose_twin
+from wheelcal.estimate.joint import (
+    Identifiability,
+    check_identifiability,
+    choose_twin,
+    nuisance_columns,
+)
 from wheelcal.model import EULER_CONVENTION
 from wheelcal.plan.bench_plan import PlannedSetup
 from wheelcal.plan.budget import PlanBudget, plan_budget

@@ -24,8 +24,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from wheelcal.estimate.joint.decimation import decimation_stride
-from wheelcal.estimate.joint.systematic import nuisance_columns
+from wheelcal.estimate.joint import decimation_stride, nuisance_columns
 from wheelcal.model import GAIN_NAMES, OFFSET_NAMES
 from wheelcal.plan.bench_plan import VERTICAL_TILT_DEG, PlannedSetup
 from wheelcal.plan.budget import plan_budget

@@ -22,8 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from wheelcal.estimate.field.fit import YAW_RMS_RADPS
-from wheelcal.estimate.field.gyro_axle import gyro_axle
+from wheelcal.estimate.field import YAW_RMS_RADPS, gyro_axle
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.field import calibrate_field, is_vertical_axle, yaw_rms_radps
 from wheelcal.session.result import SessionResult

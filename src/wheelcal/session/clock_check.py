@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES
 from wheelcal.recording import CalibrationRefused
 

@@ -20,14 +20,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from wheelcal.estimate.joint.fit import JointFit
+from wheelcal.estimate.joint import JointFit
 from wheelcal.recording import SESSION_FACT_KEYS, Recording
 from wheelcal.session.fit import SessionFit
 from wheelcal.session.gates import Gates
 from wheelcal.session.result import SessionResult
 
 if TYPE_CHECKING:
-    from wheelcal.estimate.field.fit import FieldFit
+    from wheelcal.estimate.field import FieldFit
 
 #: Local gravity on Earth lies in this range; outside it needs ``force_gravity``.
 EARTH_GRAVITY_RANGE_MPS2 = (9.7, 9.9)
@@ -148,7 +148,7 @@ class SessionOptions:
 
     def field_fitter(self) -> FieldFit:
         """The field fit's configuration for these options (a wheel in the field)."""
-        from wheelcal.estimate.field.fit import FieldFit  # scipy.signal: not for every import
+        from wheelcal.estimate.field import FieldFit
 
         return FieldFit(gyro_g_prior_dps_per_g=self.gyro_g_sensitivity_dps_per_g)
 

@@ -14,8 +14,8 @@ import dataclasses
 
 import numpy as np
 
-from wheelcal.estimate.field.fit import FieldFit, FieldResult
-from wheelcal.estimate.rests import find_rests
+from wheelcal.estimate import find_rests
+from wheelcal.estimate.field import FieldFit, FieldResult
 from wheelcal.recording import Recording, RecordingError
 from wheelcal.session.fit import assess
 from wheelcal.session.gates import Gates
@@ -130,7 +130,7 @@ def yaw_rms_radps(recording: Recording) -> float:
 
     Phase-free (the size of the gyro across its axle, less its noise): no fit needed.
     """
-    from wheelcal.estimate.field.gyro_axle import gyro_axle
+    from wheelcal.estimate.field import gyro_axle
 
     if recording.gyro_radps is None:
         return 0.0

@@ -29,15 +29,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wheelcal.closedloop.loop import ClosedLoop
-from wheelcal.estimate.gyro.block import gyro_by_product, gyro_from_fit
-from wheelcal.estimate.gyro.knots import choose_knot_spacing
-from wheelcal.estimate.gyro.rolling_fit import fit_window
-from wheelcal.estimate.joint.fit import JointFit, gyro_samples
-from wheelcal.estimate.joint.gyro_equations import gyro_effect
-from wheelcal.estimate.joint.initial import InitialGuess
-from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES
-from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.estimate.rests import RestSegment, find_rests
+from wheelcal.estimate import RestSegment, find_rests
+from wheelcal.estimate.gyro import choose_knot_spacing, fit_window, gyro_by_product, gyro_from_fit
+from wheelcal.estimate.joint import (
+    CHUNK_SAMPLES,
+    CalibrationResult,
+    InitialGuess,
+    JointFit,
+    gyro_effect,
+    gyro_samples,
+)
 from wheelcal.model import EvaluatedModel, wheel_kinematics
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.clock_check import check_clock

@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES, STANDARD_GRAVITY_MPS2
 from wheelcal.recording import CalibrationRefused
 from wheelcal.session.motion_check import MotionCheck

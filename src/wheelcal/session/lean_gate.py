@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.estimate.field.fit import FieldResult
+from wheelcal.estimate.field import FieldResult
 from wheelcal.recording import CalibrationRefused
 from wheelcal.session.gates import Gates
 

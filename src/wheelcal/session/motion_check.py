@@ -34,12 +34,15 @@ from typing import ClassVar
 import numpy as np
 from scipy import special
 
-from wheelcal.estimate.joint.fisher_quadrature import quadrature_rows, stride_for
-from wheelcal.estimate.joint.freed_check import FreedCheck
-from wheelcal.estimate.joint.information import scaled_pinv
-from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import (
+    CHUNK_SAMPLES,
+    CalibrationResult,
+    FreedCheck,
+    NoiseModel,
+    quadrature_rows,
+    scaled_pinv,
+    stride_for,
+)
 from wheelcal.model import (
     AXES,
     EvaluatedModel,

@@ -25,10 +25,14 @@ import itertools
 
 import numpy as np
 
-from wheelcal.estimate.joint.fisher_quadrature import QuadratureRows, whitened_rows
-from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES, whitened_back
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import (
+    CHUNK_SAMPLES,
+    CalibrationResult,
+    NoiseModel,
+    QuadratureRows,
+    whitened_back,
+    whitened_rows,
+)
 from wheelcal.model import (
     EvaluatedModel,
     SpinSpline,

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.fft import next_fast_len, rfft
 
-from wheelcal.estimate.rests import RestSegment, pooled_noise_std
+from wheelcal.estimate import RestSegment, pooled_noise_std
 
 #: Half-width of each order's band, in cycles per turn.
 HARMONIC_HALF_WIDTH = 0.25

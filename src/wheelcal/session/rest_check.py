@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.estimate.rests import RestSegment
+from wheelcal.estimate import RestSegment
+from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from wheelcal.estimate.joint.result import CalibrationResult
-from wheelcal.estimate.rests import RestSegment
+from wheelcal.estimate import RestSegment
+from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.recording import Recording
 from wheelcal.session.gates import Assessment
 from wheelcal.session.window import FreeSpinWindow

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.rotating import revolution_mean, rotating_phase
+from wheelcal.estimate.joint import revolution_mean, rotating_phase
 from wheelcal.recording import Recording, RecordingError
 
 

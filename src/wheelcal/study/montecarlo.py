@@ -26,9 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.crlb import Bound, cramer_rao_bound
-from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.estimate.joint.reporting import report_transform
+from wheelcal.estimate.joint import Bound, NoiseModel, cramer_rao_bound, report_transform
 from wheelcal.model import ParameterLayout
 from wheelcal.runtime import worker_init
 from wheelcal.simulate import Scenario, simulate

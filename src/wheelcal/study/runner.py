@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.fit import JointFit
-from wheelcal.estimate.paper.estimator import PaperEstimator
+from wheelcal.estimate.joint import JointFit
+from wheelcal.estimate.paper import PaperEstimator
 from wheelcal.simulate import NoiseSpec, Scenario, simulate, table1
 from wheelcal.study.config import ESTIMATORS, StudyConfig
 from wheelcal.study.duration import (

@@ -96,7 +96,7 @@ import pyarrow as pa
 import rerun as rr
 from rerun.chunk import Chunk
 
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES, STANDARD_GRAVITY_MPS2, predict, wheel_kinematics
 from wheelcal.recording import Recording
 from wheelcal.session.result import SessionResult

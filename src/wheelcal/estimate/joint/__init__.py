@@ -1,1 +1,101 @@
-"""The joint maximum-likelihood fit of every parameter at once (:mod:`.fit`) and its parts."""
+"""The joint maximum-likelihood fit of every parameter at once (:mod:`.fit`) and its parts.
+
+The front other packages import from: the fit (:class:`JointFit`), its frozen result
+(:class:`CalibrationResult`), its start (:class:`InitialGuess`) and the noise model
+(:class:`NoiseModel`); the bounds and checks on a design — the Cramér–Rao bound,
+identifiability, twins, the systematic budget, the reported transforms; and the
+building blocks the closed loop's score tests and the session's motion check
+assemble their own normal equations from — the chunked accumulation
+(:data:`CHUNK_SAMPLES`, :func:`accumulate`), the Fisher information by quadrature
+(:func:`quadrature_rows`, :func:`stride_for`), the gyroscope's equations and rests,
+the candidate columns and the pseudo-inverse of an information matrix.
+"""
+
+from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_scores
+from wheelcal.estimate.joint.crlb import Bound, cramer_rao_bound
+from wheelcal.estimate.joint.decimation import SAMPLES_PER_TURN, decimation_stride
+from wheelcal.estimate.joint.fisher_quadrature import (
+    QuadratureRows,
+    quadrature_rows,
+    stride_for,
+    whitened_rows,
+)
+from wheelcal.estimate.joint.fit import GEOMETRY_MODES, JointFit, gyro_samples
+from wheelcal.estimate.joint.freed_check import FreedCheck
+from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect
+from wheelcal.estimate.joint.gyro_rests import GyroRests
+from wheelcal.estimate.joint.identifiability import Identifiability, check_identifiability
+from wheelcal.estimate.joint.information import (
+    block_information_fraction,
+    covariance_from_fisher,
+    scaled_pinv,
+)
+from wheelcal.estimate.joint.initial import InitialGuess
+from wheelcal.estimate.joint.levenberg_marquardt import levenberg_marquardt
+from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.normal_equations import (
+    CHUNK_SAMPLES,
+    NormalEquations,
+    accumulate,
+    quadrature_hessian,
+    whitened_back,
+)
+from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
+from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint.rotating import revolution_mean, rotating_phase
+from wheelcal.estimate.joint.systematic import (
+    DEFAULT_CLOCK_STD_PPM,
+    DEFAULT_GRAVITY_STD_MPS2,
+    GIVEN_GRAVITY_STD_MPS2,
+    SystematicBudget,
+    nuisance_columns,
+    nuisance_extra,
+    systematic_budget,
+)
+from wheelcal.estimate.joint.twins import choose_twin
+
+__all__ = [
+    "CHUNK_SAMPLES",
+    "DEFAULT_CLOCK_STD_PPM",
+    "DEFAULT_GRAVITY_STD_MPS2",
+    "GEOMETRY_MODES",
+    "GIVEN_GRAVITY_STD_MPS2",
+    "SAMPLES_PER_TURN",
+    "Bound",
+    "CalibrationResult",
+    "FreedCheck",
+    "GyroRests",
+    "Identifiability",
+    "InitialGuess",
+    "JointFit",
+    "NoiseModel",
+    "NormalEquations",
+    "QuadratureRows",
+    "SystematicBudget",
+    "accumulate",
+    "accumulate_gyro",
+    "block_information_fraction",
+    "candidate_extra",
+    "check_identifiability",
+    "choose_twin",
+    "covariance_from_fisher",
+    "cramer_rao_bound",
+    "decimation_stride",
+    "gyro_effect",
+    "gyro_samples",
+    "lean_scores",
+    "levenberg_marquardt",
+    "nuisance_columns",
+    "nuisance_extra",
+    "quadrature_hessian",
+    "quadrature_rows",
+    "report_transform",
+    "revolution_mean",
+    "rotating_phase",
+    "scaled_pinv",
+    "stride_for",
+    "systematic_budget",
+    "transform_covariance",
+    "whitened_back",
+    "whitened_rows",
+]
