@@ -21,7 +21,7 @@ import dataclasses
 import os
 import re
 
-from wheelcal.calibration.document import Calibration
+from wheelcal.calibration import Calibration
 from wheelcal.recording import CalibrationRefused, Recording
 
 #: The command line's options as this API's keywords, for a refusal's words
@@ -71,7 +71,7 @@ def read_recording(path: str | os.PathLike, **kwargs) -> Recording:
 
 
 def _options(radius_m, options: dict):
-    from wheelcal.session.compute import SessionOptions
+    from wheelcal.session import SessionOptions
 
     allowed = {f.name for f in dataclasses.fields(SessionOptions)} - {"rrd", "defaults"}
     unknown = sorted(set(options) - allowed)
@@ -96,7 +96,7 @@ def calibrate(
     TypeError
         An unknown option.
     """
-    from wheelcal.session.compute import compute_recording, compute_session
+    from wheelcal.session import compute_recording, compute_session
 
     opts = _options(radius_m, options)
     try:

@@ -12,8 +12,8 @@ from collections import defaultdict
 
 from wheelcal.batch.pipeline import Pipeline
 from wheelcal.batch.sensors import SENSORS_FOLDER, sensor_file_stem
-from wheelcal.calibration.document import Calibration
-from wheelcal.closedloop.sensor_closure import SessionInput, close_sensor
+from wheelcal.calibration import Calibration
+from wheelcal.closedloop import SessionInput, close_sensor
 from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, json_safe
 from wheelcal.model import make_effect
 

@@ -43,8 +43,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from wheelcal.recording import SESSION_FACT_KEYS
-from wheelcal.session.compute import SESSION_GEOMETRIES, SessionOptions
-from wheelcal.session.gates import Gates
+from wheelcal.session import SESSION_GEOMETRIES, Gates, SessionOptions
 
 
 class PipelineError(ValueError):

@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 
 from wheelcal import __version__
-from wheelcal.session.compute import SessionOptions
+from wheelcal.session import SessionOptions
 
 
 def file_sha256(path: str | Path) -> str:

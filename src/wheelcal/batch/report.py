@@ -38,8 +38,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from scipy import special
 
-from wheelcal.calibration.angles import as_angles
-from wheelcal.calibration.document import Calibration, read_only_document
+from wheelcal.calibration import Calibration, as_angles, read_only_document
 from wheelcal.model import AXES
 
 REPORT_PARAMETERS = (

@@ -62,11 +62,11 @@ from wheelcal.batch.workers import (
     start_method,
     worker_context,
 )
-from wheelcal.calibration.document import Calibration
+from wheelcal.calibration import Calibration
 from wheelcal.io import OutputFolderError, prepare_output_folder
 from wheelcal.recording import RecordingError
 from wheelcal.runtime import tune_allocator
-from wheelcal.session.compute import SessionOptions
+from wheelcal.session import SessionOptions
 
 
 @dataclass(frozen=True)

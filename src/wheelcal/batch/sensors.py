@@ -15,15 +15,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from wheelcal.calibration.document import read_only_document
-from wheelcal.calibration.sensor_json import (
+from wheelcal.calibration import (
     joint_estimate,
+    read_only_document,
     sensor_calibration_dict,
     sensor_calibration_text,
     session_estimate,
     write_sensor_calibration,
 )
-from wheelcal.closedloop.pooling import pool_sessions
+from wheelcal.closedloop import pool_sessions
 from wheelcal.io import MARK_KEY
 
 SENSORS_FOLDER = "sensors"

@@ -30,7 +30,7 @@ from wheelcal.recording import (
     CalibrationRefused,
     RecordingError,
 )
-from wheelcal.session.compute import SessionOptions, SessionResult, compute_session
+from wheelcal.session import SessionOptions, SessionResult, compute_session
 
 #: Outputs of a session, renamed ``<stem>.<kind>.stale.<ext>`` when a re-run fails.
 _OUTPUT_SUFFIXES = (".calibration.json", ".diagnosis.json", ".rrd")
@@ -103,7 +103,7 @@ def write_session(
     durable: bool = True,
 ) -> SessionOutcome:
     """Write a computed session's files; returns the outcome with their paths."""
-    from wheelcal.calibration.session_json import calibration_dict, write_calibration
+    from wheelcal.calibration import calibration_dict, write_calibration
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -125,7 +125,7 @@ def write_session(
             t1 = time.perf_counter()
         diagnosis = outcome.session.diagnosis
         if options.diagnose and diagnosis is not None:
-            from wheelcal.calibration.diagnosis_json import write_diagnosis
+            from wheelcal.calibration import write_diagnosis
 
             diagnosis_path = str(
                 write_diagnosis(out / f"{stem}.diagnosis.json", diagnosis, durable=durable)

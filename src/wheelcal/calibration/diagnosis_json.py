@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 
 from wheelcal.calibration.session_json import _num, _vec, effects_dict
-from wheelcal.closedloop.loop import Diagnosis
+from wheelcal.closedloop import Diagnosis
 from wheelcal.io import MARK_KEY, atomic_write_text, origin_of, output_mark
 
 FORMAT = "wheelcal.diagnosis/1"

@@ -42,8 +42,7 @@ import numpy as np
 
 from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES, SensorCorrection
-from wheelcal.session.gates import Assessment
-from wheelcal.session.result import SessionResult
+from wheelcal.session import Assessment, SessionResult
 
 
 def _array(values) -> np.ndarray:

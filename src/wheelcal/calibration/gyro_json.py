@@ -34,12 +34,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from wheelcal.calibration.document import read_only_document
-from wheelcal.closedloop.gyro_matrix import (
-    GyroMountingObservation,
-    PooledGyro,
-    geometry_covariance,
-    pool_gyro,
-)
+from wheelcal.closedloop import GyroMountingObservation, PooledGyro, geometry_covariance, pool_gyro
 from wheelcal.model import STANDARD_GRAVITY_MPS2
 
 _GEOMETRY_NAMES = ("euler_1_deg", "euler_2_deg", "euler_3_deg", "tilt_deg")

@@ -45,7 +45,7 @@ from wheelcal.calibration.document import read_only_document
 from wheelcal.calibration.gyro_json import gyro_block
 from wheelcal.calibration.imu_noise import pooled_imu_noise
 from wheelcal.calibration.session_json import SENSOR_CALIBRATION_FORMAT as FORMAT
-from wheelcal.closedloop.pooling import (
+from wheelcal.closedloop import (
     JOINT_FIT,
     POOLED_PARAMETERS,
     JointEstimate,

@@ -22,9 +22,7 @@ from wheelcal.estimate import residual_by_wheel_angle
 from wheelcal.estimate.joint import CalibrationResult, SystematicBudget
 from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, origin_of, output_mark
 from wheelcal.model import AXES, EULER_CONVENTION, SensorCorrection
-from wheelcal.session.gates import Assessment
-from wheelcal.session.result import SessionResult
-from wheelcal.session.window import fitted_stretches
+from wheelcal.session import Assessment, SessionResult, fitted_stretches
 
 FORMAT = "wheelcal.calibration/1"
 #: A sensor's calibration pooled from its sessions (:mod:`wheelcal.calibration.sensor_json`):

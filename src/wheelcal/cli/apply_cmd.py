@@ -41,7 +41,7 @@ def register(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
     from wheelcal.batch.session import describe_error
-    from wheelcal.calibration.apply import apply_calibration
+    from wheelcal.calibration import apply_calibration
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.cli.options import readable_inputs
     from wheelcal.cli.overwrite import claim

@@ -48,8 +48,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export."""
-    from wheelcal.calibration.export import to_c_header, to_imu_calib, to_imu_tk, to_yaml
-    from wheelcal.calibration.session_json import load_calibration
+    from wheelcal.calibration import load_calibration, to_c_header, to_imu_calib, to_imu_tk, to_yaml
     from wheelcal.cli.errors import UsageError
     from wheelcal.cli.options import readable_inputs
     from wheelcal.cli.overwrite import claim

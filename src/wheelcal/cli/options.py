@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from wheelcal.cli.errors import UsageError
-from wheelcal.session.compute import SESSION_GEOMETRIES
+from wheelcal.session import SESSION_GEOMETRIES
 
 
 def positive_float(text: str) -> float:
@@ -134,7 +134,7 @@ def add_gate_arguments(parser: argparse.ArgumentParser) -> None:
 
 def gates_from_args(args: argparse.Namespace):
     """The Gates given by the command line (defaults where not given)."""
-    from wheelcal.session.gates import Gates
+    from wheelcal.session import Gates
 
     given = {name: getattr(args, name, None) for name in GATE_FLAGS}
     if getattr(args, "gain_range", None) is not None:
@@ -147,7 +147,7 @@ def gates_from_args(args: argparse.Namespace):
 
 def session_options(args: argparse.Namespace, rrd: bool = False):
     """SessionOptions from parsed arguments (UsageError on inconsistent ones)."""
-    from wheelcal.session.compute import SessionOptions
+    from wheelcal.session import SessionOptions
 
     if args.geometry == "tilt" and args.tilt_deg is None:
         raise UsageError("--geometry tilt needs --tilt-deg")

@@ -7,3 +7,37 @@ added and everything refitted.  Over a sensor's recordings (:mod:`.pooling`,
 :mod:`.sensor_closure`, :mod:`.sensor_fit`): pooled tests of effects the sensor
 shares, a joint sensor fit, and the pooled calibration.
 """
+
+from wheelcal.closedloop.gyro_matrix import (
+    GyroMountingObservation,
+    PooledGyro,
+    geometry_covariance,
+    pool_gyro,
+)
+from wheelcal.closedloop.loop import ClosedLoop, Diagnosis
+from wheelcal.closedloop.pooling import (
+    JOINT_FIT,
+    POOLED_PARAMETERS,
+    JointEstimate,
+    PooledSensor,
+    SessionEstimate,
+    pool_sessions,
+)
+from wheelcal.closedloop.sensor_closure import SessionInput, close_sensor
+
+__all__ = [
+    "JOINT_FIT",
+    "POOLED_PARAMETERS",
+    "ClosedLoop",
+    "Diagnosis",
+    "GyroMountingObservation",
+    "JointEstimate",
+    "PooledGyro",
+    "PooledSensor",
+    "SessionEstimate",
+    "SessionInput",
+    "close_sensor",
+    "geometry_covariance",
+    "pool_gyro",
+    "pool_sessions",
+]

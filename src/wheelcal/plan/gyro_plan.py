@@ -24,12 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from wheelcal.closedloop.gyro_matrix import (
-    GyroMountingObservation,
-    PooledGyro,
-    geometry_covariance,
-    pool_gyro,
-)
+from wheelcal.closedloop import GyroMountingObservation, PooledGyro, geometry_covariance, pool_gyro
 from wheelcal.estimate.joint import decimation_stride
 from wheelcal.model import G_SENSITIVITY_PRIOR_DPS_PER_G, GyroReading, bench_force, spin_kinematics
 from wheelcal.plan.bench_plan import PlannedSetup

@@ -6,3 +6,25 @@ the sequence (window → joint fit → closed loop → motion check → gates), 
 window search (:mod:`.window`), the noise reference (:mod:`.noise_reference`), the
 motion and rest checks and the gates (:mod:`.gates`).
 """
+
+from wheelcal.session.compute import (
+    SESSION_GEOMETRIES,
+    SessionOptions,
+    compute_recording,
+    compute_session,
+)
+from wheelcal.session.gates import Assessment, Gates
+from wheelcal.session.result import SessionResult
+from wheelcal.session.window import FreeSpinWindow, fitted_stretches
+
+__all__ = [
+    "SESSION_GEOMETRIES",
+    "Assessment",
+    "FreeSpinWindow",
+    "Gates",
+    "SessionOptions",
+    "SessionResult",
+    "compute_recording",
+    "compute_session",
+    "fitted_stretches",
+]

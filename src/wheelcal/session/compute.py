@@ -156,7 +156,7 @@ class SessionOptions:
         """Window, joint fit, closed loop (unless ``model="paper"``) and gates."""
         loop = None
         if self.model == "closed_loop":
-            from wheelcal.closedloop.loop import ClosedLoop
+            from wheelcal.closedloop import ClosedLoop
 
             loop = ClosedLoop(fit=self.fitter(), alpha=self.alpha)
         return SessionFit(

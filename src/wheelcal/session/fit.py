@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wheelcal.closedloop.loop import ClosedLoop
+from wheelcal.closedloop import ClosedLoop
 from wheelcal.estimate import RestSegment, find_rests
 from wheelcal.estimate.gyro import choose_knot_spacing, fit_window, gyro_by_product, gyro_from_fit
 from wheelcal.estimate.joint import (

@@ -27,7 +27,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from wheelcal.calibration.document import read_only_document
+from wheelcal.calibration import read_only_document
 from wheelcal.io import MARK_TEXT
 from wheelcal.model import GAIN_NAMES, OFFSET_NAMES
 

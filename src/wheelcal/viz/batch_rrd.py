@@ -54,8 +54,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from wheelcal.calibration.angles import as_angles
-from wheelcal.calibration.document import Calibration
+from wheelcal.calibration import Calibration, as_angles
 from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
 from wheelcal.viz.rrd_file import rrd_file
 from wheelcal.viz.session_blueprint import GLOBAL_VIEW_PATH

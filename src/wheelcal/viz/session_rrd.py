@@ -99,8 +99,7 @@ from rerun.chunk import Chunk
 from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES, STANDARD_GRAVITY_MPS2, predict, wheel_kinematics
 from wheelcal.recording import Recording
-from wheelcal.session.result import SessionResult
-from wheelcal.session.window import FreeSpinWindow
+from wheelcal.session import FreeSpinWindow, SessionResult
 from wheelcal.viz.angle_profile import angle_profile
 from wheelcal.viz.arrow_chunks import (
     ArrowColumn,
@@ -978,7 +977,7 @@ def session_rrd(
         log_window(stream, start_s, end_s, first_s, last_s)
         chunks = spin_chunks(result, recording, shift_s, session.gyro)
         if document is None:
-            from wheelcal.calibration.session_json import calibration_dict
+            from wheelcal.calibration import calibration_dict
 
             document = calibration_dict(session)
         allan = allan_chunks(session.assessment.noise, document.get("imu_noise"))
@@ -1051,7 +1050,7 @@ def allan_chunks(noise, imu_noise: Mapping | None = None) -> list[Chunk]:
     ``/allan/readouts``.  ``noise`` is the gates' noise floor
     (``Assessment.noise``); nothing when the recording has no rests.
     """
-    from wheelcal.calibration.allan_json import rests_allan
+    from wheelcal.calibration import rests_allan
 
     block = None if noise is None else rests_allan(noise.rests)
     if block is None:
