@@ -30,7 +30,7 @@ from wheelcal.batch.locking import pipeline_lock
 from wheelcal.batch.pipeline import PipelineError, load_pipeline
 from wheelcal.batch.runner import _identity, run_batch
 from wheelcal.batch.termination import BatchStopped
-from wheelcal.viz.rrd_file import _check_complete
+from wheelcal.viz.rrd_writer import _check_complete
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 WHEELCAL = [sys.executable, "-m", "wheelcal.cli.main"]

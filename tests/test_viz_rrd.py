@@ -39,7 +39,7 @@ from wheelcal.viz.arrow_chunks import (
 )
 from wheelcal.viz.batch_rrd import write_batch_rrd
 from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
-from wheelcal.viz.rrd_file import RrdWriteError
+from wheelcal.viz.rrd_writer import RrdWriteError
 from wheelcal.viz.session_blueprint import (
     GLOBAL_VIEW_PATH,
     SIGNAL_DATA,

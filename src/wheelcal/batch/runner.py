@@ -757,7 +757,7 @@ def _stage_report(pipeline, records, calibrations, report_key: str, stage, mark)
     stage.write_text(md_path, markdown + f"\n<!-- {mark_line(mark['origin'])} -->\n")
     stage.write_text(csv_path, sessions_csv(calibrations, report["per_session"]))
     if batch_rrd:
-        from wheelcal.viz.batch_rrd import write_batch_rrd
+        from wheelcal.viz import write_batch_rrd
 
         with stage.path(out / "batch.rrd") as tmp:
             write_batch_rrd(tmp, calibrations, numbers, report, durable=False, name="batch")
@@ -820,7 +820,7 @@ def _sensor_and_overview_files(
 ) -> list[Path]:
     """Stage each sensor's pooled calibration and ``overview.png``; note them in ``report``."""
     from wheelcal.batch.sensors import write_sensor_calibrations
-    from wheelcal.viz.batch_png import OVERVIEW_FILE, overview_png
+    from wheelcal.viz import OVERVIEW_FILE, overview_png
 
     out = pipeline.output
     sensors = write_sensor_calibrations(

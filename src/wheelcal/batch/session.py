@@ -90,7 +90,7 @@ def _write_rrd(
     path: Path, session: SessionResult, durable: bool = True, document: dict | None = None
 ) -> Path:
     """Session .rrd; with a diagnosis that added effects, its before/after tab."""
-    from wheelcal.viz.session_rrd import write_session_rrd
+    from wheelcal.viz import write_session_rrd
 
     return write_session_rrd(path, session, durable, document)
 

@@ -40,7 +40,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
-    from wheelcal.batch.session import describe_error
+    from wheelcal.batch import describe_error
     from wheelcal.calibration import apply_calibration
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.cli.options import readable_inputs

@@ -38,10 +38,14 @@ def run(args: argparse.Namespace) -> int:
     import dataclasses
     from pathlib import Path
 
-    from wheelcal.batch.pipeline import PipelineError, load_pipeline
-    from wheelcal.batch.report import counts_sentence
-    from wheelcal.batch.runner import run_batch
-    from wheelcal.batch.termination import BatchStopped, Terminated
+    from wheelcal.batch import (
+        BatchStopped,
+        PipelineError,
+        Terminated,
+        counts_sentence,
+        load_pipeline,
+        run_batch,
+    )
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.cli.progress import BatchProgress
 

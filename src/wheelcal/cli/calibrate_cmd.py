@@ -42,7 +42,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Calibrate every file; exit 1 if any failed."""
-    from wheelcal.batch.session import calibrate_session
+    from wheelcal.batch import calibrate_session
     from wheelcal.cli.summary import session_summary
 
     options = session_options(args, rrd=args.rrd)

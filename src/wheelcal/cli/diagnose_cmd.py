@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     """Diagnose every file; exit 1 if any failed."""
     import dataclasses
 
-    from wheelcal.batch.session import calibrate_session
+    from wheelcal.batch import calibrate_session
     from wheelcal.cli.errors import UsageError
     from wheelcal.cli.summary import diagnosis_summary
 

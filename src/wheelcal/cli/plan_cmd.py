@@ -147,9 +147,14 @@ def run(args: argparse.Namespace) -> int:
     """Plan and print."""
     from wheelcal.estimate.joint import DEFAULT_GRAVITY_STD_MPS2, GIVEN_GRAVITY_STD_MPS2
     from wheelcal.model import STANDARD_GRAVITY_MPS2
-    from wheelcal.plan import PAPER_MOUNTING_EULER_DEG, MountingSearch, PlannedSetup, plan_report
-    from wheelcal.plan.text import render
-    from wheelcal.plan.tradeoff import DEFAULT_TILTS_DEG
+    from wheelcal.plan import (
+        DEFAULT_TILTS_DEG,
+        PAPER_MOUNTING_EULER_DEG,
+        MountingSearch,
+        PlannedSetup,
+        plan_report,
+        render,
+    )
     from wheelcal.simulate import GyroSpec
 
     mounting, search_mounting = _mounting(args.mounting, PAPER_MOUNTING_EULER_DEG)

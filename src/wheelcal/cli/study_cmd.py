@@ -136,14 +136,15 @@ def run(args: argparse.Namespace) -> int:
 
     from wheelcal.cli.overwrite import claim
     from wheelcal.io import origin_of, output_mark
-    from wheelcal.study.config import (
+    from wheelcal.study import (
         StudyConfig,
         StudyConfigError,
         load_config,
+        run_study,
+        study_outputs,
         with_overrides,
+        write_outputs,
     )
-    from wheelcal.study.output import study_outputs, write_outputs
-    from wheelcal.study.runner import run_study
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():

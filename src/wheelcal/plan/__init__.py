@@ -15,9 +15,11 @@ from wheelcal.plan.budget import PlanBudget, SourceEffect, plan_budget
 from wheelcal.plan.fisher import bound_from_fisher, fisher_information
 from wheelcal.plan.mounting import MountingChoice, MountingResult, MountingSearch
 from wheelcal.plan.planner import PlanReport, plan_report
-from wheelcal.plan.tradeoff import TradeoffRow, geometry_tradeoffs
+from wheelcal.plan.text import render
+from wheelcal.plan.tradeoff import DEFAULT_TILTS_DEG, TradeoffRow, geometry_tradeoffs
 
 __all__ = [
+    "DEFAULT_TILTS_DEG",
     "PAPER_MOUNTING_EULER_DEG",
     "AssumedErrors",
     "MountingChoice",
@@ -36,5 +38,6 @@ __all__ = [
     "geometry_tradeoffs",
     "plan_budget",
     "plan_report",
+    "render",
     "reported_shift",
 ]

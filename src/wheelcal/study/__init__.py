@@ -11,11 +11,26 @@ from :mod:`~wheelcal.study.config`; its parts: :mod:`~wheelcal.study.noise_sweep
 :mod:`~wheelcal.study.rerun_log` and :mod:`~wheelcal.study.output`.
 """
 
+from wheelcal.study.config import StudyConfig, StudyConfigError, load_config, with_overrides
 from wheelcal.study.montecarlo import (
     PARAMETER_GROUPS,
     MonteCarloSummary,
     group_of,
     monte_carlo,
 )
+from wheelcal.study.output import study_outputs, write_outputs
+from wheelcal.study.runner import run_study
 
-__all__ = ["PARAMETER_GROUPS", "MonteCarloSummary", "group_of", "monte_carlo"]
+__all__ = [
+    "PARAMETER_GROUPS",
+    "MonteCarloSummary",
+    "StudyConfig",
+    "StudyConfigError",
+    "group_of",
+    "load_config",
+    "monte_carlo",
+    "run_study",
+    "study_outputs",
+    "with_overrides",
+    "write_outputs",
+]

@@ -1,6 +1,6 @@
 """The study as a Rerun recording (``study.rrd``; rerun-sdk 0.41, imported here only).
 
-Written through :func:`wheelcal.viz.rrd_file.rrd_file` (private stream, strict
+Written through :func:`wheelcal.viz.rrd_writer.rrd_file` (private stream, strict
 mode, atomic write).  Curves are scalar series sent column-wise
 (``send_columns``), indexed by sequence timelines in integer units:
 
@@ -67,7 +67,7 @@ def write_study_rrd(path: str | os.PathLike, result: StudyResult, summary_markdo
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from wheelcal.viz.rrd_file import rrd_file
+    from wheelcal.viz import rrd_file
 
     with rrd_file(path, APPLICATION_ID, f"wheelcal study (seed {result.config.seed})") as stream:
         stream.send_blueprint(_blueprint(rrb))

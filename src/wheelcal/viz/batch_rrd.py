@@ -56,7 +56,7 @@ import rerun.blueprint as rrb
 
 from wheelcal.calibration import Calibration, as_angles
 from wheelcal.viz.blueprint_chunks import blueprint_chunks, send_blueprint_chunks
-from wheelcal.viz.rrd_file import rrd_file
+from wheelcal.viz.rrd_writer import rrd_file
 from wheelcal.viz.session_blueprint import GLOBAL_VIEW_PATH
 
 APPLICATION_ID = "wheelcal_batch"
@@ -502,7 +502,7 @@ def write_batch_rrd(
         ``per_session``): the values to apply, the ratios' p, σ sys, and every
         session's status; without it the file shows the sessions' own numbers.
     durable:
-        fsync the file (see :func:`~wheelcal.viz.rrd_file.rrd_file`).
+        fsync the file (see :func:`~wheelcal.viz.rrd_writer.rrd_file`).
     name:
         The recording's name in the viewer (default: the file's stem).
 

@@ -112,7 +112,7 @@ from wheelcal.viz.arrow_chunks import (
 )
 from wheelcal.viz.blueprint_chunks import send_blueprint_chunks
 from wheelcal.viz.measured_rate import MeasuredRate, gyro_rate, per_turn_rate
-from wheelcal.viz.rrd_file import rrd_file
+from wheelcal.viz.rrd_writer import rrd_file
 from wheelcal.viz.session_blueprint import (
     AFTER_COLOR,
     AXIS_COLORS,
@@ -934,7 +934,7 @@ def session_rrd(
 
     The file appears (atomically) when the block ends without an exception,
     with the blueprint written last; an exception leaves no file (see
-    :func:`wheelcal.viz.rrd_file.rrd_file`).
+    :func:`wheelcal.viz.rrd_writer.rrd_file`).
 
     Parameters
     ----------
