@@ -1,6 +1,6 @@
 """The estimators, in subsystems: the joint ML fit, the paper's four steps, the gyroscope.
 
-Layer 4 (above ``recording``, ``io`` and ``simulate``; below ``closedloop``).
+Layer 3 (above ``recording``, beside ``io`` and ``simulate``; below ``closedloop``).
 
 * :mod:`.joint` — the joint maximum-likelihood fit: its start, normal equations,
   Levenberg–Marquardt, noise model, the Fisher information by quadrature, the

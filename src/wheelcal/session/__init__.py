@@ -1,6 +1,6 @@
 """One recording end to end: its window, the fit, the closed loop, the checks and the gates.
 
-Layer 6 (above ``closedloop``, below ``calibration``).  :mod:`.compute` turns a
+Layer 5 (above ``closedloop``, below ``calibration``).  :mod:`.compute` turns a
 recording and the options into a calibration's result (no files); :mod:`.fit` is
 the sequence (window → joint fit → closed loop → motion check → gates), with the
 window search (:mod:`.window`), the noise reference (:mod:`.noise_reference`), the

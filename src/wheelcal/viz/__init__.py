@@ -1,4 +1,6 @@
-"""Rerun (``.rrd``) views of calibrations — the top layer, nothing below imports it.
+"""Rerun (``.rrd``) views of calibrations.
+
+Layer 7 (above ``calibration``, beside ``plan``, below ``batch`` and ``study``).
 
 * :mod:`wheelcal.viz.session_rrd` — one file per session: data and model with
   the free-spin window, residuals against time and per 5° of the wheel angle ϑ
