@@ -30,9 +30,21 @@ def _resolve(name: str, modules: dict[str, Path]) -> str:
     return name
 
 
+def _front_names(path: Path) -> set[str]:
+    """The names a package's ``__init__`` binds by ``from … import`` at its top level."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    return {
+        alias.asname or alias.name
+        for node in tree.body
+        if isinstance(node, ast.ImportFrom)
+        for alias in node.names
+    }
+
+
 def import_graph() -> dict[str, set[str]]:
     """module → the wheelcal modules it imports, anywhere in its code."""
     modules = _modules()
+    fronts = {m: _front_names(p) for m, p in modules.items() if p.name == "__init__.py"}
     graph = defaultdict(set)
     for name, path in modules.items():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
@@ -47,8 +59,13 @@ def import_graph() -> dict[str, set[str]]:
                     for _ in range(node.level - 1):
                         up = up.rpartition(".")[0]
                     base = up + ("." + base if base else "")
-                # ``from a.b import c``: c may be a module or a name in a.b
-                targets = [f"{base}.{a.name}" for a in node.names]
+                # ``from a.b import c``: c may be a module or a name in a.b — the
+                # name when a.b's front binds it (the front's ``gyro_axle`` function
+                # over its module ``gyro_axle``: the import gives the function)
+                targets = [
+                    base if a.name in fronts.get(base, ()) else f"{base}.{a.name}"
+                    for a in node.names
+                ]
             for target in targets:
                 if target.split(".")[0] == "wheelcal":
                     found = _resolve(target, modules)
@@ -143,3 +160,91 @@ def test_no_import_circles():
 )
 def test_the_circle_finder_finds_circles(graph, circles):
     assert _cycles(graph) == circles
+
+
+#: (importing package, inner module of another package) pairs src may keep, each
+#: with its reason.  Every other import from another package goes through a front:
+#: the package's (or sub-package's) ``__init__``, or a top-level module.
+INNER_IMPORTS_ALLOWED: dict[tuple[str, str], str] = {}
+
+
+def _fronts(modules: dict[str, Path]) -> set[str]:
+    return {m for m, p in modules.items() if p.name == "__init__.py" or m.count(".") == 1}
+
+
+def inner_imports() -> dict[tuple[str, str], list[str]]:
+    """(importing package, inner module of another package) → the modules importing it."""
+    fronts = _fronts(_modules())
+    out = defaultdict(list)
+    for module, imported in import_graph().items():
+        for target in imported:
+            a, b = _package(module), _package(target)
+            if a and b and a != b and target not in fronts:
+                out[(a, target)].append(module)
+    return out
+
+
+def test_other_packages_import_only_fronts():
+    found = inner_imports()
+    wrong = [
+        f"{', '.join(sorted(found[pair]))} imports {pair[1]} (use its package's front)"
+        for pair in sorted(set(found) - set(INNER_IMPORTS_ALLOWED))
+    ]
+    assert not wrong, "\n".join(wrong)
+    stale = sorted(set(INNER_IMPORTS_ALLOWED) - set(found))
+    assert not stale, f"allowed but no longer imported: {stale}"
+
+
+def _layer_claims(doc: str) -> tuple[int, dict[str, set[str]]] | None:
+    """A package docstring's "Layer N (above ``a``, below ``b``, beside ``c``)"."""
+    match = re.search(r"\bLayer (\d+)(?: \(([^)]*)\))?", doc)
+    if match is None:
+        return None
+    claims, relation = defaultdict(set), None
+    for word, name in re.findall(r"\b(above|below|beside)\b|``(\w+)``", match.group(2) or ""):
+        relation = word or relation
+        if name and relation:
+            claims[relation].add(name)
+    return int(match.group(1)), claims
+
+
+def test_package_docstrings_agree_with_the_layer_list():
+    layer = layers()
+    wrong = []
+    for module, path in _modules().items():
+        if path.name != "__init__.py" or module.count(".") != 1:
+            continue
+        claims = _layer_claims(ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or "")
+        if claims is None:
+            continue
+        number, relations = claims
+        package = _package(module)
+        if number != layer[package]:
+            wrong.append(f"{package} says layer {number}, the list {layer[package]}")
+        for relation, names in relations.items():
+            for name in sorted(names):
+                ok = {
+                    "above": layer[name] < number,
+                    "below": layer[name] > number,
+                    "beside": layer[name] == number,
+                }[relation]
+                if not ok:
+                    wrong.append(
+                        f"{package} (layer {number}) says {relation} {name} ({layer[name]})"
+                    )
+    assert not wrong, "\n".join(wrong)
+
+
+@pytest.mark.parametrize(
+    "doc, claims",
+    [
+        (
+            "Layer 3 (above ``a``, ``b`` and ``c``; below ``d``).",
+            (3, {"above": {"a", "b", "c"}, "below": {"d"}}),
+        ),
+        ("Layer 1.  Pure numpy.", (1, {})),
+        ("Layers: a → b", None),
+    ],
+)
+def test_the_layer_claims_are_read(doc, claims):
+    assert _layer_claims(doc) == claims
