@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-import wheelcal.batch.session as session_module
+import wheelcal.session as session_module  # Calibration.compute calls its compute_session
 from batch_inputs import pipeline_file, simulated_recordings
 from wheelcal.batch.pipeline import PipelineError, load_pipeline
 from wheelcal.batch.runner import run_batch

@@ -1127,10 +1127,10 @@ def test_the_session_writer_uses_the_sessions_gyro_calibration(tmp_path):
     """The measured ω is the gyro calibrated by the session's own gyro block."""
     import dataclasses
 
-    from wheelcal.batch.session import _write_rrd
     from wheelcal.session.fit import SessionFit
     from wheelcal.simulate import hostile
     from wheelcal.simulate.gyro import GyroSpec
+    from wheelcal.viz import write_session_rrd as _write_rrd
 
     session = hostile.wandering(np.random.default_rng(300), gyro=GyroSpec())
     out = SessionFit(gyro="on").run(session.recording)

@@ -96,18 +96,11 @@ def calibrate(
     TypeError
         An unknown option.
     """
-    from wheelcal.session import compute_recording, compute_session
-
     opts = _options(radius_m, options)
     try:
-        if isinstance(source, Recording):
-            info = source.info.merged(**opts.info_overrides())
-            outcome = compute_recording(source.checked(unit=opts.accel_unit, info=info), opts)
-        else:
-            outcome = compute_session(source, opts)
+        return Calibration.compute(source, opts)  # the one session function
     except CalibrationRefused as refusal:
         raise _in_api_words(refusal) from None
-    return Calibration.from_session(outcome)
 
 
 def diagnose(

@@ -45,7 +45,7 @@ from wheelcal.batch.provenance import (
     run_key_of,
     stored_run_key,
 )
-from wheelcal.batch.session import calibrate_session, check_regular_file, failed_outcome
+from wheelcal.batch.session import calibrate_session, check_regular_file
 from wheelcal.batch.stems import unique_stems
 from wheelcal.batch.termination import (
     BatchStopped,
@@ -62,7 +62,7 @@ from wheelcal.batch.workers import (
     start_method,
     worker_context,
 )
-from wheelcal.calibration import Calibration
+from wheelcal.calibration import Calibration, failed_outcome, session_outputs
 from wheelcal.io import OutputFolderError, prepare_output_folder
 from wheelcal.recording import RecordingError
 from wheelcal.runtime import tune_allocator
@@ -633,7 +633,6 @@ _REPORT_FILES = ("report.json", "report.md", "sessions.csv", "overview.png", "ba
 def _claim(pipeline: Pipeline, tasks: list[_Task], force: bool) -> list[str]:
     """The overwrite policy on every file the batch may write (PipelineError if refused)."""
     from wheelcal.batch.sensors import SENSORS_FOLDER
-    from wheelcal.batch.session import session_outputs
     from wheelcal.io import Output, OutputRefusedError, claim_outputs, origin_of
 
     out, options = pipeline.output, pipeline.options
@@ -717,8 +716,7 @@ def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tup
             paths = _stage_report(pipeline, records, calibrations, report_key, stage, mark)
             _sync()  # every staged file durable, in one flush, before any is installed
     except OSError as exc:
-        from wheelcal.batch.session import describe_error
-        from wheelcal.batch.termination import disk_full
+        from wheelcal.io import describe_error, disk_full
 
         if not disk_full(exc, out):
             raise

@@ -23,7 +23,7 @@ from collections import defaultdict
 from collections.abc import Iterable
 from pathlib import Path
 
-from wheelcal.batch.session import session_stem
+from wheelcal.calibration import session_stem
 
 SEPARATOR = "__"
 

@@ -9,28 +9,20 @@ command says what was finished.  A ``SIGKILL`` leaves no chance to clean up:
 the next batch on the folder removes what it left (:mod:`wheelcal.batch.runner`).
 
 A disk that fills up (``ENOSPC``, a quota, a file-size limit) fails every
-session after it; :func:`disk_full` tells such a failure from a bad session,
+session after it; :func:`wheelcal.io.disk_full` tells such a failure from a bad session,
 so the batch stops at the first (:class:`BatchStopped`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import errno
 import os
 import signal
-import tempfile
 import threading
 from collections.abc import Iterator
 
 #: The signals that stop a batch cleanly.
 SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
-#: The errors of a full disk (no space, a quota, a file-size limit).
-FULL_DISK_ERRNOS = frozenset(
-    e for e in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EFBIG) if e is not None
-)
-#: A write of this size must succeed in the output folder, or its disk counts as full.
-_PROBE_BYTES = 1 << 20
 
 _in_worker = False
 
@@ -88,25 +80,3 @@ def in_worker() -> bool:
 def exit_worker(exc: Terminated) -> None:
     """End a worker that was told to stop (its writers have removed their temporaries)."""
     os._exit(128 + exc.signum)
-
-
-def disk_full(exc: BaseException, folder: str | os.PathLike) -> bool:
-    """Whether a failed write means the disk of ``folder`` is full.
-
-    An ``ENOSPC``/``EDQUOT``/``EFBIG`` error says so itself; any other failure
-    to write (Rerun's writer thread reports only that it stopped) is judged by
-    trying to write :data:`_PROBE_BYTES` there.
-    """
-    seen = exc
-    while seen is not None:
-        if isinstance(seen, OSError) and seen.errno in FULL_DISK_ERRNOS:
-            return True
-        seen = seen.__cause__ or seen.__context__
-    try:
-        with tempfile.TemporaryFile(dir=folder) as probe:
-            probe.write(bytes(_PROBE_BYTES))
-            probe.flush()
-            os.fsync(probe.fileno())
-    except OSError as probe_error:
-        return probe_error.errno in FULL_DISK_ERRNOS
-    return False

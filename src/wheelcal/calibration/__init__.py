@@ -3,7 +3,10 @@
 Layer 6 (above ``session``, below ``viz``).  A session's document
 (``wheelcal.calibration/1``, :mod:`.session_json`) and a sensor's pooled one
 (``wheelcal.sensor_calibration/1``, :mod:`.sensor_json`) load through one
-:meth:`Calibration.from_json`; the closed loop's report (:mod:`.diagnosis_json`);
+:meth:`Calibration.from_json`; :meth:`Calibration.compute` is the one session
+function and :meth:`Calibration.write` (:mod:`.session_files`) the one writer of a
+session's files, :func:`calibrate_into` (:mod:`.session_outcome`) both, a failure
+turned into a :class:`SessionOutcome`; the closed loop's report (:mod:`.diagnosis_json`);
 the exports a ROS node, Kalibr or firmware read (:mod:`.export`); a calibrated copy
 of a recording (:mod:`.apply`).
 """
@@ -21,20 +24,35 @@ from wheelcal.calibration.sensor_json import (
     session_estimate,
     write_sensor_calibration,
 )
+from wheelcal.calibration.session_files import (
+    WrittenFiles,
+    keep_as_stale,
+    session_outputs,
+    session_stem,
+    write_session_files,
+)
 from wheelcal.calibration.session_json import calibration_dict, load_calibration, write_calibration
+from wheelcal.calibration.session_outcome import SessionOutcome, calibrate_into, failed_outcome
 
 __all__ = [
     "Calibration",
+    "SessionOutcome",
+    "WrittenFiles",
     "apply_calibration",
     "as_angles",
+    "calibrate_into",
     "calibration_dict",
+    "failed_outcome",
     "joint_estimate",
+    "keep_as_stale",
     "load_calibration",
     "read_only_document",
     "rests_allan",
     "sensor_calibration_dict",
     "sensor_calibration_text",
     "session_estimate",
+    "session_outputs",
+    "session_stem",
     "to_c_header",
     "to_imu_calib",
     "to_imu_tk",
@@ -42,4 +60,5 @@ __all__ = [
     "write_calibration",
     "write_diagnosis",
     "write_sensor_calibration",
+    "write_session_files",
 ]

@@ -37,12 +37,18 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES, SensorCorrection
+from wheelcal.recording import Recording
 from wheelcal.session import Assessment, SessionResult
+
+if TYPE_CHECKING:
+    from wheelcal.calibration.session_files import RrdWriter, WrittenFiles
+    from wheelcal.session import SessionOptions
 
 
 def _array(values) -> np.ndarray:
@@ -138,6 +144,56 @@ class Calibration(Mapping):
         from wheelcal.calibration.session_json import calibration_dict
 
         return cls(calibration_dict(session, provenance), session=session)
+
+    @classmethod
+    def compute(
+        cls,
+        source: str | os.PathLike | Recording,
+        options: SessionOptions,
+        provenance: dict | None = None,
+    ) -> Calibration:
+        """Calibrate one recording (a path, or a :class:`~wheelcal.recording.Recording`).
+
+        The one session function: ``wheelcal.calibrate()``, ``diagnose()``, the command
+        line and the batch all compute a session here (no files are written;
+        :meth:`write` writes them).  ``provenance`` is stored in the document (the
+        batch's up-to-date check).  Raises as
+        :func:`~wheelcal.session.compute.compute_session` does.
+        """
+        from wheelcal.session import compute_recording, compute_session
+
+        if isinstance(source, Recording):
+            info = source.info.merged(**options.info_overrides())
+            checked = source.checked(unit=options.accel_unit, info=info)
+            session = compute_recording(checked, options)
+        else:
+            session = compute_session(source, options)
+        return cls.from_session(session, provenance)
+
+    def write(
+        self,
+        folder: str | os.PathLike,
+        stem: str | None = None,
+        rrd_writer: RrdWriter | None = None,
+        diagnosis: bool = False,
+        durable: bool = True,
+    ) -> WrittenFiles:
+        """Write this session's files into ``folder``: the ``.rrd``, the report, the JSON.
+
+        :func:`~wheelcal.calibration.session_files.write_session_files` (the one writer):
+        ``stem`` names them (default: the recording's file name); ``rrd_writer``
+        draws the ``.rrd`` (``wheelcal.viz.write_session_rrd``; None: none);
+        ``diagnosis`` adds ``<stem>.diagnosis.json``.
+        """
+        from wheelcal.calibration.session_files import session_stem, write_session_files
+
+        if self.session is None:
+            raise ValueError("only a calibration computed in this process has a session's files")
+        stem = stem or session_stem(self.session.source)
+        document = self.to_dict()  # the JSON and the view's verdict
+        return write_session_files(
+            self.session, document, folder, stem, rrd_writer, diagnosis, durable
+        )
 
     # the computation behind it (this process only) ---------------------------------
     @property

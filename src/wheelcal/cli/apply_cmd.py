@@ -40,12 +40,11 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
-    from wheelcal.batch import describe_error
     from wheelcal.calibration import apply_calibration
     from wheelcal.cli.errors import SessionsFailed, UsageError
     from wheelcal.cli.options import readable_inputs
     from wheelcal.cli.overwrite import claim
-    from wheelcal.io import Output, origin_of, output_mark, special_file_kind
+    from wheelcal.io import Output, describe_error, origin_of, output_mark, special_file_kind
 
     readable_inputs(("CAL.json", args.calibration))
     kind = special_file_kind(args.source)

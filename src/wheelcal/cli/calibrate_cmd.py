@@ -3,15 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
-from wheelcal.cli.errors import SessionsFailed
-from wheelcal.cli.options import (
-    add_session_arguments,
-    claim_sessions,
-    output_folder,
-    session_options,
-)
+from wheelcal.cli.options import add_session_arguments
 from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: The command's one-line help and its --help description.
@@ -42,20 +35,6 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Calibrate every file; exit 1 if any failed."""
-    from wheelcal.batch import calibrate_session
-    from wheelcal.cli.summary import session_summary
+    from wheelcal.cli.sessions import run_sessions
 
-    options = session_options(args, rrd=args.rrd)
-    output_folder(args.out)  # before any session: a read-only folder is found now
-    claim_sessions(args, "calibrate", rrd=args.rrd, diagnose=False)
-    failed = []
-    for path in args.files:
-        outcome = calibrate_session(path, options, args.out)
-        if not outcome.ok:
-            failed.append(outcome)
-            print(session_summary(outcome), file=sys.stderr)
-        elif not args.quiet:
-            print(session_summary(outcome))
-    if failed:
-        raise SessionsFailed(f"{len(failed)} of {len(args.files)} recording(s) failed")
-    return 0
+    return run_sessions(args)

@@ -3,15 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
-from wheelcal.cli.errors import SessionsFailed
-from wheelcal.cli.options import (
-    add_session_arguments,
-    claim_sessions,
-    output_folder,
-    session_options,
-)
+from wheelcal.cli.options import add_session_arguments
 from wheelcal.cli.overwrite import FORCE_HELP, POLICY_EPILOG
 
 #: The command's one-line help and its --help description.
@@ -45,25 +38,6 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose every file; exit 1 if any failed."""
-    import dataclasses
+    from wheelcal.cli.sessions import run_sessions
 
-    from wheelcal.batch import calibrate_session
-    from wheelcal.cli.errors import UsageError
-    from wheelcal.cli.summary import diagnosis_summary
-
-    if args.model != "closed_loop":
-        raise UsageError("diagnose shows the closed loop: it cannot use --model paper")
-    options = dataclasses.replace(session_options(args, rrd=args.rrd), diagnose=True)
-    output_folder(args.out)  # before any session: a read-only folder is found now
-    claim_sessions(args, "diagnose", rrd=args.rrd, diagnose=True)
-    failed = 0
-    for path in args.files:
-        outcome = calibrate_session(path, options, args.out)
-        if not outcome.ok:
-            failed += 1
-            print(f"FAILED  {outcome.error}", file=sys.stderr)
-            continue
-        print(diagnosis_summary(outcome))
-    if failed:
-        raise SessionsFailed(f"{failed} of {len(args.files)} recording(s) failed")
-    return 0
+    return run_sessions(args, diagnose=True)

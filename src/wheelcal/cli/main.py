@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError, RuntimeError) as exc:
         if args.debug:
             raise
-        from wheelcal.batch import describe_error
+        from wheelcal.io import describe_error
 
         print(f"wheelcal {args.command}: error: {describe_error(exc)}", file=sys.stderr)
         return 1

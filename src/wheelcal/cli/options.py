@@ -205,7 +205,7 @@ def readable_inputs(*inputs: tuple[str, str]) -> None:
 
 def claim_sessions(args: argparse.Namespace, command: str, rrd: bool, diagnose: bool) -> None:
     """Claim every session's outputs before the first is computed (UsageError if refused)."""
-    from wheelcal.batch import session_outputs
+    from wheelcal.calibration import session_outputs
     from wheelcal.cli.overwrite import claim
 
     outputs = [o for path in args.files for o in session_outputs(path, args.out, rrd, diagnose)]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wheelcal.batch import SessionOutcome
+from wheelcal.calibration import SessionOutcome
 from wheelcal.model import AXES
 
 

@@ -9,8 +9,9 @@ the problem.
 The front also holds what the writers above use: atomic writes and staged output
 folders (:mod:`.atomic`), the marks that claim a file as wheelcal's before it is
 overwritten (:mod:`.ownership`), bounded reads of small input files
-(:mod:`.input_file`, :mod:`.file_kind`) and the JSON text of the documents
-(:mod:`.json_text`).
+(:mod:`.input_file`, :mod:`.file_kind`), the JSON text of the documents
+(:mod:`.json_text`), an error in words (:func:`describe_error`) and whether a failed
+write means a full disk (:mod:`.full_disk`).
 """
 
 from wheelcal.io.atomic import (
@@ -33,8 +34,10 @@ from wheelcal.io.errors import (
     SampleError,
     SessionInfoError,
     TopicError,
+    describe_error,
 )
 from wheelcal.io.file_kind import special_file_kind
+from wheelcal.io.full_disk import disk_full
 from wheelcal.io.input_file import SpecialFileError, read_bounded
 from wheelcal.io.json_text import dumps_indented, json_safe
 from wheelcal.io.mcap_reader import (
@@ -102,6 +105,8 @@ __all__ = [
     "claim_outputs",
     "convert_csv",
     "copy_with_channels",
+    "describe_error",
+    "disk_full",
     "dumps_indented",
     "flags_channel",
     "is_mcap_file",

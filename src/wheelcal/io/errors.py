@@ -18,6 +18,7 @@ __all__ = [
     "SampleError",
     "SessionInfoError",
     "TopicError",
+    "describe_error",
 ]
 
 
@@ -35,3 +36,13 @@ class TopicError(InputError):
 
 class SessionInfoError(InputError):
     """The ``wheelcal.session`` facts are missing, unparsable or out of range."""
+
+
+def describe_error(exc: BaseException) -> str:
+    """An error in words: ``path: Permission denied`` rather than ``[Errno 13] …: 'path'``."""
+    if isinstance(exc, OSError) and exc.strerror:
+        if exc.filename is None:
+            return exc.strerror
+        where = f"{exc.filename} -> {exc.filename2}" if exc.filename2 else f"{exc.filename}"
+        return f"{where}: {exc.strerror}"
+    return str(exc)
