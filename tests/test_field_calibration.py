@@ -311,6 +311,22 @@ def test_calibrate_prints_and_writes_the_detected_geometry(tmp_path, capsys):
     assert (bench["geometry"], bench["radius_source"]) == ("rolling", "fitted")
 
 
+def test_diagnose_of_a_wheel_in_the_field_says_the_steps_are_for_bench_spins(tmp_path, capsys):
+    # The field fit has no closed loop: diagnose prints the calibration it has, says the
+    # step-by-step diagnosis is for bench spins, and writes the same calibration (it
+    # crashed with "'NoneType' object has no attribute 'steps'").
+    from wheelcal.cli.main import main
+
+    drive, out = tmp_path / "car.mcap", tmp_path / "diag"
+    assert main(["simulate", str(drive), "--preset", "car", "--seed", "5"]) == 0
+    assert main(["diagnose", str(drive), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "model: the field fit" in printed
+    assert "no step-by-step diagnosis" in printed and "for bench spins" in printed
+    assert (out / "car.calibration.json").exists()
+    assert not (out / "car.diagnosis.json").exists()
+
+
 def test_a_simulated_rolling_car_from_the_command_line(tmp_path, capsys):
     from wheelcal.cli.main import main
 

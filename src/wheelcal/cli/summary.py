@@ -138,8 +138,21 @@ def noise_verdict(a) -> str:
 
 
 def diagnosis_summary(outcome: SessionOutcome) -> str:
-    """The closed loop in a few lines: each step, what was not identifiable, before/after."""
+    """The closed loop in a few lines: each step, what was not identifiable, before/after.
+
+    A wheel in the field is fitted by the field fit, which has no closed loop: its
+    calibration is summarised, and the summary says the steps are for bench spins.
+    """
     d = outcome.session.diagnosis
+    if d is None:
+        return "\n".join(
+            [
+                session_summary(outcome),
+                f"  no step-by-step diagnosis: this recording was fitted as a wheel in the "
+                f"field ({outcome.session.model} fit, geometry {outcome.session.geometry}); the "
+                "closed loop's steps are for bench spins",
+            ]
+        )
     lines = [f"{outcome.source}: {len(d.steps)} effect(s) added (family-wise α = {d.alpha:g})"]
     for step in d.steps:
         t = step.test
