@@ -20,7 +20,7 @@ from wheelcal.recording import Recording, RecordingError
 from wheelcal.session.fit import assess
 from wheelcal.session.gates import Gates
 from wheelcal.session.lean_gate import camber_nulls, judge_the_lean
-from wheelcal.session.result import SessionResult, WindowChoice
+from wheelcal.session.result import SessionResult, WindowChoice, attempted
 from wheelcal.session.window import find_drive_window
 
 
@@ -73,6 +73,17 @@ def calibrate_field(
         lean=_lean(field) if field.geometry.kind == "rolling" else None,
     )
     return session, field
+
+
+def field_attempt(
+    recording: Recording,
+    gates: Gates | None = None,
+    fit: FieldFit | None = None,
+    window: WindowChoice | None = None,
+    why: str = "",
+) -> tuple[SessionResult, FieldResult] | RecordingError:
+    """:func:`calibrate_field`'s answer as a value: the session and the fit, or the refusal."""
+    return attempted(calibrate_field, recording, gates, fit, window, why)
 
 
 def _lean(field: FieldResult) -> dict:

@@ -60,7 +60,7 @@ from wheelcal.session.gates import (
 from wheelcal.session.motion_check import MotionCheck, broadband_noise, check_motion
 from wheelcal.session.noise_reference import NoiseReference, noise_reference
 from wheelcal.session.rest_check import check_rests
-from wheelcal.session.result import SessionResult, WindowChoice
+from wheelcal.session.result import SessionResult, WindowChoice, attempted
 from wheelcal.session.window import (
     MAX_BRIDGED_GAP_S,
     FreeSpinWindow,
@@ -132,55 +132,82 @@ class SessionFit:
         RecordingError
             When the recording cannot be used at all (no free spin, no radius …).
         """
+        answer = self.attempt(recording)
+        if isinstance(answer, RecordingError):
+            raise answer
+        return answer
+
+    def attempt(self, recording: Recording) -> SessionResult | RecordingError:
+        """:meth:`run`'s answer as a value: the session, or the refusal (never raised).
+
+        The accelerometer's free spin first, unless the gyro is asked for; a refusal
+        the gyroscope can overcome (:meth:`judge`) then asks the gyro-aided fit.
+        """
         has_gyro = _usable_gyro(recording)
         if self.gyro == "on" and not has_gyro:
-            raise RecordingError(
+            return RecordingError(
                 f"{recording.source}: --gyro on, but the recording has no usable gyroscope"
             )
         if self.fitter.geometry == "rolling":  # the yaw rate comes from the gyro
             if not has_gyro or self.gyro == "off":
-                raise RecordingError(
+                return RecordingError(
                     f"{recording.source}: geometry 'rolling' needs the recording's gyroscope"
                 )
-            return self._run_with_gyro(recording, "a rolling wheel")
+            return attempted(self._run_with_gyro, recording, "a rolling wheel")
         if has_gyro and self.gyro == "on":
-            return self._run_with_gyro(recording, "--gyro on")
-        try:
-            outcome = self._run_free_spin(recording)
-        except CalibrationRefused as exc:
-            if not (has_gyro and self.gyro == "auto" and exc.gate in GYRO_CAN_HELP):
-                raise
-            why = f"the accelerometer alone was refused ({exc.gate}: {exc.reason})"
-            return self._run_with_gyro(recording, why)
-        except RecordingError as exc:
-            if not (has_gyro and self.gyro == "auto"):
-                raise
-            return self._run_with_gyro(recording, f"no free spin ({exc})")
-        if has_gyro and self.gyro == "auto":
-            window = outcome.window.recording
-            result = outcome.result
-            gyro_t, gyro = gyro_samples(window, window.time_s - result.centre_s)
-            if gyro_effect(result.layout) is not None:  # the closed loop fitted it
-                block = gyro_from_fit(result, gyro_t, gyro)
-            else:
-                block = gyro_by_product(result, gyro_t, gyro, reading=self.fitter.gyro_reading())
-            findings = tuple(gyro_findings(result.source, block, outcome.rests, self.gates))
-            assessment = outcome.assessment
-            # The clock judged again, with the gyro's evidence (it may refuse, or clear).
-            bad = set(assessment.undetermined_names)
-            clock = check_clock(result, bad, self.gates.clock_tolerance, block)
-            kept = tuple(w for w in assessment.warnings if not _is_clock_warning(w, assessment))
-            clock_warning = (clock.warning,) if clock.warning else ()
-            assessment = dataclasses.replace(
-                assessment,
-                gyro=block,
-                clock=clock,
-                warnings=kept + findings + clock_warning,
-            )
-            outcome = dataclasses.replace(outcome, assessment=assessment)
-            if self.start_s is None:  # every second the gyro measures counts
-                return self._whole_motion(recording, outcome)
-        return outcome
+            return attempted(self._run_with_gyro, recording, "--gyro on")
+        free = attempted(self._run_free_spin, recording)
+        if not (has_gyro and self.gyro == "auto"):
+            return free
+        verdict = self.judge(free)
+        if isinstance(verdict, str):  # the gyro can do what the accelerometer could not
+            return attempted(self._run_with_gyro, recording, verdict)
+        if isinstance(verdict, RecordingError):
+            return verdict
+        judged = attempted(self._with_gyro_block, verdict)
+        if isinstance(judged, RecordingError) or self.start_s is not None:
+            return judged
+        return self._whole_motion(recording, judged)  # every second the gyro measures counts
+
+    @staticmethod
+    def judge(free: SessionResult | RecordingError) -> SessionResult | RecordingError | str:
+        """The accelerometer's answer, with a gyroscope at hand (``--gyro auto``).
+
+        The session stands; a refusal the gyro can overcome (:data:`GYRO_CAN_HELP`,
+        or no free spin at all) becomes the reason to fit with the gyro (a string);
+        any other refusal stands.
+        """
+        if isinstance(free, CalibrationRefused):
+            if free.gate not in GYRO_CAN_HELP:
+                return free
+            return f"the accelerometer alone was refused ({free.gate}: {free.reason})"
+        if isinstance(free, RecordingError):
+            return f"no free spin ({free})"
+        return free
+
+    def _with_gyro_block(self, outcome: SessionResult) -> SessionResult:
+        """The free spin's answer with the gyroscope judged from it, and the clock again."""
+        window = outcome.window.recording
+        result = outcome.result
+        gyro_t, gyro = gyro_samples(window, window.time_s - result.centre_s)
+        if gyro_effect(result.layout) is not None:  # the closed loop fitted it
+            block = gyro_from_fit(result, gyro_t, gyro)
+        else:
+            block = gyro_by_product(result, gyro_t, gyro, reading=self.fitter.gyro_reading())
+        findings = tuple(gyro_findings(result.source, block, outcome.rests, self.gates))
+        assessment = outcome.assessment
+        # The clock judged again, with the gyro's evidence (it may refuse, or clear).
+        bad = set(assessment.undetermined_names)
+        clock = check_clock(result, bad, self.gates.clock_tolerance, block)
+        kept = tuple(w for w in assessment.warnings if not _is_clock_warning(w, assessment))
+        clock_warning = (clock.warning,) if clock.warning else ()
+        assessment = dataclasses.replace(
+            assessment,
+            gyro=block,
+            clock=clock,
+            warnings=kept + findings + clock_warning,
+        )
+        return dataclasses.replace(outcome, assessment=assessment)
 
     def _whole_motion(self, recording: Recording, free: SessionResult) -> SessionResult:
         """The gyro-aided fit of the whole motion when the free spin left much of it out.
@@ -191,9 +218,8 @@ class SessionFit:
         left out, and the whole motion is fitted with the flexible wheel angle.
         If that fit is refused, the free spin's answer stands, with a warning.
         """
-        try:
-            motion = find_motion_window(recording)
-        except RecordingError:
+        motion = attempted(find_motion_window, recording)
+        if isinstance(motion, RecordingError):
             return free
         span = free.result.time_s[[0, -1]]
         free_s = float(span[1] - span[0])
@@ -205,19 +231,19 @@ class SessionFit:
             f"{100 * free_s / motion.duration_s:.0f} % of the {motion.duration_s:.1f} s of "
             "motion the gyroscope measures: the whole motion is fitted"
         )
-        try:
-            return self._run_with_gyro(recording, why, motion)
-        except (CalibrationRefused, RecordingError) as exc:
-            gate = getattr(exc, "gate", "") or "error"
-            warning = (
-                f"the whole motion the gyroscope measures ({motion.duration_s:.1f} s) could not "
-                f"be fitted ({gate}: {getattr(exc, 'reason', exc)}): calibrated on the free spin "
-                f"alone ({free_s:.1f} s)"
-            )
-            assessment = dataclasses.replace(
-                free.assessment, warnings=(*free.assessment.warnings, warning)
-            )
-            return dataclasses.replace(free, assessment=assessment)
+        whole = attempted(self._run_with_gyro, recording, why, motion)
+        if not isinstance(whole, RecordingError):
+            return whole
+        gate = getattr(whole, "gate", "") or "error"
+        warning = (
+            f"the whole motion the gyroscope measures ({motion.duration_s:.1f} s) could not "
+            f"be fitted ({gate}: {getattr(whole, 'reason', whole)}): calibrated on the free spin "
+            f"alone ({free_s:.1f} s)"
+        )
+        assessment = dataclasses.replace(
+            free.assessment, warnings=(*free.assessment.warnings, warning)
+        )
+        return dataclasses.replace(free, assessment=assessment)
 
     def _run_with_gyro(
         self, recording: Recording, why: str, found: FreeSpinWindow | None = None

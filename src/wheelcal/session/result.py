@@ -1,12 +1,19 @@
-"""A calibrated session: the fit, what the gates made of it, and where it came from."""
+"""A calibrated session: the fit, what the gates made of it, and where it came from.
+
+Also :func:`attempted`: a fit's answer as a value — its session, or the refusal
+(:class:`~wheelcal.recording.RecordingError`, :class:`~wheelcal.recording.CalibrationRefused`
+included) it ended in, which the caller weighs like any other answer.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 from wheelcal.estimate import RestSegment
 from wheelcal.estimate.joint import CalibrationResult
-from wheelcal.recording import Recording
+from wheelcal.recording import Recording, RecordingError
 from wheelcal.session.gates import Assessment
 from wheelcal.session.window import FreeSpinWindow
 
@@ -67,3 +74,20 @@ class SessionResult:
     def gyro(self):
         """The gyroscope's calibration, when the recording has one (else None)."""
         return self.assessment.gyro
+
+
+T = TypeVar("T")
+
+
+def attempted(fit: Callable[..., T], *args) -> T | RecordingError:
+    """``fit(*args)``'s answer, or the refusal it ended in, as a value.
+
+    The gates refuse by raising (the API's and the command line's contract); a
+    session that weighs one answer against another (the geometry, the gyro's help)
+    turns each fit's ending into a value here, once, and decides on values.
+    Other exceptions (a bug, memory) are not answers and pass through.
+    """
+    try:
+        return fit(*args)
+    except RecordingError as refusal:
+        return refusal
