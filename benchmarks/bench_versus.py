@@ -95,6 +95,17 @@ STAGES = (
 )
 
 
+def _session_fit_module():
+    """The reference's ``SessionFit`` module: ``session/fit.py`` (since 72ec4f7), else
+    ``estimate/session_fit.py``."""
+    import importlib
+
+    try:
+        return importlib.import_module("wheelcal_ref.session.fit")
+    except ModuleNotFoundError:
+        return importlib.import_module("wheelcal_ref.estimate.session_fit")
+
+
 def stage_times(session_fit_module, recording):
     """A function that runs the stages of ``SessionFit().run`` once, seconds per stage.
 
@@ -174,7 +185,9 @@ def main() -> None:
     with reference_code(args.ref):
         import wheelcal_ref.simulate as ref_sim
         from wheelcal_ref.estimate.joint import JointFit as RefJoint
-        from wheelcal_ref.estimate.session_fit import SessionFit as RefSession
+
+        ref_session_fit = _session_fit_module()
+        RefSession = ref_session_fit.SessionFit
 
         import wheelcal.simulate as sim
         from wheelcal.estimate.joint.fit import JointFit
@@ -225,8 +238,6 @@ def main() -> None:
             f"{np.max(np.abs(sigma / sigma_old - 1)):.2e} (relative)"
         )
         if args.stages:
-            from wheelcal_ref.estimate import session_fit as ref_session_fit
-
             from wheelcal.session import fit as session_fit
 
             with threadpool_limits(1):
