@@ -30,16 +30,9 @@ import numpy as np
 
 from wheelcal.closedloop import ClosedLoop
 from wheelcal.estimate import RestSegment, find_rests
-from wheelcal.estimate.gyro import choose_knot_spacing, fit_window, gyro_by_product, gyro_from_fit
-from wheelcal.estimate.joint import (
-    CHUNK_SAMPLES,
-    CalibrationResult,
-    InitialGuess,
-    JointFit,
-    gyro_effect,
-    gyro_samples,
-)
-from wheelcal.model import EvaluatedModel, wheel_kinematics
+from wheelcal.estimate.gyro import fastest_rate_radps, fit_window, gyro_aided, gyro_block, gyro_rows
+from wheelcal.estimate.joint import CalibrationResult, InitialGuess, JointFit, wheel_angle_rad
+from wheelcal.model import EvaluatedModel
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.clock_check import check_clock
 from wheelcal.session.gates import (
@@ -187,13 +180,9 @@ class SessionFit:
 
     def _with_gyro_block(self, outcome: SessionResult) -> SessionResult:
         """The free spin's answer with the gyroscope judged from it, and the clock again."""
-        window = outcome.window.recording
         result = outcome.result
-        gyro_t, gyro = gyro_samples(window, window.time_s - result.centre_s)
-        if gyro_effect(result.layout) is not None:  # the closed loop fitted it
-            block = gyro_from_fit(result, gyro_t, gyro)
-        else:
-            block = gyro_by_product(result, gyro_t, gyro, reading=self.fitter.gyro_reading())
+        rows = gyro_rows(result, outcome.window.recording)
+        block = gyro_block(result, rows, reading=self.fitter.gyro_reading())
         findings = tuple(gyro_findings(result.source, block, outcome.rests, self.gates))
         assessment = outcome.assessment
         # The clock judged again, with the gyro's evidence (it may refuse, or clear).
@@ -268,39 +257,28 @@ class SessionFit:
             )
         _refuse_long_gap(window)
         rests = find_rests(recording, (float(window.time_s[0]), float(window.time_s[-1])))
-        tc = window.time_s - 0.5 * (window.time_s[0] + window.time_s[-1])
-        gyro_t, gyro = gyro_samples(window, tc)
-        knots = choose_knot_spacing(gyro_t, gyro)
-        fitter = dataclasses.replace(
-            self.fitter,
-            use_gyro=True,
-            spline_spacing_s=knots.spacing_s,
-            gyro_rests=self.fitter.rests_of(rests),
-        )
+        aided = gyro_aided(self.fitter, window, rests)
+        fitter = aided.fitter
         guess = fitter.start(window)
         _check_implied_radius(guess, window, gates, rests)
         result = fit_window(fitter, window, guess=guess)
         notes = [
             f"gyro-aided ({why}): wheel angle = cubic + spline with knots every "
-            f"{knots.spacing_s:g} s (chosen by BIC on the gyro's rate)"
+            f"{aided.knot_spacing_s:g} s (chosen by BIC on the gyro's rate)"
         ]
         result, window, disturbed_note = _without_disturbances(fitter, result, window)
         notes.append(disturbed_note)
         if window.clip_limits_mps2 is not None:
             result, window, rail_note = _clear_of_rails(fitter, result, window)
             notes.append(rail_note)
-        fastest = float(np.max(np.abs(gyro @ result.params.effect("gyro", 6)[:3])))
-        fastest /= max(float(np.sum(result.params.effect("gyro", 6)[:3] ** 2)), 1e-12)
+        fastest = fastest_rate_radps(result, aided.gyro_radps)
         refuse_undersampled(recording.source, window.rate_hz, fastest, gates)
         refuse_few_turns(result)
-        if fitter.geometry == "rolling":  # the gyro block judges the spin's share only
-            gyro_t, gyro = gyro_samples(
-                window, window.time_s - result.centre_s, result.layout.effects
-            )
+        rolling = fitter.geometry == "rolling"  # the gyro block judges the spin's share only
+        rows = gyro_rows(result, window, rolling=True) if rolling else None
         result, diagnosis = self._refined(result, window, rests)
-        if fitter.geometry != "rolling":  # the gyro block judges the samples fitted, no others
-            gyro_t, gyro = gyro_samples(window, window.time_s - result.centre_s)
-        block = gyro_from_fit(result, gyro_t, gyro)
+        # Else the gyro block judges the samples fitted, no others.
+        block = gyro_block(result, rows or gyro_rows(result, window))
         notes.append(_stretches_note(window))
         choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
         assessment = assess(result, rests, gates, None, block)
@@ -521,23 +499,9 @@ def _motion(
     ``evaluated``: the model at the result as the fit's last pass left it (its ϑ
     and bench force then serve both).
     """
-    reference = noise_reference(result.residual_mps2, _theta(result, evaluated), rests)
+    reference = noise_reference(result.residual_mps2, wheel_angle_rad(result, evaluated), rests)
     noise = broadband_noise(result.noise, reference.broadband_mps2)
     return check_motion(result, window.accel_mps2, noise, evaluated=evaluated), reference
-
-
-def _theta(result: CalibrationResult, evaluated: EvaluatedModel | None = None) -> np.ndarray:
-    """The fitted wheel angle ϑ(t) at every sample (the kinematics only, in chunks)."""
-    tc = result.centred_time_s
-    output = evaluated.output_at(result.params, tc) if evaluated is not None else None
-    if output is not None:
-        return output.kinematics.theta_rad
-    theta = np.empty_like(tc)
-    for start in range(0, tc.size, CHUNK_SAMPLES):
-        stop = min(tc.size, start + CHUNK_SAMPLES)
-        kin = wheel_kinematics(result.params, tc[start:stop], result.layout.effects)
-        theta[start:stop] = kin.theta_rad
-    return theta
 
 
 def _is_clock_warning(warning: str, assessment: Assessment) -> bool:
@@ -572,7 +536,7 @@ def assess(
     found += [(name, why) for name, why in nulled if name not in {n for n, _ in found}]
     undetermined = refuse_implausible(result, gates, found, rest_level(rests))
     bad = {name for name, _ in undetermined}
-    noise = reference or noise_reference(result.residual_mps2, _theta(result), rests)
+    noise = reference or noise_reference(result.residual_mps2, wheel_angle_rad(result), rests)
     refuse_misfit(result.source, noise, gates)
     checks = () if bad else check_rests(result, rests, gates.rest_alpha)
     gyro_notes = [] if gyro is None else gyro_findings(result.source, gyro, rests, gates)

@@ -8,7 +8,8 @@ building blocks the closed loop's score tests and the session's motion check
 assemble their own normal equations from — the chunked accumulation
 (:data:`CHUNK_SAMPLES`, :func:`accumulate`), the Fisher information by quadrature
 (:func:`quadrature_rows`, :func:`stride_for`), the gyroscope's equations and rests,
-the candidate columns and the pseudo-inverse of an information matrix.
+the candidate columns and the pseudo-inverse of an information matrix; a fit's wheel
+angle at every sample (:func:`wheel_angle_rad`).
 """
 
 from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_scores
@@ -53,6 +54,7 @@ from wheelcal.estimate.joint.systematic import (
     systematic_budget,
 )
 from wheelcal.estimate.joint.twins import choose_twin
+from wheelcal.estimate.joint.wheel_angle import wheel_angle_rad
 
 __all__ = [
     "CHUNK_SAMPLES",
@@ -96,6 +98,7 @@ __all__ = [
     "stride_for",
     "systematic_budget",
     "transform_covariance",
+    "wheel_angle_rad",
     "whitened_back",
     "whitened_rows",
 ]
