@@ -99,8 +99,13 @@ def field_start(
     gravity_mps2: float,
     axle: GyroAxle,
     radius_m: float | None = None,
+    walk: dict | None = None,
 ) -> FieldStart:
-    """The starting point of the field fit (module docstring) at centred times ``t_s``."""
+    """The starting point of the field fit (module docstring) at centred times ``t_s``.
+
+    ``walk``: the gyro angle's bias walk (:class:`~wheelcal.model.GyroAngle`'s
+    ``walk_spacing_s``, ``walk_prior_radps_per_sqrt_s``), started at zero.
+    """
     t = np.asarray(t_s, dtype=float)
     v = np.asarray(accel_mps2, dtype=float)
     notes: list[str] = []
@@ -152,5 +157,8 @@ def field_start(
         gravity_mps2=gravity_mps2,
         effects={GyroAngle.name: [scale]},
     )
-    oriented = GyroAngle(t, axle.rate_radps, axle.rate_dot_radps2)
+    oriented = GyroAngle(t, axle.rate_radps, axle.rate_dot_radps2, **(walk or {}))
+    if oriented.size > 1:  # the walk's changes start at zero
+        walk_start = [scale] + [0.0] * (oriented.size - 1)
+        params = params.with_changes(effects={GyroAngle.name: walk_start})
     return FieldStart(params, axle, oriented, tuple(notes))
