@@ -312,7 +312,13 @@ def camber_track(
       axle of different scale: a robot turning on the spot does not average it out);
     * ``gravity_cos2_radps``, ``gravity_sin2_radps``: cos 2ϑ, sin 2ϑ low-passed like the
       rate (G's entries across the axle turn gravity, which rotates in the sensor's
-      frame, into rates at 2ϑ that a slow wheel's band lets through).
+      frame, into rates at 2ϑ that a slow wheel's band lets through);
+    * ``travel_accel``: ω̇_g, the hub's acceleration along the travel (ρ ω̇) over ρ.  Like
+      gravity, a force that stands still in the carrier's frame turns in the sensor's as
+      the side direction does, and G's symmetric part across the axle reads it as a
+      steady rate: gravity's is ``drift_radps``, the speed changes' integrates to the
+      speed — on a 10-minute car drive at 0.1 °/s/g, a track off by a speed-shaped
+      degree that the lean check saw move the offsets by 1–2 σ.
 
     The fit takes l with the yaw's scale κ and each of these with a coefficient; the
     accelerometer's gravity along the axle (g sin γ) anchors them: a real roll moves it,
@@ -327,6 +333,7 @@ def camber_track(
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
     y = np.asarray(yaw_radps, dtype=float)
     gravity = _lowpass(np.column_stack([np.cos(twice), np.sin(twice)]), rate_hz, CAMBER_BAND_HZ)
+    travel = _lowpass(np.asarray(axle.rate_dot_radps2, dtype=float), rate_hz, CAMBER_BAND_HZ)
     rates = {
         "drift_radps": np.ones_like(t),
         "heading": y,
@@ -334,6 +341,7 @@ def camber_track(
         "heading_cos2": y * np.cos(twice),
         "gravity_cos2_radps": gravity[:, 0],
         "gravity_sin2_radps": gravity[:, 1],
+        "travel_accel": travel,
     }
     basis = {name: _held_integral(t, x, moving) for name, x in rates.items()}
     return CamberTrack(_held_integral(t, rate, moving), basis)
