@@ -68,7 +68,12 @@ import copy
 
 import numpy as np
 
-from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, SpinDelta, _SpinEffect
+from wheelcal.model.effects import (
+    G_SENSITIVITY_PRIOR_DPS_PER_G,
+    SpinDelta,
+    _SpinEffect,
+    samples_of,
+)
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 
 #: The prior on the axle reading's sensitivity to acceleration, rad/s per m/s².
@@ -265,6 +270,9 @@ class GyroAngle(_SpinEffect):
             series += [x for _, triple, _ in self.terms for x in triple]
             self._stacked = np.vstack(series)
         grid = self.time_s
+        on_grid = samples_of(grid, t)
+        if on_grid is not None:  # the grid's own samples (a chunk, a thinned pass): no weights
+            return self._stacked[:, on_grid]
         right = np.clip(np.searchsorted(grid, t), 1, grid.size - 1)
         left = right - 1
         weight = np.clip((t - grid[left]) / (grid[right] - grid[left]), 0.0, 1.0)

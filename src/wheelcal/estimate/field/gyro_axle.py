@@ -9,6 +9,7 @@ k ψ̇ cos γ, turning with the wheel (:mod:`wheelcal.model.gyro_angle`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,8 +56,17 @@ class GyroAxle:
         return across - self.across_bias_radps
 
 
+@functools.lru_cache(maxsize=32)
+def _butter_sos(corner_hz: float, rate_hz: float) -> np.ndarray:
+    """The 4th-order Butterworth low-pass (second-order sections): designed once per corner.
+
+    (scipy's filter takes a writable array and leaves it as it was.)
+    """
+    return signal.butter(4, corner_hz, fs=rate_hz, output="sos")
+
+
 def _lowpass(x: np.ndarray, rate_hz: float, band_hz: float) -> np.ndarray:
-    sos = signal.butter(4, min(band_hz, 0.4 * rate_hz), fs=rate_hz, output="sos")
+    sos = _butter_sos(float(min(band_hz, 0.4 * rate_hz)), float(rate_hz))
     return signal.sosfiltfilt(sos, x, axis=0)
 
 
