@@ -505,7 +505,10 @@ class _Build:
         tc = self.centred_time_s
         refined = refined_axle(gyro_radps, axle, theta, rotation)
         y, y_dot = yaw_across(tc, gyro_radps, refined, theta, rotation)
-        track = camber_track(tc, gyro_radps, refined, theta, rotation, y)
+        # a drive of minutes (the walk's): G's share of the speed changes too
+        track = camber_track(
+            tc, gyro_radps, refined, theta, rotation, y, travel_accel=bool(self.walk)
+        )
         cross = _cross(y, theta) if self.fit_cross else None
         return _Series(axle, refined, theta, rotation, y, y_dot, cross, track)
 

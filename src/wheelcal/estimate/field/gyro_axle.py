@@ -303,6 +303,8 @@ def camber_track(
     theta_rad: np.ndarray,
     rotation: np.ndarray,
     yaw_radps: np.ndarray,
+    *,
+    travel_accel: bool = False,
 ) -> CamberTrack:
     """The camber's change during the drive, from the gyro (:mod:`wheelcal.model.rolling`).
 
@@ -323,12 +325,14 @@ def camber_track(
     * ``gravity_cos2_radps``, ``gravity_sin2_radps``: cos 2ϑ, sin 2ϑ low-passed like the
       rate (G's entries across the axle turn gravity, which rotates in the sensor's
       frame, into rates at 2ϑ that a slow wheel's band lets through);
-    * ``travel_accel``: ω̇_g, the hub's acceleration along the travel (ρ ω̇) over ρ.  Like
-      gravity, a force that stands still in the carrier's frame turns in the sensor's as
-      the side direction does, and G's symmetric part across the axle reads it as a
-      steady rate: gravity's is ``drift_radps``, the speed changes' integrates to the
-      speed — on a 10-minute car drive at 0.1 °/s/g, a track off by a speed-shaped
-      degree that the lean check saw move the offsets by 1–2 σ.
+    * ``travel_accel`` (with ``travel_accel``: the field fit's drives of minutes): ω̇_g,
+      the hub's acceleration along the travel (ρ ω̇) over ρ.  Like gravity, a force that
+      stands still in the carrier's frame turns in the sensor's as the side direction
+      does, and G's symmetric part across the axle reads it as a steady rate: gravity's
+      is ``drift_radps``, the speed changes' integrates to the speed — on a 10-minute car
+      drive at 0.1 °/s/g, a track off by a speed-shaped share that moved the offsets by
+      11 σ_CRLB.  (On the measured 2-minute drives the freedom it adds moved one drive's
+      lean check past its limit, and the simulated ones do not need it: not there.)
 
     The fit takes l with the yaw's scale κ and each of these with a coefficient; the
     accelerometer's gravity along the axle (g sin γ) anchors them: a real roll moves it,
@@ -343,7 +347,11 @@ def camber_track(
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
     y = np.asarray(yaw_radps, dtype=float)
     gravity = _lowpass(np.column_stack([np.cos(twice), np.sin(twice)]), rate_hz, CAMBER_BAND_HZ)
-    travel = _lowpass(np.asarray(axle.rate_dot_radps2, dtype=float), rate_hz, CAMBER_BAND_HZ)
+    travel = (
+        _lowpass(np.asarray(axle.rate_dot_radps2, dtype=float), rate_hz, CAMBER_BAND_HZ)
+        if travel_accel
+        else None
+    )
     rates = {
         "drift_radps": np.ones_like(t),
         "heading": y,
@@ -351,8 +359,9 @@ def camber_track(
         "heading_cos2": y * np.cos(twice),
         "gravity_cos2_radps": gravity[:, 0],
         "gravity_sin2_radps": gravity[:, 1],
-        "travel_accel": travel,
     }
+    if travel_accel:
+        rates["travel_accel"] = travel
     basis = {name: _held_integral(t, x, moving) for name, x in rates.items()}
     return CamberTrack(_held_integral(t, rate, moving), basis)
 
