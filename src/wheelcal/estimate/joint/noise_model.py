@@ -21,7 +21,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 from wheelcal.estimate.joint.columns import column_means, row_gram
 from wheelcal.model import ar_variance_gain, fir_filter
@@ -152,12 +151,14 @@ class NoiseModel:
         # axes in one batched product.  The FIR is scipy's lfilter (one pass in C; a scaled
         # add per tap over the columns took 3× as long at a road's 24 taps; the sums differ
         # in their order only, ~5e-16 relative).
+        from scipy.signal import lfilter  # here: a batch's planner must not import it
+
         filtered = np.empty((size, 3, m))
         for i, a in enumerate(self.ar_polynomials):
             if a.size == 1:
                 np.copyto(filtered[:, i, :], jacobian[:, i, p:])
             else:
-                filtered[:, i, :] = signal.lfilter(a, _ONE, jacobian[:, i, :], axis=-1)[:, p:]
+                filtered[:, i, :] = lfilter(a, _ONE, jacobian[:, i, :], axis=-1)[:, p:]
         return r, np.matmul(inv_chol, filtered)
 
     @functools.cached_property
