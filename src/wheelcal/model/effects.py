@@ -444,6 +444,18 @@ def cubic_bspline_slots(
     return interval.astype(np.int64), values, slopes, curves
 
 
+def samples_of(grid: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    """The indices of ``t`` in ``grid`` when every time is one of its samples, else None.
+
+    There linear interpolation returns the sample itself (its weight is exactly 1 or 0),
+    so a gather gives the same numbers, bit for bit, without the weights' four passes.
+    """
+    index = np.searchsorted(grid, t)
+    if index.size and index[-1] >= grid.size:
+        return None
+    return index if np.array_equal(grid[index], t) else None
+
+
 def cubic_bspline_basis(
     t_s: np.ndarray, start_s: float, spacing_s: float, count: int, first: int = 0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -43,6 +43,17 @@ change, :mod:`wheelcal.model.rolling`) cot α becomes cot(α − l) ≈ cot α +
 and the effect adds s (Ψ_l, y l, (y l)˙) / sin²α, Ψ_l = ∫ y l dt (a 5° banked
 curve at 0.03 rad/s of yaw turns the angle by 0.05 rad in 20 s).
 
+**A bias that walks.**  A gyro's bias is not one number over half an hour: it
+walks (a factory IMU's 0.002–0.005 °/s/√s) and warms up, and ω₀ t cannot follow
+its integral (on a 30-minute drive 15° of angle).  With ``walk_spacing_s`` the
+bias is ω₀ plus a piecewise-linear b(t) = Σ_j d_j ρ_j(t), ρ_j rising from 0 to 1
+across knot interval j (so b = 0 at the window's start and d_j is the bias's
+change over interval j), and the effect adds s (∫b dt, b, ḃ).  The d_j are fitted
+under the walk's own prior, d_j ~ N(0, q² Δ) (``walk_prior_radps_per_sqrt_s`` q, Δ
+the interval): where the gravity's phase pins the angle they follow it, and a
+slow phase the walk could make (a camber's ψ̇ sin γ over minutes) stays the
+turns' to measure.  The columns are evaluated from the knots, not stored.
+
 **Its sensitivity to acceleration.**  A MEMS gyro reads ~0.1 °/s per g of
 specific force.  A robot's hub sensor at 2 g of centripetal force, or the
 lateral force of a turn, would turn that into an angle drift of the turn's
@@ -57,7 +68,12 @@ import copy
 
 import numpy as np
 
-from wheelcal.model.effects import G_SENSITIVITY_PRIOR_DPS_PER_G, SpinDelta, _SpinEffect
+from wheelcal.model.effects import (
+    G_SENSITIVITY_PRIOR_DPS_PER_G,
+    SpinDelta,
+    _SpinEffect,
+    samples_of,
+)
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 
 #: The prior on the axle reading's sensitivity to acceleration, rad/s per m/s².
@@ -94,6 +110,9 @@ class GyroAngle(_SpinEffect):
         under the prior ``g_prior_std`` (rad/s per m/s²; a MEMS gyro's ~0.1 °/s/g).
     camber_track_rad:
         l(t), the camber's change (rad; module docstring), or ``None`` (a constant camber).
+    walk_spacing_s, walk_prior_radps_per_sqrt_s:
+        The bias's walk (module docstring): knot intervals of about this length over the
+        window (``None``: a constant bias), each change under a prior of σ q √Δ.
     """
 
     name = "gyro_angle"
@@ -114,6 +133,8 @@ class GyroAngle(_SpinEffect):
         accel_mps2: np.ndarray | None = None,
         g_prior_std: float = G_PRIOR_RADPS_PER_MPS2,
         camber_track_rad: np.ndarray | None = None,
+        walk_spacing_s: float | None = None,
+        walk_prior_radps_per_sqrt_s: float = np.inf,
     ) -> None:
         t = np.asarray(time_s, dtype=float)
         if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
@@ -133,6 +154,18 @@ class GyroAngle(_SpinEffect):
                 raise ValueError("camber_track_rad must be finite, one value per time")
             self.camber_track_rad = track
         self._set_lean()
+        self.walk_knots_s = np.zeros(0)
+        self.walk_prior_std = np.zeros(0)
+        if walk_spacing_s is not None:
+            if not walk_spacing_s > 0:
+                raise ValueError("walk_spacing_s must be positive")
+            count = int(np.floor((t[-1] - t[0]) / walk_spacing_s))
+            if count >= 1:
+                self.walk_knots_s = np.linspace(t[0], t[-1], count + 1)
+                spacing = float(self.walk_knots_s[1] - self.walk_knots_s[0])
+                prior = float(walk_prior_radps_per_sqrt_s) * np.sqrt(spacing)
+                self.walk_prior_std = np.full(count, prior)
+        walk_names = tuple(f"walk_{j}_radps" for j in range(self.walk_prior_std.size))
         # Further rates the axle reading sees, each with a fitted coefficient:
         # (name, (∫x dt, x, ẋ), prior σ).
         self.terms: list[tuple[str, tuple, float]] = []
@@ -148,7 +181,7 @@ class GyroAngle(_SpinEffect):
                 raise ValueError("accel_mps2 must be finite, (N, 3)")
             for name, row in zip(("g_x", "g_y", "g_z"), accel.T, strict=True):
                 self.terms.append((name, self._series(row), float(g_prior_std)))
-        self.param_names = ("scale", *(name for name, _, _ in self.terms))
+        self.param_names = ("scale", *walk_names, *(name for name, _, _ in self.terms))
         self._stacked: np.ndarray | None = None
 
     def _series(self, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -211,7 +244,7 @@ class GyroAngle(_SpinEffect):
 
     def prior_std_values(self) -> np.ndarray | None:
         """σ of the priors on the parameters (∞: none), or None without any."""
-        std = np.array([np.inf] + [prior for _, _, prior in self.terms])
+        std = np.array([np.inf, *self.walk_prior_std] + [prior for _, _, prior in self.terms])
         return std if np.any(np.isfinite(std)) else None
 
     def settings(self) -> dict:
@@ -237,15 +270,33 @@ class GyroAngle(_SpinEffect):
             series += [x for _, triple, _ in self.terms for x in triple]
             self._stacked = np.vstack(series)
         grid = self.time_s
+        on_grid = samples_of(grid, t)
+        if on_grid is not None:  # the grid's own samples (a chunk, a thinned pass): no weights
+            return self._stacked[:, on_grid]
         right = np.clip(np.searchsorted(grid, t), 1, grid.size - 1)
         left = right - 1
         weight = np.clip((t - grid[left]) / (grid[right] - grid[left]), 0.0, 1.0)
         return self._stacked[:, left] * (1.0 - weight) + self._stacked[:, right] * weight
 
+    def _walk_rows(self, t: np.ndarray) -> list[np.ndarray]:
+        """(∫ρ_j dt, ρ_j, ρ̇_j) at times ``t``, each (J, N): the walk's columns (zero at t = 0)."""
+        knots = self.walk_knots_s
+        spacing = knots[1] - knots[0]
+        u = (t[None, :] - knots[:-1, None]) / spacing
+        inside = (u > 0.0) & (u < 1.0)
+
+        def antiderivative(x):  # ∫ ρ from the interval's start, in seconds
+            return spacing * np.where(x <= 0.0, 0.0, np.where(x < 1.0, 0.5 * x * x, x - 0.5))
+
+        at_zero = antiderivative(-knots[:-1] / spacing)
+        integral = antiderivative(u) - at_zero[:, None]
+        return [integral, np.clip(u, 0.0, 1.0), inside / spacing]
+
     def spin_delta(self, values, t_s, kin, jacobian, tilt_rad: float = np.pi / 2):
         """Δϑ, Δω, Δω̇ at centred times ``t_s`` and tilt α (module docstring)."""
         t = np.asarray(t_s, dtype=float)
         scale = float(values[0])
+        walks = self.walk_prior_std.size
         sin_tilt = float(np.sin(tilt_rad))
         cot = float(np.cos(tilt_rad)) / sin_tilt
         csc2 = 1.0 / (sin_tilt * sin_tilt)  # ∂ cot(α − l)/∂l at l = 0
@@ -253,14 +304,23 @@ class GyroAngle(_SpinEffect):
         base, yaw, lean = list(rows[0:3]), list(rows[3:6]), list(rows[6:9])
         total = [b + cot * y + csc2 * m for b, y, m in zip(base, yaw, lean, strict=True)]
         cross = [list(rows[9 + 3 * k : 12 + 3 * k]) for k in range(len(self.terms))]
-        for m, series in zip(values[1:], cross, strict=True):
+        if walks:
+            walk = self._walk_rows(t)
+            d = np.asarray(values[1 : 1 + walks], dtype=float)
+            total = [x + d @ w for x, w in zip(total, walk, strict=True)]
+        for m, series in zip(values[1 + walks :], cross, strict=True):
             total = [x + float(m) * c for x, c in zip(total, series, strict=True)]
         if not jacobian:
             return SpinDelta(*(scale * x for x in total))
         d_cot = -csc2  # ∂ cot α / ∂α
         d_csc2 = -2.0 * cot * csc2  # ∂ (1 / sin²α) / ∂α
         own = [
-            np.vstack([x[None]] + [scale * c[k][None] for c in cross]) for k, x in enumerate(total)
+            np.vstack(
+                [x[None]]
+                + ([scale * walk[k]] if walks else [])
+                + [scale * c[k][None] for c in cross]
+            )
+            for k, x in enumerate(total)
         ]
         return SpinDelta(
             *(scale * x for x in total),

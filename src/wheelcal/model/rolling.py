@@ -107,7 +107,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.model.effects import Effect
+from wheelcal.model.effects import Effect, samples_of
 from wheelcal.model.kinematics import Kinematics
 from wheelcal.model.parameters import STANDARD_GRAVITY_MPS2
 
@@ -479,6 +479,9 @@ class _CamberSeries:
     def at(self, t: np.ndarray) -> np.ndarray:
         """Every row at centred times ``t`` (linear interpolation), (1 + K, 3, n)."""
         grid = self.time_s
+        on_grid = samples_of(grid, t)
+        if on_grid is not None:  # the grid's own samples: the same numbers, gathered
+            return self.stacked[:, :, on_grid]
         right = np.clip(np.searchsorted(grid, t), 1, grid.size - 1)
         left = right - 1
         weight = np.clip((t - grid[left]) / (grid[right] - grid[left]), 0.0, 1.0)

@@ -88,6 +88,16 @@ LEAD_SAMPLES = 4000
 LEAD_ITERATIONS = 12
 #: Gains outside this range after the leading passes are restarted at 1.
 PLAUSIBLE_GAIN = (0.7, 1.4)
+#: The gyro's bias walks on a long drive (:class:`~wheelcal.model.GyroAngle`'s walk): its
+#: change is fitted per knot interval of about this length (s) …
+WALK_SPACING_S = 60.0
+#: … on a drive of at least this many intervals (two minutes keep one bias, ω₀) …
+WALK_MIN_INTERVALS = 3
+#: … under the prior of a factory IMU's walk, °/s/√s (the simulator draws 0.002–0.005).
+#: A factory gyro's bias walks and warms up; the angle integrates it, and ω₀ t cannot
+#: follow: over a 30-minute car drive the angle strayed 15° rms from the truth (two
+#: minutes: under 1°), and gravity's phase, the camber track and the gains with it.
+WALK_PRIOR_DPS_PER_SQRT_S = 0.005
 #: σ of the prior on the yaw's scale κ: the gyro's axes across the axle against their
 #: nominal scale (a MEMS gyro's sensitivity tolerance, ~1–3 % per axis, halved by the
 #: two axes' mean).
@@ -168,6 +178,10 @@ class FieldFit:
     camber_track_min_rad: float = CAMBER_TRACK_MIN_RAD
     #: Whether to test a camber free to move against the fitted one (:mod:`~.lean_check`).
     check_lean: bool = True
+    #: The gyro's bias walk on a long drive (``WALK_SPACING_S``; None: one bias, ω₀).
+    walk_spacing_s: float | None = WALK_SPACING_S
+    #: Its prior (``WALK_PRIOR_DPS_PER_SQRT_S``), °/s/√s.
+    walk_prior_dps_per_sqrt_s: float = WALK_PRIOR_DPS_PER_SQRT_S
 
     def fit(self, window: Recording) -> FieldResult:
         """Calibrate ``window`` (a drive, stops included; its gyro on the same rows).
@@ -263,6 +277,14 @@ class FieldFit:
             max_iterations=100 if tilt_free or radius_m is not None else LEAD_ITERATIONS,
         )
 
+    def _walk(self, tc: np.ndarray) -> dict:
+        """The gyro angle's bias walk on this window (its keywords; {}: a short drive)."""
+        spacing = self.walk_spacing_s
+        if spacing is None or tc[-1] - tc[0] < WALK_MIN_INTERVALS * spacing:
+            return {}
+        q = np.deg2rad(self.walk_prior_dps_per_sqrt_s)
+        return {"walk_spacing_s": spacing, "walk_prior_radps_per_sqrt_s": q}
+
     def _start(self, window: Recording, tc: np.ndarray, axle: GyroAxle) -> tuple:
         """The start (:mod:`wheelcal.estimate.field.start`) and the oriented axle."""
         start = field_start(
@@ -271,6 +293,7 @@ class FieldFit:
             window.info.gravity_or_standard_mps2,
             axle,
             radius_m=window.info.radius_m,
+            walk=self._walk(tc),
         )
         return start, start.axle
 
@@ -318,7 +341,7 @@ class FieldFit:
         frame = (float(window.time_s[0]), float(window.time_s[-1]))
         g_prior = np.deg2rad(self.gyro_g_prior_dps_per_g) / STANDARD_GRAVITY_MPS2
         accel = smoothed if self.fit_g_sensitivity else None
-        build = _Build(tc, accel, g_prior, self.fit_cross)
+        build = _Build(tc, accel, g_prior, self.fit_cross, self._walk(tc))
         series = build.series(window.gyro_radps, axle, params, travelled.layout.effects)
         joint = self._joint(radius_m, True, ())
 
@@ -470,6 +493,7 @@ class _Build:
     accel_mps2: np.ndarray | None  # the axle reading's g-sensitivity, or None
     g_prior: float
     fit_cross: bool
+    walk: dict  # the gyro angle's bias walk (FieldFit._walk)
 
     def series(self, gyro_radps, axle: GyroAxle, params, effects) -> _Series:
         """The yaw, the cross series and the camber's track at ``params``' ϑ and R."""
@@ -481,7 +505,10 @@ class _Build:
         tc = self.centred_time_s
         refined = refined_axle(gyro_radps, axle, theta, rotation)
         y, y_dot = yaw_across(tc, gyro_radps, refined, theta, rotation)
-        track = camber_track(tc, gyro_radps, refined, theta, rotation, y)
+        # a drive of minutes (the walk's): G's share of the speed changes too
+        track = camber_track(
+            tc, gyro_radps, refined, theta, rotation, y, travel_accel=bool(self.walk)
+        )
         cross = _cross(y, theta) if self.fit_cross else None
         return _Series(axle, refined, theta, rotation, y, y_dot, cross, track)
 
@@ -497,6 +524,7 @@ class _Build:
             self.accel_mps2,
             self.g_prior,
             camber_track_rad=series.angle_track_rad if track else None,
+            **self.walk,
         )
 
     def rolling(

@@ -9,6 +9,7 @@ k ψ̇ cos γ, turning with the wheel (:mod:`wheelcal.model.gyro_angle`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,8 +56,17 @@ class GyroAxle:
         return across - self.across_bias_radps
 
 
+@functools.lru_cache(maxsize=32)
+def _butter_sos(corner_hz: float, rate_hz: float) -> np.ndarray:
+    """The 4th-order Butterworth low-pass (second-order sections): designed once per corner.
+
+    (scipy's filter takes a writable array and leaves it as it was.)
+    """
+    return signal.butter(4, corner_hz, fs=rate_hz, output="sos")
+
+
 def _lowpass(x: np.ndarray, rate_hz: float, band_hz: float) -> np.ndarray:
-    sos = signal.butter(4, min(band_hz, 0.4 * rate_hz), fs=rate_hz, output="sos")
+    sos = _butter_sos(float(min(band_hz, 0.4 * rate_hz)), float(rate_hz))
     return signal.sosfiltfilt(sos, x, axis=0)
 
 
@@ -293,6 +303,8 @@ def camber_track(
     theta_rad: np.ndarray,
     rotation: np.ndarray,
     yaw_radps: np.ndarray,
+    *,
+    travel_accel: bool = False,
 ) -> CamberTrack:
     """The camber's change during the drive, from the gyro (:mod:`wheelcal.model.rolling`).
 
@@ -312,7 +324,15 @@ def camber_track(
       axle of different scale: a robot turning on the spot does not average it out);
     * ``gravity_cos2_radps``, ``gravity_sin2_radps``: cos 2ϑ, sin 2ϑ low-passed like the
       rate (G's entries across the axle turn gravity, which rotates in the sensor's
-      frame, into rates at 2ϑ that a slow wheel's band lets through).
+      frame, into rates at 2ϑ that a slow wheel's band lets through);
+    * ``travel_accel`` (with ``travel_accel``: the field fit's drives of minutes): ω̇_g,
+      the hub's acceleration along the travel (ρ ω̇) over ρ.  Like gravity, a force that
+      stands still in the carrier's frame turns in the sensor's as the side direction
+      does, and G's symmetric part across the axle reads it as a steady rate: gravity's
+      is ``drift_radps``, the speed changes' integrates to the speed — on a 10-minute car
+      drive at 0.1 °/s/g, a track off by a speed-shaped share that moved the offsets by
+      11 σ_CRLB.  (On the measured 2-minute drives the freedom it adds moved one drive's
+      lean check past its limit, and the simulated ones do not need it: not there.)
 
     The fit takes l with the yaw's scale κ and each of these with a coefficient; the
     accelerometer's gravity along the axle (g sin γ) anchors them: a real roll moves it,
@@ -327,6 +347,11 @@ def camber_track(
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
     y = np.asarray(yaw_radps, dtype=float)
     gravity = _lowpass(np.column_stack([np.cos(twice), np.sin(twice)]), rate_hz, CAMBER_BAND_HZ)
+    travel = (
+        _lowpass(np.asarray(axle.rate_dot_radps2, dtype=float), rate_hz, CAMBER_BAND_HZ)
+        if travel_accel
+        else None
+    )
     rates = {
         "drift_radps": np.ones_like(t),
         "heading": y,
@@ -335,6 +360,8 @@ def camber_track(
         "gravity_cos2_radps": gravity[:, 0],
         "gravity_sin2_radps": gravity[:, 1],
     }
+    if travel_accel:
+        rates["travel_accel"] = travel
     basis = {name: _held_integral(t, x, moving) for name, x in rates.items()}
     return CamberTrack(_held_integral(t, rate, moving), basis)
 

@@ -11,8 +11,9 @@ bias.  Gravity, turning in the wheel's plane, gives the rest:
    the gyro's angle, z e^{∓iΘ}, keeps only what Θ misses — a slowly turning
    phase φ(t) — once low-passed (the wheel's own rotation is gone, a push or a
    reversal too); the sign whose demodulation keeps more power is the wheel's
-   direction in this frame; φ is summed from its increments where gravity is
-   seen turning, so a stop cannot slip it by a turn;
+   direction in this frame; φ is summed from its increments between the samples
+   where gravity is seen turning, so a stop cannot slip it by a turn, and the
+   gyro's bias, which turns Θ during a stop, is counted across it;
 3. ϑ(t) = ±Θ + φ(t) ≈ ϑ₀ + ω₀ t + s Θ by least squares (the gyro's bias and scale);
 4. with ϑ known, the accelerometer is linear in what is left (eq. 1 at α = 90°,
    plus the hub's travel ρ ω̇ (sin ϑ, −cos ϑ, 0) of a rolling wheel):
@@ -67,8 +68,9 @@ def _slow_phase(t, z, angle, gravity_mps2) -> tuple[int, np.ndarray, np.ndarray]
 
     The slow part of z (a car wheel's r ω² reaches tens of g, and stands still in
     the sensor's frame) is taken out first, so that only the turning gravity is
-    demodulated; φ is summed from its increments where gravity was seen turning
-    (|d| above a third of g), so that a stop cannot make it slip a turn.
+    demodulated; φ is summed from its increments between the samples where gravity
+    was seen turning (|d| above a third of g), so that a stop cannot make it slip a
+    turn, while what Θ gained across the stop (the gyro's bias) is kept.
     """
     rate_hz = 1.0 / float(np.median(np.diff(t)))
     band = min(PHASE_BAND_HZ, 0.4 * rate_hz)
@@ -82,8 +84,13 @@ def _slow_phase(t, z, angle, gravity_mps2) -> tuple[int, np.ndarray, np.ndarray]
             best = (power, sign, d)
     _, sign, d = best
     seen = np.abs(d) > gravity_mps2 / 3
-    steps = np.angle(d[1:] * np.conj(d[:-1])) * (seen[1:] & seen[:-1])
-    return sign, np.concatenate([[0.0], np.cumsum(steps)]), seen.astype(float)
+    # from each seen sample to the next one seen: across a stop too, where the gyro's bias
+    # turns Θ (~0.01 rad/s) while gravity stands still — summed only where seen, a long
+    # drive's stops (a tenth of it) left ω₀ off by that bias's tenth, a radian at ±15 min
+    where = np.flatnonzero(seen)
+    steps = np.zeros(z.size)
+    steps[where[1:]] = np.angle(d[where[1:]] * np.conj(d[where[:-1]]))
+    return sign, np.cumsum(steps), seen.astype(float)
 
 
 def field_start(
@@ -92,8 +99,13 @@ def field_start(
     gravity_mps2: float,
     axle: GyroAxle,
     radius_m: float | None = None,
+    walk: dict | None = None,
 ) -> FieldStart:
-    """The starting point of the field fit (module docstring) at centred times ``t_s``."""
+    """The starting point of the field fit (module docstring) at centred times ``t_s``.
+
+    ``walk``: the gyro angle's bias walk (:class:`~wheelcal.model.GyroAngle`'s
+    ``walk_spacing_s``, ``walk_prior_radps_per_sqrt_s``), started at zero.
+    """
     t = np.asarray(t_s, dtype=float)
     v = np.asarray(accel_mps2, dtype=float)
     notes: list[str] = []
@@ -145,5 +157,8 @@ def field_start(
         gravity_mps2=gravity_mps2,
         effects={GyroAngle.name: [scale]},
     )
-    oriented = GyroAngle(t, axle.rate_radps, axle.rate_dot_radps2)
+    oriented = GyroAngle(t, axle.rate_radps, axle.rate_dot_radps2, **(walk or {}))
+    if oriented.size > 1:  # the walk's changes start at zero
+        walk_start = [scale] + [0.0] * (oriented.size - 1)
+        params = params.with_changes(effects={GyroAngle.name: walk_start})
     return FieldStart(params, axle, oriented, tuple(notes))
