@@ -480,8 +480,21 @@ def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> di
 
 
 def check_calibration(data, path: str | os.PathLike, allow_partial: bool = False) -> dict:
-    """The checks of :func:`load_calibration` on a document already read from ``path``."""
-    if not isinstance(data, dict) or data.get("format") not in CORRECTION_FORMATS:
+    """The checks of :func:`load_calibration` on a document already read from ``path``.
+
+    The ``format`` tag is the document's type and format version (``<type>/<version>``):
+    a known type at another version (a newer wheelcal's) is refused as such.
+    """
+    tag = data.get("format") if isinstance(data, dict) else None
+    if tag not in CORRECTION_FORMATS:
+        kind, _, version = str(tag).rpartition("/")
+        known = {f.rpartition("/")[0]: f.rpartition("/")[2] for f in CORRECTION_FORMATS}
+        if isinstance(tag, str) and kind in known:
+            raise CalibrationFileError(
+                f"{path}: {kind} format version {version!r}; this wheelcal ({__version__}) "
+                f"reads version {known[kind]} ({kind}/{known[kind]}) — was it written by "
+                "a newer wheelcal?"
+            )
         raise CalibrationFileError(
             f"{path}: not a {' or '.join(CORRECTION_FORMATS)} file "
             "(format tag missing or different)"
