@@ -10,9 +10,9 @@ import pytest
 from wheelcal.io import (
     CorruptFileError,
     InputError,
+    MetadataError,
     NotMcapError,
     SampleError,
-    SessionInfoError,
     TopicError,
     copy_with_channels,
     read_recording,
@@ -136,7 +136,7 @@ def test_radius_missing_is_allowed_until_required(tmp_path, base):
     path = write(tmp_path, *base, name="norad.mcap", session={"sensor_id": "a"})
     rec = read_recording(path)
     assert rec.info.radius_m is None
-    with pytest.raises(SessionInfoError, match=r"norad\.mcap: no wheel radius.*--radius"):
+    with pytest.raises(MetadataError, match=r"norad\.mcap: no wheel radius.*--radius"):
         require_radius(rec)
     assert require_radius(read_recording(path, info_overrides={"radius_m": 0.3})) == 0.3
 
@@ -151,7 +151,7 @@ def test_radius_missing_is_allowed_until_required(tmp_path, base):
 )
 def test_bad_radius(tmp_path, base, value, message):
     path = write(tmp_path, *base, name="rad.mcap", session={"radius_m": value})
-    with pytest.raises(SessionInfoError, match=rf"rad\.mcap: radius_m = .*{message}"):
+    with pytest.raises(MetadataError, match=rf"rad\.mcap: radius_m = .*{message}"):
         read_recording(path)
 
 
@@ -160,7 +160,7 @@ def test_bad_gravity(tmp_path, base):
         tmp_path, *base, name="grav.mcap", session={"radius_m": "0.28", "gravity_mps2": "1"}
     )
     with pytest.raises(
-        SessionInfoError, match=r"grav\.mcap: .*gravity_mps2 = 1.0 is not a value of g"
+        MetadataError, match=r"grav\.mcap: .*gravity_mps2 = 1.0 is not a value of g"
     ):
         read_recording(path)
 

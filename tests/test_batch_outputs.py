@@ -20,7 +20,8 @@ from mcap.reader import make_reader
 
 from wheelcal.batch.pipeline import load_pipeline
 from wheelcal.batch.report import build_report, report_markdown, sessions_csv
-from wheelcal.batch.runner import ProgressEvent, SessionRecord, run_batch
+from wheelcal.batch.runner import ProgressEvent, run_batch
+from wheelcal.calibration import SessionOutcome
 from wheelcal.calibration.sensor_json import session_estimate
 from wheelcal.cli.main import main
 from wheelcal.cli.progress import BatchProgress
@@ -321,7 +322,7 @@ def test_progress_lines_carry_the_notes(tty):
     progress = BatchProgress(stream)
     clip = "dropped 570 clipped samples (2.9 %)"
     for i, (notes, error) in enumerate([((), None), ((clip,), None), ((), "x.mcap: truncated")]):
-        record = SessionRecord(source=f"r{i}.mcap", stem=f"r{i}", error=error, notes=notes)
+        record = SessionOutcome(source=f"r{i}.mcap", stem=f"r{i}", error=error, notes=notes)
         progress(ProgressEvent(i + 1, 3, record=record))
     text = stream.getvalue()
     assert f"[2/3] ok r1.mcap — {clip}" in text

@@ -12,8 +12,8 @@ import pytest
 
 from wheelcal.io import (
     InputError,
+    MetadataError,
     SampleError,
-    SessionInfoError,
     read_recording,
     write_accel_mcap,
     write_recording,
@@ -383,7 +383,7 @@ def test_gyro_full_scale_is_a_session_fact(recording, tmp_path):
         == 500.0
     )
     with pytest.raises(
-        SessionInfoError, match=r"fs\.mcap: gyro_full_scale_dps = -1.0 must be positive"
+        MetadataError, match=r"fs\.mcap: gyro_full_scale_dps = -1.0 must be positive"
     ):
         read_recording(path, info_overrides={"gyro_full_scale_dps": -1})
 

@@ -14,7 +14,7 @@ from mcap.writer import IndexType
 from wheelcal.io import (
     CsvLayout,
     InputError,
-    SessionInfoError,
+    MetadataError,
     TopicError,
     accel_channel,
     atomic_write_bytes,
@@ -89,7 +89,7 @@ def test_session_metadata_and_overrides(session, tmp_path):
     assert dict(info.extra) == {"operator": "kim"}
     over = read_recording(path, info_overrides={"radius_m": 0.3, "sensor_id": None}).info
     assert over.radius_m == 0.3 and over.sensor_id == "imu-7"
-    with pytest.raises(SessionInfoError, match=r"s\.mcap: unknown session override.*radus_m"):
+    with pytest.raises(MetadataError, match=r"s\.mcap: unknown session override.*radus_m"):
         read_recording(path, info_overrides={"radus_m": 0.3})
     # Pipeline defaults fill only what neither the file nor the command line gives.
     defaults = {"mounting_id": "default", "full_scale_g": 16, "radius_m": 0.5}

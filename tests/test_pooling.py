@@ -19,7 +19,7 @@ from wheelcal.closedloop.pooling import (
     POOLED_PARAMETERS,
     WEIGHTED_MEAN,
     JointEstimate,
-    SessionEstimate,
+    RecordingEstimate,
     pool_sessions,
 )
 from wheelcal.estimate.joint.fit import JointFit
@@ -33,7 +33,7 @@ SIGMA = np.array([1e-4, 2e-4, 7e-4, 3e-3, 3e-3, 6e-3])  # a session's σ, gains 
 
 
 def _session(label, value, std=SIGMA, systematic=None, mounting="m", covariance=None):
-    return SessionEstimate(
+    return RecordingEstimate(
         label,
         value=value,
         std=std,

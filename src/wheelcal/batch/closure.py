@@ -13,12 +13,12 @@ from collections import defaultdict
 from wheelcal.batch.pipeline import Pipeline
 from wheelcal.batch.sensors import SENSORS_FOLDER, sensor_file_stem
 from wheelcal.calibration import Calibration
-from wheelcal.closedloop import SessionInput, close_sensor
+from wheelcal.closedloop import ClosureInput, close_sensor
 from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, json_safe
 from wheelcal.model import make_effect
 
 
-def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[SessionInput]:
+def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[ClosureInput]:
     from wheelcal.io import read_recording
 
     options = pipeline.options
@@ -41,7 +41,7 @@ def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[SessionInput
             if name not in ("temperature_offset", "rolling")
         )
         local = tuple(e for e in effects if not e.sensor_intrinsic)
-        out.append(SessionInput(recording.window(start, end), cal.mounting_id, local))
+        out.append(ClosureInput(recording.window(start, end), cal.mounting_id, local))
     return out
 
 

@@ -31,7 +31,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from threadpoolctl import ThreadpoolController
@@ -62,42 +62,11 @@ from wheelcal.batch.workers import (
     start_method,
     worker_context,
 )
-from wheelcal.calibration import Calibration, failed_outcome, session_outputs
+from wheelcal.calibration import Calibration, SessionOutcome, failed_outcome, session_outputs
 from wheelcal.io import OutputFolderError, prepare_output_folder
 from wheelcal.recording import RecordingError
 from wheelcal.runtime import tune_allocator
 from wheelcal.session import SessionOptions
-
-
-@dataclass(frozen=True)
-class SessionRecord:
-    """What the batch keeps of one session (small: it crosses process boundaries)."""
-
-    source: str
-    stem: str
-    error: str | None = None
-    calibration_path: str | None = None
-    rrd_path: str | None = None
-    skipped: bool = False
-    timings_s: dict[str, float] = field(default_factory=dict)
-    gate: str | None = None  # the plausibility gate that refused the session, if any
-    fix: str | None = None  # the likely fix for a refused session
-    #: What the reader repaired and the fit's warnings (⚠), for the progress line.
-    notes: tuple[str, ...] = ()
-    #: Its outputs could not be written: the disk is full (the batch stops).
-    disk_full: bool = False
-
-    @property
-    def ok(self) -> bool:
-        """Calibrated now or up to date."""
-        return self.error is None
-
-    @property
-    def status(self) -> str:
-        """``calibrated``, ``up to date`` or ``failed`` (as ``report.json`` ``per_session``)."""
-        if not self.ok:
-            return "failed"
-        return "up to date" if self.skipped else "calibrated"
 
 
 @dataclass(frozen=True)
@@ -106,7 +75,7 @@ class ProgressEvent:
 
     done: int
     total: int
-    record: SessionRecord | None = None
+    record: SessionOutcome | None = None
     message: str = ""
 
 
@@ -115,19 +84,19 @@ class BatchOutcome:
     """Everything the batch did."""
 
     pipeline: Pipeline
-    records: tuple[SessionRecord, ...]
+    records: tuple[SessionOutcome, ...]
     report_paths: tuple[str, ...]
     report_written: bool
     simulated: int
     wall_s: float
 
     @property
-    def failed(self) -> list[SessionRecord]:
+    def failed(self) -> list[SessionOutcome]:
         """Sessions that failed."""
         return [r for r in self.records if not r.ok]
 
     @property
-    def skipped(self) -> list[SessionRecord]:
+    def skipped(self) -> list[SessionOutcome]:
         """Sessions whose outputs were up to date."""
         return [r for r in self.records if r.skipped]
 
@@ -151,7 +120,7 @@ class _Task:
     stem: str
 
 
-def _run_task(task: _Task) -> SessionRecord:
+def _run_task(task: _Task) -> SessionOutcome:
     """Worker entry point (top level: it must pickle).
 
     The session's lock is held while it runs; once it has the lock, a session
@@ -177,22 +146,8 @@ def _run_task(task: _Task) -> SessionRecord:
         if in_worker():  # told to stop by the batch: its temporary files are already gone
             exit_worker(exc)
         raise
-    session = outcome.session
-    notes = (
-        () if session is None else (*session.result.notes, *(f"⚠ {w}" for w in session.warnings))
-    )
-    return SessionRecord(
-        source=outcome.source,
-        stem=outcome.stem,
-        error=outcome.error,
-        calibration_path=outcome.calibration_path,
-        rrd_path=outcome.rrd_path,
-        timings_s=outcome.timings_s,
-        gate=outcome.gate,
-        fix=outcome.fix,
-        notes=notes,
-        disk_full=outcome.disk_full,
-    )
+    # small: the calibrated session stays in the worker
+    return dataclasses.replace(outcome, session=None)
 
 
 @functools.cache
@@ -220,8 +175,8 @@ def _up_to_date(out: Path, stem: str, key: str, options: SessionOptions) -> bool
     return complete and stored_run_key(_calibration_file(out, stem)) == key
 
 
-def _up_to_date_record(source: str, out: Path, stem: str, rrd: bool) -> SessionRecord:
-    return SessionRecord(
+def _up_to_date_record(source: str, out: Path, stem: str, rrd: bool) -> SessionOutcome:
+    return SessionOutcome(
         source=source,
         stem=stem,
         calibration_path=str(_calibration_file(out, stem)),
@@ -276,7 +231,7 @@ def _new_sessions(out: Path, stems) -> int:
     return sum(not _calibration_file(out, stem).exists() for stem in stems)
 
 
-def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionRecord]]:
+def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[SessionOutcome]]:
     try:
         stems = unique_stems(files)
     except ValueError as exc:
@@ -301,11 +256,7 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
                 if isinstance(sha, RecordingError)
                 else f"cannot read ({sha.strerror or sha})"
             )
-            up_to_date.append(
-                SessionRecord(
-                    source=str(f), stem=stem, error=failed_outcome(str(f), stem, out, error).error
-                )
-            )
+            up_to_date.append(failed_outcome(str(f), stem, out, error))
             continue
         options = pipeline.options_for(f)
         key = run_key(sha, options, produces)
@@ -319,7 +270,7 @@ def _plan(pipeline: Pipeline, files: list[Path]) -> tuple[list[_Task], list[Sess
 def _execute(
     pipeline: Pipeline,
     tasks: list[_Task],
-    on_done: Callable[[SessionRecord], None],
+    on_done: Callable[[SessionOutcome], None],
     stop: Callable[[], bool] = lambda: False,
 ) -> None:
     """Run the tasks, reporting each record; no new session starts once ``stop()`` is true."""
@@ -400,7 +351,7 @@ def _group_size(sessions: int, threads: int) -> int:
     return max(1, min(_GROUP_MAX, sessions // max(1, _GROUPS_PER_THREAD * threads)))
 
 
-def _run_group(tasks: tuple[_Task, ...]) -> list[SessionRecord]:
+def _run_group(tasks: tuple[_Task, ...]) -> list[SessionOutcome]:
     """Several sessions in one task (top level: it must pickle); each fails alone."""
     records = []
     for task in tasks:
@@ -414,7 +365,7 @@ def _run_group(tasks: tuple[_Task, ...]) -> list[SessionRecord]:
 def _run_pool(
     tasks: list[_Task],
     workers: int,
-    on_done: Callable[[SessionRecord], None],
+    on_done: Callable[[SessionOutcome], None],
     stop: Callable[[], bool] = lambda: False,
 ) -> list[_Task]:
     """Run tasks on a process pool; returns the tasks lost to a broken pool (not reported).
@@ -480,7 +431,7 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
                 process.kill()
 
 
-def _collect(future, task: _Task) -> SessionRecord:
+def _collect(future, task: _Task) -> SessionOutcome:
     """The record of a finished future; a crashed worker becomes a failed session."""
     try:
         return future.result()
@@ -488,14 +439,13 @@ def _collect(future, task: _Task) -> SessionRecord:
         return _failed_record(task, exc)
 
 
-def _failed_record(task: _Task, exc: BaseException) -> SessionRecord:
+def _failed_record(task: _Task, exc: BaseException) -> SessionOutcome:
     """A session whose worker raised or died: named, and its earlier outputs marked stale."""
     if isinstance(exc, BrokenProcessPool):
         what = "its worker process died (out of memory, or killed)"
     else:
         what = f"worker failed: {type(exc).__name__}: {exc}"
-    outcome = failed_outcome(task.path, task.stem, task.out_dir, what)
-    return SessionRecord(source=task.path, stem=task.stem, error=outcome.error)
+    return failed_outcome(task.path, task.stem, task.out_dir, what)
 
 
 def run_batch(
@@ -571,9 +521,9 @@ def _run_held(pipeline: Pipeline, say, force: bool, t0: float) -> BatchOutcome:
                 len(records), total, message=f"{fresh} session(s) up to date, {len(tasks)} to run"
             )
         )
-    full: list[SessionRecord] = []
+    full: list[SessionOutcome] = []
 
-    def done(record: SessionRecord) -> None:
+    def done(record: SessionOutcome) -> None:
         records.append(record)
         if record.disk_full:
             full.append(record)
@@ -662,7 +612,7 @@ def _replacing(notes: list[str]) -> str:
     return f"{notes[0]}; and {len(notes) - 1} more earlier output(s) of the same inputs"
 
 
-def _disk_full_text(pipeline, records, total: int, first: SessionRecord) -> str:
+def _disk_full_text(pipeline, records, total: int, first: SessionOutcome) -> str:
     written = sum(r.ok and not r.skipped for r in records)
     skipped = sum(r.skipped for r in records)
     reason = first.error.removeprefix(f"{first.source}: ")
@@ -687,7 +637,9 @@ def _require_dask(pipeline: Pipeline) -> None:
         ) from None
 
 
-def _write_report(pipeline: Pipeline, records: list[SessionRecord]) -> tuple[tuple[str, ...], bool]:
+def _write_report(
+    pipeline: Pipeline, records: list[SessionOutcome]
+) -> tuple[tuple[str, ...], bool]:
     """The report set, all at once or not at all (staged: a full disk leaves the earlier set)."""
     from wheelcal.io import origin_of, output_mark, staged_outputs
 
@@ -763,7 +715,7 @@ def _stage_report(pipeline, records, calibrations, report_key: str, stage, mark)
     return paths
 
 
-def _report_key(records: list[SessionRecord], documents: dict[str, dict | None]) -> str:
+def _report_key(records: list[SessionOutcome], documents: dict[str, dict | None]) -> str:
     """What the report is made of: every session's run key (or its error), hashed."""
     keys = sorted(
         (r.source, r.stem, run_key_of(documents[r.calibration_path]) if r.ok else r.error)
@@ -774,7 +726,7 @@ def _report_key(records: list[SessionRecord], documents: dict[str, dict | None])
 
 def _report(
     pipeline: Pipeline,
-    records: list[SessionRecord],
+    records: list[SessionOutcome],
     calibrations: list[Calibration],
     stage=None,
     mark: dict | None = None,
@@ -809,7 +761,7 @@ def _report(
 
 def _sensor_and_overview_files(
     pipeline: Pipeline,
-    records: list[SessionRecord],
+    records: list[SessionOutcome],
     calibrations: list[Calibration],
     report: dict,
     numbers: list[int],
@@ -854,7 +806,7 @@ def _calibration(path: str, document: dict | None) -> Calibration:
     return Calibration.from_document(document, path)
 
 
-def _failure(record: SessionRecord) -> dict:
+def _failure(record: SessionOutcome) -> dict:
     """A ``report.json`` ``failed`` entry: file and error, plus gate and fix when refused."""
     entry = {"file": record.source, "error": record.error}
     if record.gate:

@@ -50,7 +50,7 @@ from wheelcal.closedloop import (
     POOLED_PARAMETERS,
     JointEstimate,
     PooledSensor,
-    SessionEstimate,
+    RecordingEstimate,
 )
 from wheelcal.io import atomic_write_text
 from wheelcal.model import AXES
@@ -101,7 +101,7 @@ def _list(values) -> list:
     return [_num(v) for v in np.asarray(values, dtype=float).reshape(-1)]
 
 
-def session_estimate(calibration: Mapping) -> SessionEstimate:
+def session_estimate(calibration: Mapping) -> RecordingEstimate:
     """The pooling input of one session's calibration dictionary (nulls become NaN)."""
     calibration = read_only_document(calibration)
     source = calibration.get("source", {})
@@ -121,7 +121,7 @@ def session_estimate(calibration: Mapping) -> SessionEstimate:
     for entry in sensor.get("undetermined", []) or []:
         if isinstance(entry, Mapping) and "parameter" in entry:
             reasons[str(entry["parameter"])] = str(entry.get("reason", "undetermined"))
-    return SessionEstimate(
+    return RecordingEstimate(
         label=where,
         value=value,
         std=std,

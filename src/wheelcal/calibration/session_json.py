@@ -22,7 +22,7 @@ from wheelcal.estimate import residual_by_wheel_angle
 from wheelcal.estimate.joint import CalibrationResult, SystematicBudget
 from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, origin_of, output_mark
 from wheelcal.model import AXES, EULER_CONVENTION, SensorCorrection
-from wheelcal.session import Assessment, SessionResult, fitted_stretches
+from wheelcal.session import Assessment, LeanReport, SessionResult, fitted_stretches
 
 FORMAT = "wheelcal.calibration/1"
 #: A sensor's calibration pooled from its sessions (:mod:`wheelcal.calibration.sensor_json`):
@@ -153,8 +153,27 @@ def _bench_block(session: SessionResult, std: dict) -> dict:
         "misalignment_euler_deg": _vec(params.bench.misalignment.euler_deg()),
         "misalignment_euler_std_deg": [_num(std[f"euler_{k}_deg"]) for k in (1, 2, 3)],
         "euler_convention": EULER_CONVENTION,
-        **({"lean": _clean(session.lean)} if session.lean is not None else {}),
+        **({"lean": _clean(_lean_block(session.lean))} if session.lean is not None else {}),
     }
+
+
+def _lean_block(lean: LeanReport) -> dict:
+    """``bench.lean``: the camber's change, the part in the turns, the track, the check."""
+    out = {"change_deg": lean.change_deg}
+    if lean.in_turns_deg is not None:
+        out["in_turns_deg_per_mps2"] = lean.in_turns_deg_per_mps2
+        out["in_turns_std_deg_per_mps2"] = lean.in_turns_std_deg_per_mps2
+        out["in_turns_deg"] = lean.in_turns_deg
+    if lean.track is not None:
+        out["track"] = {
+            "followed": lean.track.followed,
+            "gyro_range_deg": lean.track.gyro_range_deg,
+            "beyond_gyro_errors_deg": lean.track.beyond_gyro_errors_deg,
+            "reason": lean.track.reason,
+        }
+    if lean.check is not None:
+        out["check"] = lean.check.to_dict()
+    return out
 
 
 def _motion_block(result: CalibrationResult, std: dict) -> dict:
@@ -461,8 +480,21 @@ def load_calibration(path: str | os.PathLike, allow_partial: bool = False) -> di
 
 
 def check_calibration(data, path: str | os.PathLike, allow_partial: bool = False) -> dict:
-    """The checks of :func:`load_calibration` on a document already read from ``path``."""
-    if not isinstance(data, dict) or data.get("format") not in CORRECTION_FORMATS:
+    """The checks of :func:`load_calibration` on a document already read from ``path``.
+
+    The ``format`` tag is the document's type and format version (``<type>/<version>``):
+    a known type at another version (a newer wheelcal's) is refused as such.
+    """
+    tag = data.get("format") if isinstance(data, dict) else None
+    if tag not in CORRECTION_FORMATS:
+        kind, _, version = str(tag).rpartition("/")
+        known = {f.rpartition("/")[0]: f.rpartition("/")[2] for f in CORRECTION_FORMATS}
+        if isinstance(tag, str) and kind in known:
+            raise CalibrationFileError(
+                f"{path}: {kind} format version {version!r}; this wheelcal ({__version__}) "
+                f"reads version {known[kind]} ({kind}/{known[kind]}) — was it written by "
+                "a newer wheelcal?"
+            )
         raise CalibrationFileError(
             f"{path}: not a {' or '.join(CORRECTION_FORMATS)} file "
             "(format tag missing or different)"

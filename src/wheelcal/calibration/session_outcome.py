@@ -1,5 +1,9 @@
 """One recording calibrated into a folder, never raising for bad input: a :class:`SessionOutcome`.
 
+The same value is the batch's record of a session (``wheelcal batch``): without the
+calibrated session when it crosses a process boundary, or ``skipped`` when its
+outputs were up to date.
+
 ``wheelcal calibrate``, ``diagnose`` and the batch's workers all run a session
 through :func:`calibrate_into`: :meth:`Calibration.compute
 <wheelcal.calibration.document.Calibration.compute>` (read, window, fit, closed
@@ -33,7 +37,9 @@ class SessionOutcome:
 
     ``session`` is the calibrated session (the computation's result) or None after
     a failure, whose ``error`` names the file and the problem (``gate`` and ``fix``
-    for a refusal).
+    for a refusal).  The batch keeps the outcome without its ``session`` (small: it
+    crosses process boundaries); ``skipped`` marks a session whose outputs were up
+    to date and were not computed again.
     """
 
     source: str
@@ -49,11 +55,22 @@ class SessionOutcome:
     fix: str | None = None
     #: Its files could not be written because the disk is full (the batch stops).
     disk_full: bool = False
+    #: What the reader repaired and the fit's warnings (⚠), for the batch's progress line.
+    notes: tuple[str, ...] = ()
+    #: Its outputs were up to date: not computed again (the batch).
+    skipped: bool = False
 
     @property
     def ok(self) -> bool:
-        """True when the session was calibrated (and, after writing, written)."""
+        """True when the session was calibrated (and written), or was up to date."""
         return self.error is None
+
+    @property
+    def status(self) -> str:
+        """``calibrated``, ``up to date`` or ``failed`` (as ``report.json`` ``per_session``)."""
+        if not self.ok:
+            return "failed"
+        return "up to date" if self.skipped else "calibrated"
 
     @property
     def result(self):
@@ -113,6 +130,7 @@ def calibrate_into(
         rrd_path=files.rrd_path,
         diagnosis_path=files.diagnosis_path,
         timings_s={**session.timings_s, **files.timings_s},
+        notes=(*session.result.notes, *(f"⚠ {w}" for w in session.warnings)),
     )
 
 

@@ -41,7 +41,7 @@ def register(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Apply and report."""
     from wheelcal.calibration import apply_calibration
-    from wheelcal.cli.errors import SessionsFailed, UsageError
+    from wheelcal.cli.errors import CommandFailed, UsageError
     from wheelcal.cli.options import readable_inputs
     from wheelcal.cli.overwrite import claim
     from wheelcal.io import Output, describe_error, origin_of, output_mark, special_file_kind
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
             message = f"{type(exc).__name__}: {exc}".rstrip(": ")
         if args.source not in message and args.calibration not in message:
             message = f"{args.source}: {message}"
-        raise SessionsFailed(f"error: {message}") from None
+        raise CommandFailed(f"error: {message}") from None
     print(f"wrote {args.destination}: {applied.summary()}")
     if applied.gyro_note:
         print(applied.gyro_note)

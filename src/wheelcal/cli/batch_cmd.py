@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
         load_pipeline,
         run_batch,
     )
-    from wheelcal.cli.errors import SessionsFailed, UsageError
+    from wheelcal.cli.errors import CommandFailed, UsageError
     from wheelcal.cli.progress import BatchProgress
 
     try:
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     except PipelineError as exc:
         raise UsageError(str(exc)) from None
     except BatchStopped as exc:
-        raise SessionsFailed(f"error: {exc}") from None
+        raise CommandFailed(f"error: {exc}") from None
     except Terminated as exc:
         print(
             f"wheelcal batch: stopped by {exc.name}: {exc.done} of {exc.total} session(s) "
@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     state = "written" if outcome.report_written else "unchanged"
     print(f"report ({state}): " + ", ".join(outcome.report_paths))
     if outcome.failed:
-        raise SessionsFailed(
+        raise CommandFailed(
             f"{len(outcome.failed)} session(s) failed: "
             + "; ".join(r.source for r in outcome.failed)
         )

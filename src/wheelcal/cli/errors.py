@@ -5,5 +5,5 @@ class UsageError(ValueError):
     """Bad command-line usage: exit status 2."""
 
 
-class SessionsFailed(RuntimeError):
-    """Some sessions failed (already reported one by one): exit status 1."""
+class CommandFailed(RuntimeError):
+    """The command failed — some recordings failed, already reported one by one: exit status 1."""

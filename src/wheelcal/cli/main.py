@@ -20,7 +20,7 @@ import importlib
 import sys
 
 from wheelcal import __version__
-from wheelcal.cli.errors import SessionsFailed, UsageError
+from wheelcal.cli.errors import CommandFailed, UsageError
 
 #: Command modules, in the order ``--help`` lists them.
 COMMANDS = (
@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as exc:
         print(f"wheelcal {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except SessionsFailed as exc:
+    except CommandFailed as exc:
         print(f"wheelcal {args.command}: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -13,7 +13,7 @@ import argparse
 import dataclasses
 import sys
 
-from wheelcal.cli.errors import SessionsFailed, UsageError
+from wheelcal.cli.errors import CommandFailed, UsageError
 from wheelcal.cli.options import claim_sessions, output_folder, session_options
 
 
@@ -43,5 +43,5 @@ def run_sessions(args: argparse.Namespace, diagnose: bool = False) -> int:
         elif not quiet:
             print(session_summary(outcome))
     if failed:
-        raise SessionsFailed(f"{failed} of {len(args.files)} recording(s) failed")
+        raise CommandFailed(f"{failed} of {len(args.files)} recording(s) failed")
     return 0

@@ -20,22 +20,22 @@ from wheelcal.closedloop.pooling import (
     POOLED_PARAMETERS,
     JointEstimate,
     PooledSensor,
-    SessionEstimate,
+    RecordingEstimate,
     pool_sessions,
 )
-from wheelcal.closedloop.sensor_closure import SessionInput, close_sensor
+from wheelcal.closedloop.sensor_closure import ClosureInput, close_sensor
 
 __all__ = [
     "JOINT_FIT",
     "POOLED_PARAMETERS",
     "ClosedLoop",
+    "ClosureInput",
     "Diagnosis",
     "GyroMountingObservation",
     "JointEstimate",
     "PooledGyro",
     "PooledSensor",
-    "SessionEstimate",
-    "SessionInput",
+    "RecordingEstimate",
     "close_sensor",
     "geometry_covariance",
     "pool_gyro",

@@ -71,8 +71,10 @@ def _frozen(values, shape) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class SessionEstimate:
-    """One session's sensor parameters (order :data:`POOLED_PARAMETERS`).
+class RecordingEstimate:
+    """One recording's estimate of the sensor's parameters: the pooling's input.
+
+    Parameters in the order :data:`POOLED_PARAMETERS`.
 
     NaN or ∞ in ``value`` or ``std`` marks a parameter the session cannot
     determine; ``reasons`` gives why, per parameter name, where known.
@@ -182,7 +184,7 @@ class PooledSensor:
 
 
 def pool_sessions(
-    sessions: Sequence[SessionEstimate], joint: JointEstimate | None = None
+    sessions: Sequence[RecordingEstimate], joint: JointEstimate | None = None
 ) -> PooledSensor:
     """Pool the sessions of one sensor (see the module docstring)."""
     if not sessions:
@@ -256,7 +258,7 @@ def pool_sessions(
     )
 
 
-def _spread_groups(sessions: Sequence[SessionEstimate], method: str) -> list[list[int]]:
+def _spread_groups(sessions: Sequence[RecordingEstimate], method: str) -> list[list[int]]:
     """Sessions whose scatter σ must explain: all of them, or each mounting (joint fit)."""
     if method != JOINT_FIT:
         return [list(range(len(sessions)))]

@@ -48,8 +48,8 @@ SPREAD_PARAMETERS = (
 
 
 @dataclass(frozen=True)
-class SessionInput:
-    """One recording of the sensor: its free-spin samples, mounting, and local effects."""
+class ClosureInput:
+    """The closure's input: one recording of the sensor, its mounting and its local effects."""
 
     recording: Recording
     mounting_id: str = ""
@@ -187,7 +187,7 @@ def _ratio(values: np.ndarray, stds: np.ndarray) -> tuple[float, float]:
 
 def close_sensor(
     sensor_id: str,
-    sessions: Sequence[SessionInput],
+    sessions: Sequence[ClosureInput],
     alpha: float = 0.01,
     fit: JointFit | None = None,
     candidates: tuple[Effect, ...] | None = None,

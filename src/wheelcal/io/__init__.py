@@ -30,9 +30,9 @@ from wheelcal.io.csv_convert import CsvConversion, CsvLayout, convert_csv
 from wheelcal.io.errors import (
     CorruptFileError,
     InputError,
+    MetadataError,
     NotMcapError,
     SampleError,
-    SessionInfoError,
     TopicError,
     describe_error,
 )
@@ -86,6 +86,7 @@ __all__ = [
     "CsvLayout",
     "InputError",
     "InputPolicy",
+    "MetadataError",
     "NotMcapError",
     "Output",
     "OutputExistsError",
@@ -93,7 +94,6 @@ __all__ = [
     "OutputRefusedError",
     "RawImuSamples",
     "SampleError",
-    "SessionInfoError",
     "SpecialFileError",
     "TopicError",
     "accel_channel",

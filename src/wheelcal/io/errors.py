@@ -13,10 +13,10 @@ from wheelcal.recording import InputError, RecordingError, SampleError
 __all__ = [
     "CorruptFileError",
     "InputError",
+    "MetadataError",
     "NotMcapError",
     "RecordingError",
     "SampleError",
-    "SessionInfoError",
     "TopicError",
     "describe_error",
 ]
@@ -34,8 +34,8 @@ class TopicError(InputError):
     """No accelerometer topic, several candidates and no choice, or an unknown topic."""
 
 
-class SessionInfoError(InputError):
-    """The ``wheelcal.session`` facts are missing, unparsable or out of range."""
+class MetadataError(InputError):
+    """The recording's ``wheelcal.session`` metadata is missing, unparsable or out of range."""
 
 
 def describe_error(exc: BaseException) -> str:

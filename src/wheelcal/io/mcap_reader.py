@@ -372,7 +372,7 @@ def read_recording(
     ------
     InputError
         (and its subclasses ``NotMcapError``, ``CorruptFileError``,
-        ``TopicError``, ``SessionInfoError``, ``SampleError``) with the file
+        ``TopicError``, ``MetadataError``, ``SampleError``) with the file
         and the problem in the message.
     """
     if gyro_unit is not None and gyro_unit not in GYRO_UNITS:

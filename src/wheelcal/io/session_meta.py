@@ -16,7 +16,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from wheelcal.io.errors import SessionInfoError
+from wheelcal.io.errors import MetadataError
 from wheelcal.recording import Recording, RecordingError, SessionInfo
 
 SESSION_METADATA_NAME = "wheelcal.session"
@@ -29,9 +29,9 @@ def _number(path: str, key: str, value: object, origin: str) -> float:
     try:
         number = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise SessionInfoError(path, f"{key} = {value!r} ({origin}) is not a number") from None
+        raise MetadataError(path, f"{key} = {value!r} ({origin}) is not a number") from None
     if not np.isfinite(number):
-        raise SessionInfoError(path, f"{key} = {value!r} ({origin}) is not a finite number")
+        raise MetadataError(path, f"{key} = {value!r} ({origin}) is not a finite number")
     return number
 
 
@@ -62,7 +62,7 @@ def session_info(
 
     Raises
     ------
-    SessionInfoError
+    MetadataError
         Unknown override, unparsable number, non-positive radius, a gravity
         that is not Earth's, a non-positive full scale.
     """
@@ -70,7 +70,7 @@ def session_info(
     for given, what in ((overrides, "override"), (defaults, "default")):
         unknown = sorted(set(given or {}) - set(KNOWN_KEYS))
         if unknown:
-            raise SessionInfoError(
+            raise MetadataError(
                 name, f"unknown session {what}(s) {unknown}; known: {list(KNOWN_KEYS)}"
             )
     merged: dict[str, tuple[object, str]] = {
@@ -97,14 +97,14 @@ def session_info(
             extra.append((key, str(value)))
     radius = values.get("radius_m")
     if radius is not None and radius <= 0:  # type: ignore[operator]
-        raise SessionInfoError(
+        raise MetadataError(
             name,
             f"radius_m = {radius} ({merged['radius_m'][1]}) must be a positive length in metres",
         )
     for key in ("full_scale_g", "gyro_full_scale_dps"):
         full_scale = values.get(key)
         if full_scale is not None and full_scale <= 0:  # type: ignore[operator]
-            raise SessionInfoError(name, f"{key} = {full_scale} must be positive")
+            raise MetadataError(name, f"{key} = {full_scale} must be positive")
     try:
         return SessionInfo(
             **values,  # type: ignore[arg-type]
@@ -112,7 +112,7 @@ def session_info(
             gravity_forced=gravity_forced,
         )
     except RecordingError as exc:
-        raise SessionInfoError(name, f"wheelcal.session: {exc}") from None
+        raise MetadataError(name, f"wheelcal.session: {exc}") from None
 
 
 def require_radius(recording: Recording) -> float:
@@ -123,12 +123,12 @@ def require_radius(recording: Recording) -> float:
 
     Raises
     ------
-    SessionInfoError
+    MetadataError
         If neither the file nor an override gave ``radius_m``.
     """
     radius = recording.info.radius_m
     if radius is None:
-        raise SessionInfoError(
+        raise MetadataError(
             recording.source,
             "no wheel radius: the file's wheelcal.session metadata has no radius_m; "
             "give it on the command line (--radius M) or in the pipeline file",

@@ -14,14 +14,16 @@ from wheelcal.session.compute import (
     compute_session,
 )
 from wheelcal.session.gates import Assessment, Gates
-from wheelcal.session.result import SessionResult
+from wheelcal.session.result import CamberTrackReport, LeanReport, SessionResult
 from wheelcal.session.window import FreeSpinWindow, fitted_stretches
 
 __all__ = [
     "SESSION_GEOMETRIES",
     "Assessment",
+    "CamberTrackReport",
     "FreeSpinWindow",
     "Gates",
+    "LeanReport",
     "SessionOptions",
     "SessionResult",
     "compute_recording",

@@ -20,7 +20,13 @@ from wheelcal.recording import Recording, RecordingError
 from wheelcal.session.fit import assess
 from wheelcal.session.gates import Gates
 from wheelcal.session.lean_gate import camber_nulls, judge_the_lean
-from wheelcal.session.result import SessionResult, WindowChoice, attempted
+from wheelcal.session.result import (
+    CamberTrackReport,
+    LeanReport,
+    SessionResult,
+    WindowChoice,
+    attempted,
+)
 from wheelcal.session.window import find_drive_window
 
 
@@ -86,25 +92,31 @@ def field_attempt(
     return attempted(calibrate_field, recording, gates, fit, window, why)
 
 
-def _lean(field: FieldResult) -> dict:
+def _lean(field: FieldResult) -> LeanReport:
     """The camber's change over the drive, how it was modelled, and the lean check (degrees)."""
-    out = {"change_deg": float(field.geometry.lean_change_deg)}
     turns = field.geometry.lean_in_turns
+    in_turns = {}
     if turns is not None and np.isfinite(turns.std_rad):
-        out["in_turns_deg_per_mps2"] = float(np.rad2deg(turns.per_lateral_mps2_rad))
-        out["in_turns_std_deg_per_mps2"] = float(np.rad2deg(turns.std_rad))
-        out["in_turns_deg"] = float(np.rad2deg(turns.range_rad))
-    camber = field.geometry.camber
-    if camber is not None:
-        out["track"] = {
-            "followed": bool(camber.used),
-            "gyro_range_deg": float(np.rad2deg(camber.track_range_rad)),
-            "beyond_gyro_errors_deg": float(np.rad2deg(camber.unexplained_range_rad)),
-            "reason": camber.reason,
+        in_turns = {
+            "in_turns_deg_per_mps2": float(np.rad2deg(turns.per_lateral_mps2_rad)),
+            "in_turns_std_deg_per_mps2": float(np.rad2deg(turns.std_rad)),
+            "in_turns_deg": float(np.rad2deg(turns.range_rad)),
         }
-    if field.geometry.lean_check is not None:
-        out["check"] = field.geometry.lean_check.to_dict()
-    return out
+    camber = field.geometry.camber
+    track = None
+    if camber is not None:
+        track = CamberTrackReport(
+            followed=bool(camber.used),
+            gyro_range_deg=float(np.rad2deg(camber.track_range_rad)),
+            beyond_gyro_errors_deg=float(np.rad2deg(camber.unexplained_range_rad)),
+            reason=camber.reason,
+        )
+    return LeanReport(
+        change_deg=float(field.geometry.lean_change_deg),
+        **in_turns,
+        track=track,
+        check=field.geometry.lean_check,
+    )
 
 
 #: A lean that follows the turns is named in a warning from this size (2–98 % range, °) …

@@ -11,8 +11,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TypeVar
 
+from wheelcal.closedloop import Diagnosis
 from wheelcal.estimate import RestSegment
-from wheelcal.estimate.joint import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult, FreedCheck
 from wheelcal.recording import Recording, RecordingError
 from wheelcal.session.gates import Assessment
 from wheelcal.session.window import FreeSpinWindow
@@ -25,6 +26,37 @@ class WindowChoice:
     recording: Recording  # cut to the window
     found: FreeSpinWindow | None
     reason: str
+
+
+@dataclass(frozen=True)
+class CamberTrackReport:
+    """Whether the fit followed the camber the gyro tracks, and that track's size (degrees)."""
+
+    followed: bool
+    #: The camber's 2–98 % range as the gyro tracks it.
+    gyro_range_deg: float
+    #: The part of that range the gyro's own errors do not explain.
+    beyond_gyro_errors_deg: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class LeanReport:
+    """A rolling wheel's camber as the gyro reads it over the drive (``bench.lean``).
+
+    ``change_deg`` is the 2–98 % range, the ``lean`` gate's measure.  When measured,
+    the part that follows the turns: its slope ``in_turns_deg_per_mps2`` per m/s² of
+    lateral acceleration with its σ, and its range ``in_turns_deg`` (all three or
+    none).  ``track``: the camber the gyro tracks and whether the fit followed it;
+    ``check``: what a camber free to move would change.
+    """
+
+    change_deg: float
+    in_turns_deg_per_mps2: float | None = None
+    in_turns_std_deg_per_mps2: float | None = None
+    in_turns_deg: float | None = None
+    track: CamberTrackReport | None = None
+    check: FreedCheck | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,7 +78,7 @@ class SessionResult:
     assessment: Assessment
     window: WindowChoice
     rests: tuple[RestSegment, ...]
-    diagnosis: object | None
+    diagnosis: Diagnosis | None
     recording: Recording
     geometry: str = "radius"
     model: str = "closed_loop"
@@ -55,10 +87,8 @@ class SessionResult:
     geometry_source: str = "given"
     #: Why the geometry is what it is, when detected.
     geometry_reason: str = ""
-    #: A rolling wheel's camber as the gyro reads it over the drive (field fits only):
-    #: ``change_deg`` (2–98 % range, the ``lean`` gate's measure) and, when measured, the
-    #: part that follows the turns, ``in_turns_deg_per_mps2`` with its σ and ``in_turns_deg``.
-    lean: dict | None = None
+    #: A rolling wheel's camber as the gyro reads it over the drive (rolling field fits only).
+    lean: LeanReport | None = None
 
     @property
     def undetermined(self) -> tuple[str, ...]:

@@ -8,7 +8,7 @@ Tab **calibration** (always):
   mean as a grey band;
 * right — the calibration report, ω(t) (model, and the measured rate: gyro or
   per turn from the accelerometer), and any extra views a logging function
-  registered (:meth:`wheelcal.viz.session_rrd.SessionRrd.add_view`, e.g. the
+  registered (:meth:`wheelcal.viz.session_rrd.RrdFile.add_view`, e.g. the
   rests' Allan deviation under ``/allan``);
 * across the bottom, the free-spin window lane (before / free spin / after).
 

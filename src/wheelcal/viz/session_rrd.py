@@ -24,7 +24,7 @@ for this calibration, more can be added, see below; ``<a>`` is an axis):
   (:mod:`wheelcal.viz.measured_rate`; the legend says which);
 * ``/report`` — static markdown: source, window, fit summary, every parameter
   with value, statistical σ and systematic σ, the warnings;
-* with a closed-loop diagnosis that added effects (:meth:`SessionRrd.log_diagnosis`):
+* with a closed-loop diagnosis that added effects (:meth:`RrdFile.log_diagnosis`):
   ``/closed_loop/angle/<a>/paper_model`` and ``…/with_effects`` (the
   residual's mean per 5° of ϑ before and after),
   ``/closed_loop/trend/paper_model`` and ``…/with_effects`` (its mean per
@@ -51,10 +51,10 @@ carry ϑ as their own abscissa.)
 The layout is :mod:`wheelcal.viz.session_blueprint`.
 
 More residual sets: inside :func:`session_rrd`, call
-:meth:`SessionRrd.log_residuals`; the set lands in the same per-axis views
+:meth:`RrdFile.log_residuals`; the set lands in the same per-axis views
 (the blueprint is written last and knows every set).  Other logging functions
 (e.g. the rests' Allan deviation under ``/allan``) register their view with
-:meth:`SessionRrd.add_view`::
+:meth:`RrdFile.add_view`::
 
     with session_rrd(path, session) as rrd:
         rrd.log_diagnosis(session.diagnosis)
@@ -347,7 +347,7 @@ def log_residuals(
 
     Writes ``/residual/<name>`` ({x, y, z} rows on ``time``) and the static
     bar charts ``/residual_angle_mean/<axis>/<name>`` (mean per 5° of ϑ).
-    Prefer :meth:`SessionRrd.log_residuals`, which also puts the set in the
+    Prefer :meth:`RrdFile.log_residuals`, which also puts the set in the
     blueprint's per-axis views.
 
     Parameters
@@ -831,8 +831,8 @@ def noise_band_chunks(noise_std_mps2: np.ndarray, start_s: float, end_s: float) 
 
 
 @dataclass
-class SessionRrd:
-    """A session file being written: its stream, and what its blueprint must show."""
+class RrdFile:
+    """A session's ``.rrd`` file being written: its stream, and what its blueprint must show."""
 
     stream: rr.RecordingStream
     #: (entity name, legend label, RGB) of the residual sets logged so far.
@@ -929,7 +929,7 @@ def session_rrd(
     session: SessionResult,
     durable: bool = True,
     document: Mapping | None = None,
-) -> Iterator[SessionRrd]:
+) -> Iterator[RrdFile]:
     """Log a session into a new file; the caller may add residual sets inside the block.
 
     The file appears (atomically) when the block ends without an exception,
@@ -955,7 +955,7 @@ def session_rrd(
 
     Yields
     ------
-    SessionRrd
+    RrdFile
         ``.log_residuals(...)``, ``.log_diagnosis(...)``, ``.add_view(...)``;
         ``.stream`` is the Rerun stream.
     """
@@ -994,7 +994,7 @@ def session_rrd(
         floor = noise.floor_mps2 if noise is not None else result.noise.marginal_std_mps2
         chunks += noise_band_chunks(floor, float(fit_time_s[0]), float(fit_time_s[-1]))
         stream.send_chunks(chunks)
-        rrd = SessionRrd(
+        rrd = RrdFile(
             stream,
             shift_s=shift_s,
             verdict_lines=verdict_lines(verdict),
