@@ -102,6 +102,9 @@ WALK_PRIOR_DPS_PER_SQRT_S = 0.005
 #: nominal scale (a MEMS gyro's sensitivity tolerance, ~1–3 % per axis, halved by the
 #: two axes' mean).
 YAW_SCALE_PRIOR_STD = 0.01
+#: The propagated nuisances' shifts are taken over this fraction of their σ (the
+#: derivative; :func:`_across_g_shifts`).
+SHIFT_STEP = 0.01
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,9 @@ class FieldResult:
     result: CalibrationResult
     geometry: FieldGeometry
     axle: GyroAxle
+    #: σ of each reported parameter from the gyro's G across the axle alone (held at zero,
+    #: its prior propagated: :func:`_across_g_shifts`); empty where not propagated.
+    g_across_std: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -224,7 +230,9 @@ class FieldFit:
                 axle.yaw_rms_radps,
             )
             return FieldResult(first, geometry, axle)
-        final, camber_choice, check = self._turns(window, lead, tc, axle, second, radius, stride)
+        final, camber_choice, check, g_std = self._turns(
+            window, lead, tc, axle, second, radius, stride
+        )
         axle, lean_rad, in_turns = _lean(window, tc, axle, final)
         camber = 90.0 - float(np.rad2deg(final.params.bench.tilt_rad))
         why = []
@@ -247,7 +255,7 @@ class FieldFit:
             camber_choice,
             check,
         )
-        return FieldResult(final, geometry, axle)
+        return FieldResult(final, geometry, axle, g_std)
 
     # -- the passes -----------------------------------------------------------------------------
     def _joint(
@@ -323,7 +331,7 @@ class FieldFit:
 
     def _turns(
         self, window, lead, tc, axle, travelled: CalibrationResult, radius_m, stride: int
-    ) -> tuple[CalibrationResult, CamberChoice, LeanCheck | None]:
+    ) -> tuple[CalibrationResult, CamberChoice, LeanCheck | None, dict[str, float]]:
         """Pass 3: the yaw across the axle, the tilt free (module docstring).
 
         The yaw is first taken as the gyro's axes across the axle read it (their
@@ -416,7 +424,7 @@ class FieldFit:
             twin = _half_turned(result.params)
             result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=twin)
         if not self.robust_sigma:
-            return result, choice, None
+            return result, choice, None, {}
         shifts = ()
         if self.gyro_g_prior_dps_per_g > 0:
             yaw_of = _YawOf(window.gyro_radps, build, series)
@@ -426,9 +434,14 @@ class FieldFit:
         density = rate_noise_density(tc, series.axle.rate_radps)
         wider = camber_extension(result) if self.check_lean else None
         extension, spacing = wider if wider is not None else (None, 0.0)
-        robust, extended = robust_result_with(result, window.accel_mps2, density, shifts, extension)
+        robust = robust_result_with(result, window.accel_mps2, density, shifts, extension)
+        extended = robust.extended
         check = None if extended is None else lean_check(result, extension, extended, spacing)
-        return robust, choice, check
+        g_std = {}
+        if robust.shift_covariance is not None:
+            std = np.sqrt(np.clip(np.diag(robust.shift_covariance), 0.0, None))
+            g_std = dict(zip(robust.result.names, map(float, std), strict=True))
+        return robust.result, choice, check, g_std
 
 
 def _z_up_rolling(build, series, track: bool, before: Rolling) -> Rolling:
@@ -628,29 +641,46 @@ def _across_g_shifts(
     ``gyro_g_prior_dps_per_g``) is run through the same demodulation and model
     instead, at the fitted parameters, for :func:`robust_result` to propagate.
     ``axis``: the gyro's refined axle, across which G's rows are taken.
+
+    The shift is the derivative, one σ long: the prediction at ``SHIFT_STEP`` σ of the
+    entry less the prediction at none, both through the same demodulation, over
+    ``SHIFT_STEP``.  The fit's own series were read at an earlier pass's angle, so the
+    fitted prediction is not the zero point (0.02–0.08 m/s² rms apart on car drives: a
+    "shift" of every entry that no G makes), and a whole σ is not linear on a drive of
+    half an hour (its angle integrates the yaw: 4 m/s² rms).
     """
     params, layout = result.params, result.layout
     t = result.centred_time_s
-    base = evaluate(params, t, layout).predicted_mps2
+
+    def predicted(gyro_radps: np.ndarray) -> np.ndarray:
+        y, y_dot, track = yaw_of(gyro_radps)
+        cross = _cross(y, yaw_of.theta_rad) if with_cross else None
+        effects = _with_series(layout.effects, params, y, y_dot, cross, track)
+        return evaluate(params, t, dataclasses.replace(layout, effects=effects)).predicted_mps2
+
+    base = predicted(yaw_of.gyro_radps)
+    step = SHIFT_STEP * g_std_radps_per_mps2
     shifts = []
     for across in across_basis(axis):
         for column in np.asarray(accel_mps2, dtype=float).T:
-            gyro = yaw_of.gyro_radps + g_std_radps_per_mps2 * np.outer(column, across)
-            y, y_dot, track = yaw_of(gyro)
-            cross = _cross(y, yaw_of.theta_rad) if with_cross else None
-            effects = _with_series(layout.effects, params, y, y_dot, cross, track)
-            moved = dataclasses.replace(layout, effects=effects)
-            shifts.append(evaluate(params, t, moved).predicted_mps2 - base)
+            moved = predicted(yaw_of.gyro_radps + step * np.outer(column, across))
+            shifts.append((moved - base) / SHIFT_STEP)
     return tuple(shifts)
 
 
 def _with_series(effects: tuple, params: CalibrationParams, y, y_dot, cross, track) -> tuple:
     """``effects`` reading the yaw series y and the camber track (the gyro angle, the forces).
 
-    The rolling wheel takes the new track and basis; the gyro angle's ψ̇ sin γ(t) takes the
-    camber's change they give at the fitted coefficients (κ l + Σ c_k N_k), as the fit's
-    own angle took the fitted change — not the raw track, whose errors the basis holds.
+    The rolling wheel takes the new track and basis.  The gyro angle's ψ̇ sin γ(t) takes
+    the camber's change the passes would now find: its own (the fitted κ l + Σ c_k N_k
+    of a pass before) plus the part of the change at the fitted coefficients that the
+    new basis does not hold (:func:`_beyond_basis`) — the passes refit the coefficients
+    to the track they read, so what the basis holds of a gyro error leaves the camber
+    they find where it was.  (Taken whole, the new track's share of G moved the cars'
+    camber and offsets 10–100× what a drawn G moves them by; left out, the tilt's share
+    was 10–25× too small.)
     """
+    old = next((e for e in effects if isinstance(e, Rolling)), None)
     out = []
     for effect in effects:
         if isinstance(effect, Rolling):
@@ -667,9 +697,21 @@ def _with_series(effects: tuple, params: CalibrationParams, y, y_dot, cross, tra
         angle_track = None
         if effect.camber_track_rad is not None and rolling is not None:
             values = params.effect(rolling.name, rolling.size)
-            angle_track = rolling.camber_change(values, rolling.time_s)
+            change = rolling.camber_change(values, rolling.time_s)
+            change = change - old.camber_change(values, old.time_s)
+            angle_track = effect.camber_track_rad + _beyond_basis(change, rolling)
         out[k] = effect.with_yaw(y, y_dot, cross, angle_track)
     return tuple(out)
+
+
+def _beyond_basis(change: np.ndarray, rolling: Rolling) -> np.ndarray:
+    """``change`` less its least-squares fit by ``rolling``'s camber basis (itself: none)."""
+    basis = rolling.camber_basis
+    if not basis:
+        return change
+    columns = np.column_stack([np.asarray(b, dtype=float) for b in basis.values()])
+    coef, *_ = np.linalg.lstsq(columns, change, rcond=None)
+    return change - columns @ coef
 
 
 def _lean(window: Recording, tc, axle: GyroAxle, final: CalibrationResult) -> tuple:

@@ -233,7 +233,21 @@ def robust_result(
     ``shifts``: each (N, 3), what a nuisance the fit holds (one σ of it) changes in the
     prediction at the fitted parameters — its covariance joins (module docstring).
     """
-    return robust_result_with(result, accel_mps2, gyro_density, shifts)[0]
+    return robust_result_with(result, accel_mps2, gyro_density, shifts).result
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class RobustPass:
+    """:func:`robust_result_with`'s answer: the result with its covariance, and what it used.
+
+    ``shift_covariance``: the held nuisances' share (Σ δp δpᵀ of the shifts given), in the
+    reported parameters (None without shifts); ``extended``: the wider model's normal
+    equations (None without an extension).
+    """
+
+    result: CalibrationResult
+    extended: WideNormal | None
+    shift_covariance: np.ndarray | None
 
 
 def robust_result_with(
@@ -242,19 +256,23 @@ def robust_result_with(
     gyro_density: float | None = None,
     shifts: tuple[np.ndarray, ...] = (),
     extension: Extension | None = None,
-) -> tuple[CalibrationResult, WideNormal | None]:
-    """:func:`robust_result`, and H and g of a wider model from the same pass.
+) -> RobustPass:
+    """:func:`robust_result`, the shifts' share of it, and H and g of a wider model.
 
-    ``extension``: the wider model (returned second: its :class:`WideNormal`; None
-    without one), for a Hausman check of what it would move.
+    ``extension``: the wider model (its :class:`WideNormal`; None without one), for a
+    Hausman check of what it would move.
     """
     pieces = _pieces(result, accel_mps2, shifts, extension)
     bread, finite = _bread(pieces)
     cov = _sandwich(pieces, bread)
     if gyro_density is not None and gyro_density > 0:
         cov = cov + _angle_walk(pieces, bread, gyro_density)
+    shifted = None
     if shifts:
         response = bread @ pieces.shift_score  # (P, K): the fit's answer to each shift
-        cov = cov + response @ response.T
+        shifted = response @ response.T
+        cov = cov + shifted
+        shifted = _in_reported(result, _with_undetermined(shifted, finite))
     covariance = _in_reported(result, _with_undetermined(cov, finite))
-    return dataclasses.replace(result, covariance=covariance), pieces.extended
+    robust = dataclasses.replace(result, covariance=covariance)
+    return RobustPass(robust, pieces.extended, shifted)
