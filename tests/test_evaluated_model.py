@@ -143,3 +143,40 @@ def test_no_evaluation_is_kept_beyond_one_chunk_or_with_effects():
     assert window.time_s.size > CHUNK_SAMPLES
     result, evaluated = JointFit().fit_evaluated(window)
     assert evaluated is None and result.converged
+
+
+@pytest.mark.parametrize("coloured", [False, True])
+def test_the_hessian_from_a_gradient_pass_jacobian_is_the_same(fitted, coloured):
+    # With effects a gradient pass forms J (no reverse mode); the LM's Hessian at the same
+    # point takes it instead of evaluating the model again: the same sums, bit for bit.
+    from wheelcal.estimate.joint.normal_equations import accumulate
+    from wheelcal.estimate.joint.systematic import nuisance_columns, nuisance_extra
+
+    window, _, result, _ = fitted
+    effect = QuadraticNonlinearity(axis=0)
+    layout = dataclasses.replace(result.layout, effects=(effect,))
+    params = result.params.with_changes(effects={effect.name: [1e-3]})
+    tc, v = result.centred_time_s, window.accel_mps2
+    noise = NoiseModel.estimate(result.residual_mps2) if coloured else result.noise
+    formed: list = []
+    gradient_pass(params, tc, v, layout, noise, evaluated_out=formed)
+    assert len(formed) == 1 and formed[0].jacobian is not None
+    extra = nuisance_extra(nuisance_columns(layout))
+    fresh = accumulate(params, tc, v, layout, noise, extra=extra)
+    shared = accumulate(params, tc, v, layout, noise, extra=extra, evaluated=formed[0])
+    np.testing.assert_array_equal(shared.hessian, fresh.hessian)
+    np.testing.assert_array_equal(shared.gradient, fresh.gradient)
+    assert shared.cost == fresh.cost
+    with pytest.raises(ValueError):
+        accumulate(params, tc[:-1], v[:-1], layout, noise, evaluated=formed[0])
+
+
+def test_no_jacobian_is_passed_on_beyond_one_chunk():
+    effect = QuadraticNonlinearity(axis=0)
+    layout = ParameterLayout(effects=(effect,))
+    params = random_setup(np.random.default_rng(4)).truth.with_changes(effects={effect.name: [0.0]})
+    t = np.linspace(-60.0, 60.0, CHUNK_SAMPLES + 10)
+    v = evaluate(params, t, layout).predicted_mps2
+    formed: list = []
+    gradient_pass(params, t, v, layout, NoiseModel.white(0.05), evaluated_out=formed)
+    assert formed == []

@@ -166,14 +166,22 @@ def accumulate(
     jacobian: bool = True,
     extra: ExtraColumns | None = None,
     chunk: int | None = None,
+    evaluated: ModelOutput | None = None,
 ) -> NormalEquations:
     """Accumulate cost, J̃ᵀJ̃ and J̃ᵀr̃ of the whitened residual (model − data).
 
     With a local basis in the layout (a wheel-angle spline), chunks follow its
     knots and the Gram products skip the rows that are zero over a chunk.
+    ``evaluated``: the model with its Jacobian at ``params`` over all of ``t_s``
+    (one chunk, a dense layout), when the caller has it (a :func:`gradient_pass`
+    there formed it): its J serves, the same numbers without a second evaluation.
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
+    if evaluated is not None and (
+        sparse or n > chunk or not jacobian or evaluated.predicted_mps2.shape[0] != n
+    ):
+        raise ValueError("an evaluated Jacobian serves one dense chunk of all the samples")
     p = noise.order
     cost = 0.0
     entries = 0
@@ -192,7 +200,7 @@ def accumulate(
         view = local_view(params, layout, t_s[lo], t_s[stop - 1]) if sparse else None
         here, at = (view.layout, view.params) if view else (layout, params)
         buf, residual, extra_size = _filled_buffer(
-            at, t_s[lo:stop], accel_mps2[lo:stop], here, extra, extra_size
+            at, t_s[lo:stop], accel_mps2[lo:stop], here, extra, extra_size, evaluated=evaluated
         )
         gram, rows = _whitened_gram(buf, residual, noise)
         if hess is None:
@@ -219,6 +227,7 @@ def _filled_buffer(
     extra: ExtraColumns | None,
     extra_size: int | None,
     output: ModelOutput | None = None,
+    evaluated: ModelOutput | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int | None]:
     """[J | extra columns | residual] (P + k + 1, 3, n), the residual (model − data), k.
 
@@ -227,9 +236,14 @@ def _filled_buffer(
     pass over J̃ for g costs more than the Gram's extra row).  ``extra_size`` None:
     learnt from the callback's first columns (then one copy).  ``output``: the
     model already evaluated there (the paper's model), whose Jacobian alone is formed.
+    ``evaluated``: the model with its Jacobian already evaluated there (copied in).
     """
     buf = np.empty((layout.size + (extra_size or 0) + 1, 3, t_s.size))
-    out = evaluate(params, t_s, layout, jacobian=True, out=buf[: layout.size], output=output)
+    if evaluated is not None:
+        out = evaluated
+        buf[: layout.size] = evaluated.jacobian
+    else:
+        out = evaluate(params, t_s, layout, jacobian=True, out=buf[: layout.size], output=output)
     residual = out.predicted_mps2 - accel_mps2
     if extra is not None:
         cols = extra(params, out, t_s)
@@ -384,6 +398,7 @@ def gradient_pass(
     residual_out: np.ndarray | None = None,
     output: ModelOutput | None = None,
     reverse_out: list | None = None,
+    evaluated_out: list | None = None,
 ) -> NormalEquations:
     """Cost and g = J̃ᵀr̃ without H: the whitening applied to the residual, not to J.
 
@@ -399,7 +414,9 @@ def gradient_pass(
     at ``params`` over all of ``t_s`` when the caller has evaluated it (the paper's
     model, one chunk).  ``reverse_out``, when given with ``output``, receives the pass's
     :class:`~wheelcal.model.forward.ReverseAt` (u, the sums and the wheel angle's
-    adjoint rows: what a score test at ``params`` needs again).
+    adjoint rows: what a score test at ``params`` needs again).  ``evaluated_out``, when
+    given, receives the model with its Jacobian where the pass formed one over all of
+    ``t_s`` (a layout with effects, one chunk): :func:`accumulate` at ``params`` takes it.
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
@@ -434,6 +451,8 @@ def gradient_pass(
                 reverse_out.append(ReverseAt(u, base, adjoint, (noise, accel_mps2)))
         else:
             grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
+            if evaluated_out is not None and n <= chunk:
+                evaluated_out.append(out)
     normal = NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
     return _with_priors(normal, params, layout)
 
