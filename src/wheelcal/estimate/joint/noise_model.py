@@ -28,6 +28,9 @@ from wheelcal.model import ar_variance_gain, fir_filter
 #: Whitening a Jacobian takes one 3 × 3 product per tap up to this AR order (fewer passes
 #: over the columns); above it the per-axis FIR wins (``benchmarks/bench_whiten.py``).
 _TAP_PRODUCTS_UP_TO = 2
+#: A residual's FIR with more taps than this is numpy's convolution (one pass in C; a
+#: scaled add per tap took 2–3× as long at a 400 Hz road's 80 taps, as long at 24).
+_CONVOLVE_FROM_TAPS = 32
 #: The FIR's denominator (lfilter's a).
 _ONE = np.ones(1)
 
@@ -122,7 +125,12 @@ class NoiseModel:
         r = np.empty((3, residual.shape[0] - p))
         for i, a in enumerate(self.ar_polynomials):
             col = residual[:, i]
-            r[i] = col[p:] if a.size == 1 else fir_filter(a, col)[p:]
+            if a.size == 1:
+                r[i] = col[p:]
+            elif a.size > _CONVOLVE_FROM_TAPS:  # one pass in C (same sums, another order)
+                r[i] = np.convolve(col, a)[p : col.size]
+            else:
+                r[i] = fir_filter(a, col)[p:]
         r = inv_chol @ r
         if jacobian is None:
             return r, None
