@@ -478,15 +478,14 @@ def _with_jacobian(
     kin_rows = (kin.d_theta, kin.d_omega, kin.d_omega_dot)
     spin = blocks["spin"]
     spin_effects = [e for e in effects if e.stage == "spin"]
-    if spin_effects:
-        spin_rows = _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r)
-        jac[spin] = spin_rows[: spin.stop - spin.start]
-        row = spin.stop - spin.start
-        for effect in spin_effects:
-            jac[blocks[f"effect:{effect.name}"]] = spin_rows[row : row + effect.size]
-            row += effect.size
-    else:  # the paper's model: straight into the Jacobian, no copy
-        _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r, out=jac[spin])
+    # Straight into the Jacobian, block by block (no copy): the spin's, then each spin
+    # effect's rows, as the kinematics hold them.
+    row = 0
+    for target in [spin] + [blocks[f"effect:{e.name}"] for e in spin_effects]:
+        size = target.stop - target.start
+        rows = tuple(k[row : row + size] for k in kin_rows)
+        _spin_rows_to_v(w3, force, rows, kin.omega_radps, r, out=jac[target])
+        row += size
     if force_terms:
         _add_force_rows(jac, layout, w3, kin, force_terms, spin_effects)
     by_tilt = _effects_by_tilt(w3, force, kin, r, force_terms)
