@@ -31,8 +31,6 @@ _TAP_PRODUCTS_UP_TO = 2
 #: A residual's FIR with more taps than this is numpy's convolution (one pass in C; a
 #: scaled add per tap took 2–3× as long at a 400 Hz road's 80 taps, as long at 24).
 _CONVOLVE_FROM_TAPS = 32
-#: The FIR's denominator (lfilter's a).
-_ONE = np.ones(1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,17 +154,20 @@ class NoiseModel:
                 j += np.matmul(taps[k], jacobian[:, :, p - k : n - k])
             return r, j
         # Longer filters: the FIR axis by axis into one (P, 3, M) buffer, then L⁻¹ across
-        # axes in one batched product.  The FIR is scipy's lfilter (one pass in C; a scaled
-        # add per tap over the columns took 3× as long at a road's 24 taps; the sums differ
-        # in their order only, ~5e-16 relative).
-        from scipy.signal import lfilter  # here: a batch's planner must not import it
-
+        # axes in one batched product.  The FIR is numpy's convolution, row by row, of its
+        # M valid outputs (one pass in C, what scipy's lfilter computes, bit for bit,
+        # without its full-length rows and their copy; a scaled add per tap over the
+        # columns took 3× as long at a road's 24 taps; the sums differ from those in their
+        # order only, ~5e-16 relative).
         filtered = np.empty((size, 3, m))
         for i, a in enumerate(self.ar_polynomials):
             if a.size == 1:
                 np.copyto(filtered[:, i, :], jacobian[:, i, p:])
-            else:
-                filtered[:, i, :] = lfilter(a, _ONE, jacobian[:, i, :], axis=-1)[:, p:]
+                continue
+            rows = jacobian[:, i, :]
+            start = p - (a.size - 1)  # an axis of lower order starts later
+            for k in range(size):
+                filtered[k, i, :] = np.convolve(rows[k, start:], a, mode="valid")
         return r, np.matmul(inv_chol, filtered)
 
     @functools.cached_property
