@@ -722,7 +722,7 @@ def _residual_fn(
         accel_layout = dataclasses.replace(layout, effects=layout.effects[:-1])
 
     def normal(params: CalibrationParams, want_jacobian: bool, evaluated=None):
-        """``evaluated``: the accelerometer's model with its J at ``params`` (one chunk)."""
+        """``evaluated``: the accelerometer's model with its J at ``params``, each chunk's."""
         acc = accumulate(
             params,
             tc,
