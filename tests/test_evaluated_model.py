@@ -13,7 +13,8 @@ import pytest
 
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES, gradient_pass
+from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES, accumulate, gradient_pass
+from wheelcal.estimate.joint.systematic import nuisance_columns, nuisance_extra
 from wheelcal.model import ParameterLayout, evaluate
 from wheelcal.model.effects import QuadraticNonlinearity
 from wheelcal.model.forward import EvaluatedModel
@@ -143,3 +144,45 @@ def test_no_evaluation_is_kept_beyond_one_chunk_or_with_effects():
     assert window.time_s.size > CHUNK_SAMPLES
     result, evaluated = JointFit().fit_evaluated(window)
     assert evaluated is None and result.converged
+
+
+@pytest.mark.parametrize("coloured", [False, True])
+def test_the_hessian_from_a_gradient_pass_jacobian_is_the_same(fitted, coloured):
+    # With effects a gradient pass forms J (no reverse mode); the LM's Hessian at the same
+    # point takes it instead of evaluating the model again: the same sums, bit for bit.
+    window, _, result, _ = fitted
+    effect = QuadraticNonlinearity(axis=0)
+    layout = dataclasses.replace(result.layout, effects=(effect,))
+    params = result.params.with_changes(effects={effect.name: [1e-3]})
+    tc, v = result.centred_time_s, window.accel_mps2
+    noise = NoiseModel.estimate(result.residual_mps2) if coloured else result.noise
+    formed: list = []
+    gradient_pass(params, tc, v, layout, noise, evaluated_out=formed)
+    assert len(formed) == 1 and formed[0].jacobian is not None
+    extra = nuisance_extra(nuisance_columns(layout))
+    fresh = accumulate(params, tc, v, layout, noise, extra=extra)
+    shared = accumulate(params, tc, v, layout, noise, extra=extra, evaluated=formed)
+    np.testing.assert_array_equal(shared.hessian, fresh.hessian)
+    np.testing.assert_array_equal(shared.gradient, fresh.gradient)
+    assert shared.cost == fresh.cost
+    with pytest.raises(ValueError):
+        accumulate(params, tc[:-1], v[:-1], layout, noise, evaluated=formed)
+
+
+def test_each_chunk_takes_its_own_jacobian():
+    effect = QuadraticNonlinearity(axis=0)
+    layout = ParameterLayout(effects=(effect,))
+    truth = random_setup(np.random.default_rng(4)).truth
+    params = truth.with_changes(effects={effect.name: [1e-3]})
+    t = np.linspace(-60.0, 60.0, CHUNK_SAMPLES + 10)
+    v = evaluate(truth, t).predicted_mps2 + np.random.default_rng(5).normal(0, 0.05, (t.size, 3))
+    noise = NoiseModel.from_ar(np.array([1.0, -0.5]), 0.05)
+    formed: list = []
+    gradient_pass(params, t, v, layout, noise, evaluated_out=formed)
+    assert len(formed) == 2
+    fresh = accumulate(params, t, v, layout, noise)
+    shared = accumulate(params, t, v, layout, noise, evaluated=formed)
+    np.testing.assert_array_equal(shared.hessian, fresh.hessian)
+    np.testing.assert_array_equal(shared.gradient, fresh.gradient)
+    with pytest.raises(ValueError):
+        accumulate(params, t, v, layout, noise, evaluated=formed[:1])

@@ -46,7 +46,9 @@ def test_whitening_a_jacobian_matches_whitening_its_columns():
         assert np.allclose(jw[k], col)
 
 
-@pytest.mark.parametrize("orders", [(1, 1, 1), (2, 0, 1), (3, 3, 3), (1, 6, 2), (9, 4, 0)])
+@pytest.mark.parametrize(
+    "orders", [(1, 1, 1), (2, 0, 1), (3, 3, 3), (1, 6, 2), (9, 4, 0), (40, 12, 35)]
+)
 def test_whitening_a_jacobian_equals_lfilter_then_the_inverse_cholesky_factor(orders):
     # Independent of noise_model's code paths (one 3 × 3 product per tap for short
     # filters, the per-axis FIR then L⁻¹ for long ones): scipy's lfilter per column and
@@ -65,3 +67,21 @@ def test_whitening_a_jacobian_equals_lfilter_then_the_inverse_cholesky_factor(or
     expected = np.linalg.inv(np.linalg.cholesky(cov)) @ filtered[:, :, p:]
     assert jw.shape == (5, 3, 400 - p)
     np.testing.assert_allclose(jw, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("orders", [(2, 0, 5), (40, 12, 35)])
+def test_whitening_a_residual_equals_lfilter_then_the_inverse_cholesky_factor(orders):
+    # The residual's FIR (a scaled add per tap, numpy's convolution past 32 taps) against
+    # scipy's lfilter, as for the Jacobian above.
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(7 + sum(orders))
+    polys = tuple(np.r_[1.0, rng.normal(0.0, 0.1, k)] for k in orders)
+    cov = np.diag([1.0, 2.0, 0.5])
+    nm = NoiseModel(polys, cov)
+    residual = rng.standard_normal((600, 3))
+    r, _ = nm.whiten(residual)
+    p = max(orders)
+    filtered = np.stack([lfilter(a, [1.0], residual[:, i]) for i, a in enumerate(polys)])
+    expected = np.linalg.inv(np.linalg.cholesky(cov)) @ filtered[:, p:]
+    np.testing.assert_allclose(r, expected, rtol=0, atol=1e-12 * np.abs(expected).max())

@@ -444,12 +444,22 @@ def cubic_bspline_slots(
     return interval.astype(np.int64), values, slopes, curves
 
 
-def samples_of(grid: np.ndarray, t: np.ndarray) -> np.ndarray | None:
-    """The indices of ``t`` in ``grid`` when every time is one of its samples, else None.
+def samples_of(grid: np.ndarray, t: np.ndarray) -> slice | np.ndarray | None:
+    """Where ``t`` lies in ``grid`` when every time is one of its samples, else None.
 
     There linear interpolation returns the sample itself (its weight is exactly 1 or 0),
     so a gather gives the same numbers, bit for bit, without the weights' four passes.
+    A run of the grid's samples at one stride (a chunk, a thinned pass) comes as a
+    slice: indexing with it is a view, not a gather; any other set as its indices.
     """
+    if t.size >= 2:
+        first, second = np.searchsorted(grid, t[:2])
+        step = int(second - first)
+        stop = int(first) + step * (t.size - 1) + 1
+        if step > 0 and stop <= grid.size:
+            run = slice(int(first), stop, step)
+            if np.array_equal(grid[run], t):
+                return run
     index = np.searchsorted(grid, t)
     if index.size and index[-1] >= grid.size:
         return None

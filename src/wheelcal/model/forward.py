@@ -293,28 +293,37 @@ def _add_force_rows(jac, layout, w3, kin, force_terms, spin_effects) -> None:
     """Force effects' share of dv/dp, and their own columns.
 
     Spin rows p: W·(∂Δa/∂ϑ ∂ϑ/∂p + ∂Δa/∂ω ∂ω/∂p + ∂Δa/∂ω̇ ∂ω̇/∂p); own: W·∂Δa/∂θ.
+    W·∂Δa/∂ϑ (and for ω, ω̇) is formed once per sample (3, N) and scaled by each row's
+    ∂ϑ/∂p: three products per row instead of a (rows, N, 3) product and its contraction.
     """
     blocks = layout.blocks
-    by = [
-        sum(getattr(term, k) for _, term in force_terms)
+    through = [
+        _through_w(w3, sum(getattr(term, k) for _, term in force_terms))
         for k in ("by_theta", "by_omega", "by_omega_dot")
     ]
-    da = kin.d_theta[:, :, None] * by[0][None]
-    da += kin.d_omega[:, :, None] * by[1][None]
-    da += kin.d_omega_dot[:, :, None] * by[2][None]
-    if w3.shape[2] == 1:
-        rows = np.einsum("ij,snj->sin", w3[:, :, 0], da)
-    else:
-        rows = np.einsum("ijn,snj->sin", w3, da)
+    kin_rows = (kin.d_theta, kin.d_omega, kin.d_omega_dot)
     targets = [blocks["spin"]] + [blocks[f"effect:{e.name}"] for e in spin_effects]
     row = 0
     for target in targets:
         size = target.stop - target.start
-        jac[target] += rows[row : row + size]
+        part = jac[target]  # a view: the rows are added in place
+        for d, by in zip(kin_rows, through, strict=True):
+            part += d[row : row + size, None, :] * by[None]
         row += size
     for effect, term in force_terms:
-        block = blocks[f"effect:{effect.name}"]
-        jac[block] = np.stack([_through_w(w3, column) for column in term.d_own])
+        _own_through_w(w3, np.asarray(term.d_own), jac[blocks[f"effect:{effect.name}"]])
+
+
+def _own_through_w(w3: np.ndarray, d_own: np.ndarray, out: np.ndarray) -> None:
+    """W·∂Δa/∂θ_k (k, 3, N) into ``out`` for bench-frame columns ``d_own`` (k, N, 3)."""
+    if w3.shape[2] == 1:
+        np.matmul(w3[:, :, 0], d_own.transpose(0, 2, 1), out=out)
+        return
+    for i in range(3):  # W per sample (sensor effects)
+        row = out[:, i, :]
+        np.multiply(d_own[:, :, 0], w3[i, 0], out=row)
+        row += d_own[:, :, 1] * w3[i, 1]
+        row += d_own[:, :, 2] * w3[i, 2]
 
 
 def wheel_kinematics(
@@ -469,15 +478,14 @@ def _with_jacobian(
     kin_rows = (kin.d_theta, kin.d_omega, kin.d_omega_dot)
     spin = blocks["spin"]
     spin_effects = [e for e in effects if e.stage == "spin"]
-    if spin_effects:
-        spin_rows = _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r)
-        jac[spin] = spin_rows[: spin.stop - spin.start]
-        row = spin.stop - spin.start
-        for effect in spin_effects:
-            jac[blocks[f"effect:{effect.name}"]] = spin_rows[row : row + effect.size]
-            row += effect.size
-    else:  # the paper's model: straight into the Jacobian, no copy
-        _spin_rows_to_v(w3, force, kin_rows, kin.omega_radps, r, out=jac[spin])
+    # Straight into the Jacobian, block by block (no copy): the spin's, then each spin
+    # effect's rows, as the kinematics hold them.
+    row = 0
+    for target in [spin] + [blocks[f"effect:{e.name}"] for e in spin_effects]:
+        size = target.stop - target.start
+        rows = tuple(k[row : row + size] for k in kin_rows)
+        _spin_rows_to_v(w3, force, rows, kin.omega_radps, r, out=jac[target])
+        row += size
     if force_terms:
         _add_force_rows(jac, layout, w3, kin, force_terms, spin_effects)
     by_tilt = _effects_by_tilt(w3, force, kin, r, force_terms)

@@ -303,23 +303,22 @@ class GyroAngle(_SpinEffect):
         rows = self._rows_at(t)
         base, yaw, lean = list(rows[0:3]), list(rows[3:6]), list(rows[6:9])
         total = [b + cot * y + csc2 * m for b, y, m in zip(base, yaw, lean, strict=True)]
-        cross = [list(rows[9 + 3 * k : 12 + 3 * k]) for k in range(len(self.terms))]
+        cross = rows[9:].reshape(len(self.terms), 3, t.size)  # (terms, ∫x / x / ẋ, N)
         if walks:
             walk = self._walk_rows(t)
             d = np.asarray(values[1 : 1 + walks], dtype=float)
             total = [x + d @ w for x, w in zip(total, walk, strict=True)]
-        for m, series in zip(values[1 + walks :], cross, strict=True):
-            total = [x + float(m) * c for x, c in zip(total, series, strict=True)]
+        if len(self.terms):  # + m x of each term in turn, (3, N) at a time
+            stacked = np.array(total)
+            for m, series in zip(values[1 + walks :], cross, strict=True):
+                stacked += float(m) * series
+            total = list(stacked)
         if not jacobian:
             return SpinDelta(*(scale * x for x in total))
         d_cot = -csc2  # ∂ cot α / ∂α
         d_csc2 = -2.0 * cot * csc2  # ∂ (1 / sin²α) / ∂α
         own = [
-            np.vstack(
-                [x[None]]
-                + ([scale * walk[k]] if walks else [])
-                + [scale * c[k][None] for c in cross]
-            )
+            np.vstack([x[None]] + ([scale * walk[k]] if walks else []) + [scale * cross[:, k]])
             for k, x in enumerate(total)
         ]
         return SpinDelta(

@@ -338,6 +338,9 @@ class Rolling(Effect):
     def yaw(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """ψ̇_gyro and ψ̈_gyro at centred times ``t_s``."""
         t = np.asarray(t_s, dtype=float)
+        on_grid = samples_of(self.time_s, t)
+        if on_grid is not None:  # the series' own samples: the same numbers, taken
+            return self.yaw_rate_radps[on_grid], self.yaw_accel_radps2[on_grid]
         return (
             np.interp(t, self.time_s, self.yaw_rate_radps),
             np.interp(t, self.time_s, self.yaw_accel_radps2),
@@ -470,11 +473,9 @@ class _CamberSeries:
 
     @classmethod
     def of(cls, time_s: np.ndarray, series: list[np.ndarray]) -> _CamberSeries:
-        rows = []
-        for x in series:
-            rate = np.gradient(x, time_s)
-            rows.append([x, rate, np.gradient(rate, time_s)])
-        return cls(time_s, np.asarray(rows, dtype=float))
+        values = np.asarray(series, dtype=float)  # (1 + K, N): every series in one gradient
+        rate = np.gradient(values, time_s, axis=1)
+        return cls(time_s, np.stack([values, rate, np.gradient(rate, time_s, axis=1)], axis=1))
 
     def at(self, t: np.ndarray) -> np.ndarray:
         """Every row at centred times ``t`` (linear interpolation), (1 + K, 3, n)."""

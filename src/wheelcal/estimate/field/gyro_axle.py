@@ -342,26 +342,25 @@ def camber_track(
     t = np.asarray(time_s, dtype=float)
     rate_hz = 1.0 / float(np.median(np.diff(t)))
     across = axle.across(np.asarray(gyro_radps, dtype=float))
-    rate = _lowpass(np.sum(across * _side(theta_rad, rotation), axis=1), rate_hz, CAMBER_BAND_HZ)
     moving = (np.abs(axle.rate_radps) > RESTING_RADPS).astype(float)
     twice = 2.0 * np.asarray(theta_rad, dtype=float)
     y = np.asarray(yaw_radps, dtype=float)
-    gravity = _lowpass(np.column_stack([np.cos(twice), np.sin(twice)]), rate_hz, CAMBER_BAND_HZ)
-    travel = (
-        _lowpass(np.asarray(axle.rate_dot_radps2, dtype=float), rate_hz, CAMBER_BAND_HZ)
-        if travel_accel
-        else None
-    )
+    # the rate across the axle, cos 2ϑ, sin 2ϑ (and ω̇_g) low-passed alike: one filter pass
+    columns = [np.sum(across * _side(theta_rad, rotation), axis=1), np.cos(twice), np.sin(twice)]
+    if travel_accel:
+        columns.append(np.asarray(axle.rate_dot_radps2, dtype=float))
+    passed = _lowpass(np.column_stack(columns), rate_hz, CAMBER_BAND_HZ)
+    rate = passed[:, 0]
     rates = {
         "drift_radps": np.ones_like(t),
         "heading": y,
         "heading_sin2": y * np.sin(twice),
         "heading_cos2": y * np.cos(twice),
-        "gravity_cos2_radps": gravity[:, 0],
-        "gravity_sin2_radps": gravity[:, 1],
+        "gravity_cos2_radps": passed[:, 1],
+        "gravity_sin2_radps": passed[:, 2],
     }
     if travel_accel:
-        rates["travel_accel"] = travel
+        rates["travel_accel"] = passed[:, 3]
     basis = {name: _held_integral(t, x, moving) for name, x in rates.items()}
     return CamberTrack(_held_integral(t, rate, moving), basis)
 

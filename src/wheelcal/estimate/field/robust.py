@@ -137,20 +137,24 @@ def _pieces(
         score = np.einsum("pim,im->pm", jw_all, rw)  # per whitened sample
         edges = np.arange(0, score.shape[1], block)
         block_sums = np.add.reduceat(score, edges, axis=1)  # (P, blocks)
+        # The angle's and the shifts' sums over every column, the fit's taken after (no
+        # copy of the fit's columns of J̃).
+        index = extension.index if extension is not None else slice(None)
+        phase_all = extension.index[phase] if extension is not None else phase
+        angle_all = np.einsum("pim,im->pm", jw_all, jw_all[phase_all])
         if extension is not None:
             hess_ext += gram
             grad_ext += score.sum(axis=1)
             sums_ext.append(block_sums)
-            index = extension.index
-            jw, gram, block_sums = jw_all[index], gram[np.ix_(index, index)], block_sums[index]
-        else:
-            jw = jw_all
+            gram, block_sums = gram[np.ix_(index, index)], block_sums[index]
         hess += gram
         sums.append(block_sums)
-        angle.append(np.einsum("pim,im->pm", jw, jw[phase]))
-        for k, shift in enumerate(shifts):
-            shift_w, _ = noise.whiten(shift[start:stop])
-            shift_score[:, k] += np.einsum("pim,im->p", jw, shift_w)
+        angle.append(angle_all[index])
+        if shifts:  # each shift whitened as J is, then J̃ᵀ Δ̃ of all of them in one product
+            moved = np.stack([np.asarray(shift[start:stop], dtype=float).T for shift in shifts])
+            _, moved_w = noise.whiten(residual, moved)
+            flat_shifts = moved_w.reshape(len(shifts), -1)
+            shift_score += (flat_all @ flat_shifts.T)[index]
         if stop == t.size:
             break
     prior = effect_priors(params, layout)

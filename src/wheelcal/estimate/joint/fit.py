@@ -75,6 +75,7 @@ from wheelcal.model import (
     CalibrationParams,
     EvaluatedModel,
     GyroReading,
+    ModelOutput,
     ParameterLayout,
     SpinSpline,
     bench_force,
@@ -597,6 +598,12 @@ class _AtTwin:
         return self.twin.chosen
 
 
+#: A gradient pass's Jacobian (with effects) is kept for the Hessian at the same point on
+#: windows of up to this many samples: two chunks, ~70 MB for 45 columns (a 90 s robot
+#: drive at 400 Hz: one evaluation of the model less per step).
+KEEP_JACOBIAN_SAMPLES = 2 * CHUNK_SAMPLES
+
+
 class _LastResidual:
     """``normal_fn`` whose cost-only and gradient evaluations keep their residual.
 
@@ -607,7 +614,9 @@ class _LastResidual:
     (:class:`~wheelcal.model.forward.EvaluatedModel`: ~100 B per sample), for
     the motion check at the result, and a gradient pass's reverse mode with it
     (:class:`~wheelcal.model.forward.ReverseAt`: 48 B per sample), for the closed
-    loop's screen there.
+    loop's screen there.  With effects a gradient pass forms J: on a window of up to
+    :data:`KEEP_JACOBIAN_SAMPLES` it is kept until the next point, for the Hessian the
+    LM asks for there next.
     """
 
     def __init__(self, normal_fn, tc, v, layout: ParameterLayout, noise: NoiseModel) -> None:
@@ -618,6 +627,9 @@ class _LastResidual:
         self._residual: np.ndarray | None = None
         self._evaluated: EvaluatedModel | None = None
         self._keep = tc.size <= CHUNK_SAMPLES and not layout.effects
+        # with J, each chunk's, at ``_params`` (effects)
+        self._jacobian_at: list[ModelOutput] | None = None
+        self._keep_jacobian = tc.size <= KEEP_JACOBIAN_SAMPLES
 
     def _evaluated_at(self, params: CalibrationParams) -> EvaluatedModel | None:
         if not self._keep:
@@ -627,7 +639,9 @@ class _LastResidual:
 
     def __call__(self, params: CalibrationParams, want_jacobian: bool) -> NormalEquations:
         if want_jacobian:
-            return self._normal_fn(params, True)
+            kept = self._jacobian_at if params is self._params else None
+            return self._normal_fn(params, True, kept)
+        self._jacobian_at = None
         evaluated = self._evaluated_at(params)
         if evaluated is None:
             residual = residual_of(params, *self._args)
@@ -649,6 +663,7 @@ class _LastResidual:
         evaluated = self._evaluated_at(params)
         output = evaluated.output if evaluated is not None else None
         reverse: list = []
+        formed: list | None = [] if self._keep_jacobian else None
         out = gradient_pass(
             params,
             tc,
@@ -658,10 +673,12 @@ class _LastResidual:
             residual_out=residual,
             output=output,
             reverse_out=reverse,
+            evaluated_out=formed,
         )
         if reverse:  # the screen at the result takes its sums from this pass
             evaluated = dataclasses.replace(evaluated, reverse=reverse[0])
         self._params, self._residual, self._evaluated = params, residual, evaluated
+        self._jacobian_at = formed or None
         return out
 
     def at(self, params: CalibrationParams) -> np.ndarray | None:
@@ -704,8 +721,18 @@ def _residual_fn(
     if gyro is not None and layout.effects[-1].stage == "gyro":
         accel_layout = dataclasses.replace(layout, effects=layout.effects[:-1])
 
-    def normal(params: CalibrationParams, want_jacobian: bool):
-        acc = accumulate(params, tc, v, accel_layout, noise, jacobian=want_jacobian, extra=extra)
+    def normal(params: CalibrationParams, want_jacobian: bool, evaluated=None):
+        """``evaluated``: the accelerometer's model with its J at ``params``, each chunk's."""
+        acc = accumulate(
+            params,
+            tc,
+            v,
+            accel_layout,
+            noise,
+            jacobian=want_jacobian,
+            extra=extra,
+            evaluated=evaluated,
+        )
         if gyro is None:
             return acc
         gyro_t, gyro_v, gyro_noise = gyro

@@ -28,8 +28,9 @@ from wheelcal.model import ar_variance_gain, fir_filter
 #: Whitening a Jacobian takes one 3 × 3 product per tap up to this AR order (fewer passes
 #: over the columns); above it the per-axis FIR wins (``benchmarks/bench_whiten.py``).
 _TAP_PRODUCTS_UP_TO = 2
-#: The FIR's denominator (lfilter's a).
-_ONE = np.ones(1)
+#: A residual's FIR with more taps than this is numpy's convolution (one pass in C; a
+#: scaled add per tap took 2–3× as long at a 400 Hz road's 80 taps, as long at 24).
+_CONVOLVE_FROM_TAPS = 32
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,7 +123,12 @@ class NoiseModel:
         r = np.empty((3, residual.shape[0] - p))
         for i, a in enumerate(self.ar_polynomials):
             col = residual[:, i]
-            r[i] = col[p:] if a.size == 1 else fir_filter(a, col)[p:]
+            if a.size == 1:
+                r[i] = col[p:]
+            elif a.size > _CONVOLVE_FROM_TAPS:  # one pass in C (same sums, another order)
+                r[i] = np.convolve(col, a)[p : col.size]
+            else:
+                r[i] = fir_filter(a, col)[p:]
         r = inv_chol @ r
         if jacobian is None:
             return r, None
@@ -148,17 +154,20 @@ class NoiseModel:
                 j += np.matmul(taps[k], jacobian[:, :, p - k : n - k])
             return r, j
         # Longer filters: the FIR axis by axis into one (P, 3, M) buffer, then L⁻¹ across
-        # axes in one batched product.  The FIR is scipy's lfilter (one pass in C; a scaled
-        # add per tap over the columns took 3× as long at a road's 24 taps; the sums differ
-        # in their order only, ~5e-16 relative).
-        from scipy.signal import lfilter  # here: a batch's planner must not import it
-
+        # axes in one batched product.  The FIR is numpy's convolution, row by row, of its
+        # M valid outputs (one pass in C, what scipy's lfilter computes, bit for bit,
+        # without its full-length rows and their copy; a scaled add per tap over the
+        # columns took 3× as long at a road's 24 taps; the sums differ from those in their
+        # order only, ~5e-16 relative).
         filtered = np.empty((size, 3, m))
         for i, a in enumerate(self.ar_polynomials):
             if a.size == 1:
                 np.copyto(filtered[:, i, :], jacobian[:, i, p:])
-            else:
-                filtered[:, i, :] = lfilter(a, _ONE, jacobian[:, i, :], axis=-1)[:, p:]
+                continue
+            rows = jacobian[:, i, :]
+            start = p - (a.size - 1)  # an axis of lower order starts later
+            for k in range(size):
+                filtered[k, i, :] = np.convolve(rows[k, start:], a, mode="valid")
         return r, np.matmul(inv_chol, filtered)
 
     @functools.cached_property

@@ -19,7 +19,7 @@ a candidate effect): H and g then cover [free | extra].
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -166,15 +166,25 @@ def accumulate(
     jacobian: bool = True,
     extra: ExtraColumns | None = None,
     chunk: int | None = None,
+    evaluated: Sequence[ModelOutput] | None = None,
 ) -> NormalEquations:
     """Accumulate cost, J̃ᵀJ̃ and J̃ᵀr̃ of the whitened residual (model − data).
 
     With a local basis in the layout (a wheel-angle spline), chunks follow its
     knots and the Gram products skip the rows that are zero over a chunk.
+    ``evaluated``: the model with its Jacobian at ``params``, one per chunk (each
+    with its p samples of history, as here), when the caller has it (a
+    :func:`gradient_pass` there formed it, a dense layout): its J serves, the same
+    numbers without a second evaluation.
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
     p = noise.order
+    if evaluated is not None:
+        sizes = [min(n, start + chunk) - max(0, start - p) for start in range(0, n, chunk)]
+        got = [output.predicted_mps2.shape[0] for output in evaluated]
+        if sparse or not jacobian or got != sizes:
+            raise ValueError("evaluated Jacobians serve a dense layout's chunks, one each")
     cost = 0.0
     entries = 0
     hess = grad = None
@@ -191,8 +201,9 @@ def accumulate(
             continue
         view = local_view(params, layout, t_s[lo], t_s[stop - 1]) if sparse else None
         here, at = (view.layout, view.params) if view else (layout, params)
+        formed = None if evaluated is None else evaluated[start // chunk]
         buf, residual, extra_size = _filled_buffer(
-            at, t_s[lo:stop], accel_mps2[lo:stop], here, extra, extra_size
+            at, t_s[lo:stop], accel_mps2[lo:stop], here, extra, extra_size, evaluated=formed
         )
         gram, rows = _whitened_gram(buf, residual, noise)
         if hess is None:
@@ -219,6 +230,7 @@ def _filled_buffer(
     extra: ExtraColumns | None,
     extra_size: int | None,
     output: ModelOutput | None = None,
+    evaluated: ModelOutput | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int | None]:
     """[J | extra columns | residual] (P + k + 1, 3, n), the residual (model − data), k.
 
@@ -227,9 +239,14 @@ def _filled_buffer(
     pass over J̃ for g costs more than the Gram's extra row).  ``extra_size`` None:
     learnt from the callback's first columns (then one copy).  ``output``: the
     model already evaluated there (the paper's model), whose Jacobian alone is formed.
+    ``evaluated``: the model with its Jacobian already evaluated there (copied in).
     """
     buf = np.empty((layout.size + (extra_size or 0) + 1, 3, t_s.size))
-    out = evaluate(params, t_s, layout, jacobian=True, out=buf[: layout.size], output=output)
+    if evaluated is not None:
+        out = evaluated
+        buf[: layout.size] = evaluated.jacobian
+    else:
+        out = evaluate(params, t_s, layout, jacobian=True, out=buf[: layout.size], output=output)
     residual = out.predicted_mps2 - accel_mps2
     if extra is not None:
         cols = extra(params, out, t_s)
@@ -384,6 +401,7 @@ def gradient_pass(
     residual_out: np.ndarray | None = None,
     output: ModelOutput | None = None,
     reverse_out: list | None = None,
+    evaluated_out: list | None = None,
 ) -> NormalEquations:
     """Cost and g = J̃ᵀr̃ without H: the whitening applied to the residual, not to J.
 
@@ -399,7 +417,9 @@ def gradient_pass(
     at ``params`` over all of ``t_s`` when the caller has evaluated it (the paper's
     model, one chunk).  ``reverse_out``, when given with ``output``, receives the pass's
     :class:`~wheelcal.model.forward.ReverseAt` (u, the sums and the wheel angle's
-    adjoint rows: what a score test at ``params`` needs again).
+    adjoint rows: what a score test at ``params`` needs again).  ``evaluated_out``, when
+    given, receives the model with its Jacobian of each chunk where the pass forms them
+    (a layout with effects): :func:`accumulate` at ``params`` takes them.
     """
     n = t_s.size
     chunk, sparse = chunking(layout, t_s, chunk)
@@ -434,6 +454,8 @@ def gradient_pass(
                 reverse_out.append(ReverseAt(u, base, adjoint, (noise, accel_mps2)))
         else:
             grad += out.jacobian.reshape(layout.size, -1) @ u.reshape(-1)
+            if evaluated_out is not None:
+                evaluated_out.append(out)
     normal = NormalEquations(cost=cost, hessian=None, gradient=grad, entries=entries)
     return _with_priors(normal, params, layout)
 
