@@ -236,6 +236,17 @@ MUTATIONS: tuple[Mutation, ...] = (
         ),
     ),
     Mutation(
+        "g_shift_own_prediction",
+        "the G across the axle's shift taken from the fit's own prediction, not its zero point",
+        (
+            Replacement(
+                "src/wheelcal/estimate/field/fit.py",
+                "base = predicted(yaw_of.gyro_radps)",
+                "base = evaluate(params, t, layout).predicted_mps2",
+            ),
+        ),
+    ),
+    Mutation(
         "gyro_matrix_transposed",
         "the pooled gyro fit measures Mᵀ d instead of M d along each mounting's wheel axis",
         (
