@@ -236,13 +236,13 @@ MUTATIONS: tuple[Mutation, ...] = (
         ),
     ),
     Mutation(
-        "g_shift_own_prediction",
-        "the G across the axle's shift taken from the fit's own prediction, not its zero point",
+        "g_shift_whole_camber",
+        "the gyro angle's camber in G's shift takes the new track whole (what the basis holds too)",
         (
             Replacement(
                 "src/wheelcal/estimate/field/fit.py",
-                "base = predicted(yaw_of.gyro_radps)",
-                "base = evaluate(params, t, layout).predicted_mps2",
+                "angle_track = effect.camber_track_rad + _beyond_basis(change, rolling)",
+                "angle_track = effect.camber_track_rad + change",
             ),
         ),
     ),
