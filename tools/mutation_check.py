@@ -236,6 +236,17 @@ MUTATIONS: tuple[Mutation, ...] = (
         ),
     ),
     Mutation(
+        "g_shift_whole_camber",
+        "the gyro angle's camber in G's shift takes the new track whole (what the basis holds too)",
+        (
+            Replacement(
+                "src/wheelcal/estimate/field/fit.py",
+                "angle_track = effect.camber_track_rad + _beyond_basis(change, rolling)",
+                "angle_track = effect.camber_track_rad + change",
+            ),
+        ),
+    ),
+    Mutation(
         "gyro_matrix_transposed",
         "the pooled gyro fit measures Mᵀ d instead of M d along each mounting's wheel axis",
         (
