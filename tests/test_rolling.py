@@ -218,6 +218,11 @@ def test_geometry_rolling_is_the_field_fit_within_5_sigma_crlb():
     assert (auto.session.model, auto.session.geometry_source) == ("field", "detected")
     np.testing.assert_allclose(auto.result.values, cal.result.values, rtol=1e-12, atol=0.0)
     np.testing.assert_allclose(auto.result.std, cal.result.std, rtol=1e-12, atol=0.0)
+    # A window given is the field fit's window (not the drive it would find).
+    given = wheelcal.calibrate(sim.recording, geometry="rolling", start_s=5.0, end_s=95.0)
+    assert given["source"]["window_s"] == [5.0, 95.0]
+    assert given["source"]["window_reason"].startswith("window given on the command line")
+    assert given.session.model == "field"
 
 
 def test_geometry_rolling_on_the_command_line_without_a_radius(tmp_path):
