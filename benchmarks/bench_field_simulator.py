@@ -4,9 +4,8 @@ Prints absolute times, and ratios against a baseline measured in the same
 process, round by round (interleaved):
 
 * a 2-minute 120 Hz car drive (14 401 samples, gyro, road vibration) — target
-  well under a second — against the existing vertical-wheel drive simulator
-  (:func:`wheelcal.simulate.rolling.simulate_drive`, 120 s at 200 Hz, through
-  the estimator's model) as the baseline;
+  well under a second (the second rolling simulator it was once measured
+  against, ``wheelcal.simulate.rolling``, is gone: issue 41 item 6);
 * a 400 Hz wheelchair coast (~30 s, ~12 000 samples);
 * a 90 s bench spin at 200 Hz, against the paper-model session simulator
   (:func:`wheelcal.simulate.session.simulate_session`, Table II) as the baseline.
@@ -29,7 +28,6 @@ from _timing import fmt, interleaved_times
 from wheelcal.simulate.field import bench_spin, car_drive, simulate_field, wheelchair_coast
 from wheelcal.simulate.gyro import GyroSpec
 from wheelcal.simulate.presets import table2
-from wheelcal.simulate.rolling import rolling_scenario, simulate_drive
 from wheelcal.simulate.session import simulate_session
 
 
@@ -39,11 +37,6 @@ def _field(profile, seed: int = 1, **options):
         return simulate_field(profile(rng, **options), rng)
 
     return run
-
-
-def _baseline_drive():
-    rng = np.random.default_rng(1)
-    return simulate_drive(rolling_scenario(rng, duration_s=120.0), rng)
 
 
 def _baseline_session():
@@ -58,7 +51,6 @@ def main() -> None:
     args = parser.parse_args()
     runs = {
         "car drive 120 s, 120 Hz": _field(car_drive),
-        "baseline: simulate_drive 120 s, 200 Hz": _baseline_drive,
         "wheelchair coast, 400 Hz": _field(wheelchair_coast),
         "bench spin 90 s, 200 Hz": _field(bench_spin, free_spin_s=90.0),
         "baseline: simulate_session 90 s, 200 Hz": _baseline_session,
@@ -68,10 +60,7 @@ def main() -> None:
         times = interleaved_times(runs, args.repeats)
     for name, ts in times.items():
         print(f"{name:42s} {samples[name]:6d} samples  {fmt(ts)}")
-    for ours, base in (
-        ("car drive 120 s, 120 Hz", "baseline: simulate_drive 120 s, 200 Hz"),
-        ("bench spin 90 s, 200 Hz", "baseline: simulate_session 90 s, 200 Hz"),
-    ):
+    for ours, base in (("bench spin 90 s, 200 Hz", "baseline: simulate_session 90 s, 200 Hz"),):
         ratio = statistics.median(a / b for a, b in zip(times[ours], times[base], strict=True))
         print(f"ratio {ours} / {base}: {ratio:.2f} (median of per-round ratios)")
 

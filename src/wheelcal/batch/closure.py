@@ -34,7 +34,7 @@ def _inputs(pipeline: Pipeline, members: list[Calibration]) -> list[ClosureInput
         start, end = cal.window_s
         # A temperature-following offset needs its recording's temperature series, not
         # just its settings: the sensor closure leaves it out (it is session-local anyway).
-        # So does a rolling wheel's yaw (geometry "rolling" refits it from the gyro).
+        # So does a rolling wheel's yaw (the field fit's series, read from its gyro).
         effects = tuple(
             make_effect(name, settings)
             for name, settings in cal.effects.items()

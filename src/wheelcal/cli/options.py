@@ -70,8 +70,8 @@ def add_session_arguments(parser: argparse.ArgumentParser) -> None:
         help="auto (default): read from the data — a bench's free spin (needs --radius), or, "
         "with a gyroscope, a wheel rolling in the field (car, robot, wheelchair: vertical or "
         "cambered, the sensor's radius fitted) or a vertical wheel on a stand; or say what is "
-        "known: the radius, the tilt (--tilt-deg), a vertical wheel, or a vertical wheel "
-        "rolling on level ground with --radius (the spline fit of earlier versions)",
+        "known: the radius, the tilt (--tilt-deg), a vertical wheel, or a wheel rolling on "
+        "the ground (rolling: the field fit, with --radius if known, else the radius fitted)",
     )
     m.add_argument(
         "--model",

@@ -19,7 +19,6 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from wheelcal.closedloop.harmonics import wheel_harmonics
-from wheelcal.closedloop.rolling_candidate import rolling_candidates
 from wheelcal.closedloop.score import ScoreTest, gyro_stream, score_tests, screen
 from wheelcal.estimate import RestSegment
 from wheelcal.estimate.joint import CalibrationResult, JointFit
@@ -82,8 +81,6 @@ class ClosedLoop:
         candidates = self.candidates + temperature_candidates(
             recording.time_s - base.centre_s, getattr(recording, "temperature_c", None)
         )
-        # A wheel rolling on the ground (a gyro-aided fit of a vertical wheel): yaw from the gyro.
-        candidates += rolling_candidates(base, recording)
         # The gyro's readings at the rests join its stream wherever it is fitted or screened.
         gyro_rests = self.fit.rests_of(rests)
         gyro = gyro_stream(base, recording, self.fit.gyro_reading(), gyro_rests)

@@ -162,7 +162,7 @@ def gyro_stream(
     if gyro is None or int(np.sum(np.all(np.isfinite(gyro), axis=1))) < 100:
         return None
     tc = recording.time_s - fit.centre_s
-    gyro_t, samples = gyro_samples(recording, tc, fit.layout.effects)
+    gyro_t, samples = gyro_samples(recording, tc)
     if gyro_effect(fit.layout) is not None:
         return GyroStream(gyro_t, samples, fit.layout, fit.params, fit.gyro_noise, fit.gyro_rests)
     fitted = regress_gyro(fit, gyro_t, samples, reading=reading, rests=rests)

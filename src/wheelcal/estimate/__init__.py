@@ -6,7 +6,8 @@ Layer 3 (above ``recording``, beside ``io`` and ``simulate``; below ``closedloop
   Levenberg–Marquardt, noise model, the Fisher information by quadrature, the
   Cramér–Rao bound, identifiability, twins, the systematic budget, the frozen result;
 * :mod:`.paper` — the paper's four-step estimator (III-A … D), for comparison;
-* :mod:`.gyro` — the gyroscope's calibration, the yaw of a rolling wheel, its fit;
+* :mod:`.gyro` — the gyroscope's calibration and the gyro-aided fit's set-up;
+* :mod:`.field` — a wheel in the field, the one model of a rolling wheel;
 * the rests of a recording (:mod:`.rests`) and their Allan deviation (:mod:`.allan`),
   and the residual by wheel angle (:mod:`.residual_profile`).
 

@@ -58,18 +58,19 @@ once per turn along the axle, at the frequency of gravity: a car wheel at
 10 m/s (ρ = 0.3 m, ω ≈ 33 rad/s) in a 0.3 rad/s turn with the sensor at
 r = 0.2 m feels ±4 m/s² of it.
 
-**The yaw rate comes from the gyro**: ψ̇(t) is the gyro's reading along the
-upward direction, demodulated with the wheel angle
-(:mod:`wheelcal.estimate.gyro.yaw`).  The gyro's scale across the wheel axis is not
-calibrated by the spin, so the effect may fit a scale κ with ψ̇ = κ ψ̇_gyro (or,
+**The yaw rate comes from the gyro**: ψ̇(t) is the gyro's reading across the
+axle, demodulated with the wheel angle (the field fit's
+:func:`~wheelcal.estimate.field.gyro_axle.yaw_across`).  The gyro's scale across
+the wheel axis is not calibrated by the spin, so the effect may fit a scale κ
+with ψ̇ = κ ψ̇_gyro (or,
 ``yaw_scale_free=False``, take the yaw as measured by a calibrated gyro; with
 ``yaw_across_axle`` the series is the yaw's share across the axle, ψ̇ cos γ):
 
     parameters  ρ (``radius_m``)  and  κ (``yaw_scale``),
 
 and Δa is the formula above with ρ and κ ψ̇_gyro, κ ψ̈_gyro.  At (ρ, κ) = (0, 0)
-Δa = 0: the fixed wheel is a point of the rolling model, so the closed loop can
-score-test the effect at a fit that did not declare it.
+Δa = 0: the fixed wheel is a point of the rolling model, so the field fit tells
+the two apart by the size of ρ it fits (:mod:`wheelcal.estimate.field.fit`).
 
 **The camber track.**  On a road the camber is not one number: the wheel rolls
 about its direction of travel as the road's cross-slope changes, in a banked
@@ -142,10 +143,6 @@ class Rolling(Effect):
         ψ̇_gyro(t), the yaw rate measured by the gyro (rad/s), one per time.
     yaw_accel_radps2:
         ψ̈_gyro(t); default: the series' numerical derivative.
-    gyro_yaw_radps:
-        (N, 3) share of the yaw in the gyro's samples (its reading of ψ̇ u), or
-        ``None``.  A fit with this effect subtracts it from the gyro stream, whose
-        own model knows only the spin about the axle.
     yaw_scale_free:
         Fit κ and ε (default).  ``False`` holds κ = 1, ε = 0 and fits ρ alone (parameters:
         ``radius_m``): the yaw rate taken as given (from a calibrated gyro).
@@ -178,7 +175,6 @@ class Rolling(Effect):
         time_s: np.ndarray,
         yaw_rate_radps: np.ndarray,
         yaw_accel_radps2: np.ndarray | None = None,
-        gyro_yaw_radps: np.ndarray | None = None,
         yaw_scale_free: bool = True,
         yaw_across_axle: bool = False,
         yaw_offset_free: bool = True,
@@ -196,12 +192,7 @@ class Rolling(Effect):
         accel = np.asarray(accel, dtype=float)
         if accel.shape != t.shape:
             raise ValueError("one yaw acceleration per time")
-        if gyro_yaw_radps is not None:
-            gyro_yaw_radps = np.asarray(gyro_yaw_radps, dtype=float)
-            if gyro_yaw_radps.shape != (t.size, 3):
-                raise ValueError("gyro_yaw_radps must be (N, 3), one row per time")
         self.time_s, self.yaw_rate_radps, self.yaw_accel_radps2 = t, rate, accel
-        self.gyro_yaw_radps = gyro_yaw_radps
         self.yaw_scale_free = bool(yaw_scale_free)
         self.yaw_across_axle = bool(yaw_across_axle)
         self.yaw_offset_free = bool(yaw_offset_free) and self.yaw_scale_free
@@ -344,15 +335,6 @@ class Rolling(Effect):
         return (
             np.interp(t, self.time_s, self.yaw_rate_radps),
             np.interp(t, self.time_s, self.yaw_accel_radps2),
-        )
-
-    def gyro_share(self, t_s: np.ndarray) -> np.ndarray:
-        """The yaw's share of the gyro samples at centred times ``t_s`` (zeros if unknown)."""
-        t = np.asarray(t_s, dtype=float)
-        if self.gyro_yaw_radps is None:
-            return np.zeros((t.size, 3))
-        return np.column_stack(
-            [np.interp(t, self.time_s, self.gyro_yaw_radps[:, i]) for i in range(3)]
         )
 
     def force_delta(

@@ -21,6 +21,9 @@ A fit that served as evidence is the answer when the decision keeps it (nothing
 is fitted twice), and a refusal is an answer like a calibration: fits are
 *attempted* (:meth:`~wheelcal.session.fit.SessionFit.attempt`,
 :func:`~wheelcal.session.field.field_attempt`) and their answers weighed as values.
+``--geometry rolling`` gives the geometry instead of deciding it: the field fit
+(:func:`calibrate_rolling`), the one model of a wheel rolling on the ground.
+
 The session says which geometry it was and why (``SessionResult.geometry_source`` =
 ``"detected"``, ``geometry_reason``).
 """
@@ -33,7 +36,7 @@ from dataclasses import dataclass
 from wheelcal.estimate.field import YAW_RMS_RADPS, gyro_axle
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.field import field_attempt, is_vertical_axle, yaw_rms_radps
-from wheelcal.session.result import SessionResult
+from wheelcal.session.result import SessionResult, WindowChoice
 
 #: Refusals of the bench's free spin that a wheel in the field explains.
 FIELD_CAN_HELP = ("motion", "undetermined", "turns", "misfit")
@@ -141,9 +144,19 @@ def answer_of(
     )
 
 
-def _judge_field(recording: Recording, options, why: str) -> SessionResult | RecordingError:
+#: The fix a refused field fit of a wheel that should roll suggests.
+FREE_SPIN_FIX = "record a free spin on the bench (push once, then let go), or give --geometry"
+
+
+def _judge_field(
+    recording: Recording,
+    options,
+    why: str,
+    window: WindowChoice | None = None,
+    fix: str = FREE_SPIN_FIX,
+) -> SessionResult | RecordingError:
     """The field fit of a wheel that should roll: its session, else a refusal (``motion``)."""
-    field = field_attempt(recording, options.gates, options.field_fitter(), why=why)
+    field = field_attempt(recording, options.gates, options.field_fitter(), window, why=why)
     if isinstance(field, RecordingError):
         return field
     session, fitted = field
@@ -154,8 +167,33 @@ def _judge_field(recording: Recording, options, why: str) -> SessionResult | Rec
         "motion",
         f"{why}, but the wheel neither rolls nor turns on a fixed axle as a free spin: "
         f"{fitted.geometry.reason}",
-        "record a free spin on the bench (push once, then let go), or give --geometry",
+        fix,
     )
+
+
+def calibrate_rolling(recording: Recording, options) -> SessionResult:
+    """``--geometry rolling``: the wheel rolls on the ground, so the field fit calibrates it.
+
+    The geometry is given, not decided: no bench fit is tried.  The field fit
+    (:func:`~wheelcal.session.field.calibrate_field`) takes the radius when one is
+    given and fits it otherwise; a wheel it finds neither rolling nor turning is
+    refused (``motion``), as the decision's field fit is.  Raises the refusal.
+    """
+    if recording.gyro_radps is None or options.gyro == "off":
+        raise RecordingError(
+            f"{recording.source}: the rolling geometry needs the recording's gyroscope "
+            "(the wheel's angle and the carrier's turns are read from it)"
+        )
+    window = None
+    if options.start_s is not None:
+        reason = f"window given on the command line: {options.start_s:g}–{options.end_s:g} s"
+        window = WindowChoice(recording.window(options.start_s, options.end_s), None, reason)
+    why = "the rolling geometry was given (a wheel rolling on the ground)"
+    fix = "for a wheel on a fixed axle, give --geometry auto (the default) or radius"
+    answer = _judge_field(recording, options, why, window, fix)
+    if isinstance(answer, RecordingError):
+        raise answer
+    return dataclasses.replace(answer, geometry_source="given")
 
 
 def calibrate_auto(recording: Recording, options) -> SessionResult:

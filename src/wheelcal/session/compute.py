@@ -33,7 +33,8 @@ if TYPE_CHECKING:
 EARTH_GRAVITY_RANGE_MPS2 = (9.7, 9.9)
 #: What a calibration fits: the closed loop's final model, or the paper's bare model.
 MODELS = ("closed_loop", "paper")
-#: ``--geometry``: "auto" (read from the data, :mod:`wheelcal.session.auto`) or a JointFit mode.
+#: ``--geometry``: "auto" (read from the data, :mod:`wheelcal.session.auto`), a JointFit mode,
+#: or "rolling" (a wheel rolling on the ground: the field fit, :mod:`wheelcal.session.field`).
 SESSION_GEOMETRIES = ("auto", "radius", "tilt", "vertical", "rolling")
 
 
@@ -137,12 +138,15 @@ class SessionOptions:
         return dict(self.defaults)
 
     def fitter(self) -> JointFit:
-        """The joint-fit configuration for these options."""
+        """The joint-fit configuration for these options (a fixed axle's).
+
+        ``"auto"`` starts from the paper's geometry (r given, α fitted), and so does
+        ``"rolling"``, whose wheel is the field fit's (:meth:`field_fitter`).
+        """
         return JointFit(
-            geometry="radius" if self.geometry == "auto" else self.geometry,
+            geometry=self.geometry if self.geometry in ("tilt", "vertical") else "radius",
             known_tilt_deg=self.known_tilt_deg,
             tilt_std_deg=self.tilt_std_deg,
-            use_gyro=self.geometry == "rolling",  # the yaw rate comes from the gyro
             gyro_g_prior_dps_per_g=self.gyro_g_sensitivity_dps_per_g,
         )
 
@@ -208,6 +212,10 @@ def compute_recording(
         from wheelcal.session.auto import calibrate_auto
 
         session = calibrate_auto(recording, options)
+    elif options.geometry == "rolling":  # asked for: the field fit, the rolling model
+        from wheelcal.session.auto import calibrate_rolling
+
+        session = calibrate_rolling(recording, options)
     else:
         session = options.session_fit().run(recording)
     timings["fit"] = time.perf_counter() - t1

@@ -30,7 +30,7 @@ import numpy as np
 
 from wheelcal.closedloop import ClosedLoop
 from wheelcal.estimate import RestSegment, find_rests
-from wheelcal.estimate.gyro import fastest_rate_radps, fit_window, gyro_aided, gyro_block, gyro_rows
+from wheelcal.estimate.gyro import fastest_rate_radps, gyro_aided, gyro_block, gyro_rows
 from wheelcal.estimate.joint import CalibrationResult, InitialGuess, JointFit, wheel_angle_rad
 from wheelcal.model import EvaluatedModel
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
@@ -57,7 +57,6 @@ from wheelcal.session.result import SessionResult, WindowChoice, attempted
 from wheelcal.session.window import (
     MAX_BRIDGED_GAP_S,
     FreeSpinWindow,
-    find_drive_window,
     find_free_spin,
     find_motion_window,
     fitted_stretches,
@@ -141,12 +140,6 @@ class SessionFit:
             return RecordingError(
                 f"{recording.source}: --gyro on, but the recording has no usable gyroscope"
             )
-        if self.fitter.geometry == "rolling":  # the yaw rate comes from the gyro
-            if not has_gyro or self.gyro == "off":
-                return RecordingError(
-                    f"{recording.source}: geometry 'rolling' needs the recording's gyroscope"
-                )
-            return attempted(self._run_with_gyro, recording, "a rolling wheel")
         if has_gyro and self.gyro == "on":
             return attempted(self._run_with_gyro, recording, "--gyro on")
         free = attempted(self._run_free_spin, recording)
@@ -248,8 +241,7 @@ class SessionFit:
             reason = f"window given on the command line: {self.start_s:g}–{self.end_s:g} s"
         else:
             if found is None:
-                rolling = self.fitter.geometry == "rolling"
-                found = (find_drive_window if rolling else find_motion_window)(recording)
+                found = find_motion_window(recording)
             start, end = found.start_s, min(found.end_s, found.start_s + gates.max_window_s)
             window = recording.window(start, end)
             reason = found.reason + (
@@ -261,7 +253,7 @@ class SessionFit:
         fitter = aided.fitter
         guess = fitter.start(window)
         _check_implied_radius(guess, window, gates, rests)
-        result = fit_window(fitter, window, guess=guess)
+        result = fitter.fit(window, guess=guess)
         notes = [
             f"gyro-aided ({why}): wheel angle = cubic + spline with knots every "
             f"{aided.knot_spacing_s:g} s (chosen by BIC on the gyro's rate)"
@@ -274,11 +266,9 @@ class SessionFit:
         fastest = fastest_rate_radps(result, aided.gyro_radps)
         refuse_undersampled(recording.source, window.rate_hz, fastest, gates)
         refuse_few_turns(result)
-        rolling = fitter.geometry == "rolling"  # the gyro block judges the spin's share only
-        rows = gyro_rows(result, window, rolling=True) if rolling else None
         result, diagnosis = self._refined(result, window, rests)
-        # Else the gyro block judges the samples fitted, no others.
-        block = gyro_block(result, rows or gyro_rows(result, window))
+        # The gyro block judges the samples fitted, no others.
+        block = gyro_block(result, gyro_rows(result, window))
         notes.append(_stretches_note(window))
         choice = WindowChoice(window, found, "; ".join([reason, *(n for n in notes if n)]))
         assessment = assess(result, rests, gates, None, block)
@@ -397,7 +387,7 @@ def _without_disturbances(
     kept = window.select(keep)
     # The refit keeps the window's time origin and knots: it restarts where it was.
     frame = (float(window.time_s[0]), float(window.time_s[-1]))
-    refit = fit_window(fitter, kept, initial=result.params, frame=frame)
+    refit = fitter.fit(kept, initial=result.params, frame=frame)
     seconds = float(np.sum(~keep) / window.rate_hz)
     note = (
         f"left out {seconds:.1f} s where the residual exceeded {DISTURBANCE_FACTOR:g}× the "
@@ -428,7 +418,7 @@ def _clear_of_rails(
         return result, window, ""
     kept = window.select(~near)
     frame = (float(window.time_s[0]), float(window.time_s[-1]))  # see _without_disturbances
-    refit = fit_window(fitter, kept, initial=result.params, frame=frame)
+    refit = fitter.fit(kept, initial=result.params, frame=frame)
     note = (
         f"left out {int(near.sum())} samples that the model puts within "
         f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"

@@ -293,7 +293,7 @@ class GyroSpec:
             The only source of randomness (one (N, 3) normal draw, if noisy).
         extra_rate_radps:
             Body rate besides the spin, bench frame (N, 3) — e.g. a rolling
-            wheel's yaw ψ̇ u (:mod:`wheelcal.model.rolling`); ``None``: none.
+            wheel's yaw ψ̇ u (:mod:`wheelcal.simulate.field_record`); ``None``: none.
         """
         ideal = self.ideal_reading(omega_radps, misalignment)
         if extra_rate_radps is not None:

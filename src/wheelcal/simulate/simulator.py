@@ -80,7 +80,6 @@ class Scenario:
         vibration_envelope: np.ndarray | None = None,
         omega_radps: np.ndarray | None = None,
         sensed_mps2: np.ndarray | None = None,
-        gyro_extra_rate_radps: np.ndarray | None = None,
     ) -> Recording:
         """The sensor's output stage: noise, optional quantisation, a typed recording.
 
@@ -89,8 +88,6 @@ class Scenario:
         With a ``gyro``, ``omega_radps`` (ω per sample) and ``sensed_mps2``
         (the true specific force R a per sample) drive it.  Draws, in order:
         accelerometer noise, vibration, then gyro noise and temperature noise.
-        ``gyro_extra_rate_radps`` (bench frame, N × 3) is body rate besides the
-        spin that the gyro also reads (a rolling wheel's yaw).
         """
         noisy = clean_mps2 + self.noise.sample(time_s.size, self.rate_hz, rng)
         if self.vibration is not None:
@@ -105,9 +102,7 @@ class Scenario:
             if omega_radps is None or sensed_mps2 is None:
                 raise ValueError("a scenario with a gyro needs omega_radps and sensed_mps2")
             rotation = self.truth.bench.misalignment.matrix
-            gyro = self.gyro.output(
-                omega_radps, sensed_mps2, rotation, self.rate_hz, rng, gyro_extra_rate_radps
-            )
+            gyro = self.gyro.output(omega_radps, sensed_mps2, rotation, self.rate_hz, rng)
         temperature = None
         if self.temperature is not None:
             temperature = self.temperature.sample(time_s, rng)

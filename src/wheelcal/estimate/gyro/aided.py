@@ -64,16 +64,9 @@ def fastest_rate_radps(result: CalibrationResult, gyro_radps: np.ndarray) -> flo
     return fastest / max(float(np.sum(axis**2)), 1e-12)
 
 
-def gyro_rows(
-    result: CalibrationResult, window: Recording, rolling: bool = False
-) -> tuple[np.ndarray, np.ndarray]:
-    """The usable gyro rows of ``window`` in ``result``'s centred time (times, rad/s).
-
-    ``rolling``: the joint fit's rolling geometry — its yaw taken out, so that the
-    gyro block judges the spin's share only.
-    """
-    effects = result.layout.effects if rolling else ()
-    return gyro_samples(window, window.time_s - result.centre_s, effects)
+def gyro_rows(result: CalibrationResult, window: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """The usable gyro rows of ``window`` in ``result``'s centred time (times, rad/s)."""
+    return gyro_samples(window, window.time_s - result.centre_s)
 
 
 def gyro_block(

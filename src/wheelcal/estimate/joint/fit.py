@@ -27,9 +27,9 @@ Jacobian of :mod:`wheelcal.model.forward`, which attains the Cramér–Rao bound
 
 Geometry modes (paper II-C): ``radius`` — r known, α fitted (the paper's choice);
 ``tilt`` — α known, r fitted; ``vertical`` — α = 90° (a spirit level), r fitted;
-``rolling`` — a vertical wheel rolling on level ground (α = 90°, r known, the
-rolling radius ρ and the gyro's yaw scale fitted, the yaw rate demodulated
-from the gyro: :mod:`wheelcal.model.rolling`, :mod:`wheelcal.estimate.gyro.yaw`).
+``free`` — α and r both fitted (the field fit's turns measure α).  A wheel
+rolling on the ground is the field fit's (:mod:`wheelcal.estimate.field`), which
+runs this fit in passes with the rolling effect (:mod:`wheelcal.model.rolling`).
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ from wheelcal.model import (
 )
 from wheelcal.recording import Recording, RecordingError, SessionInfo
 
-GEOMETRY_MODES = ("radius", "tilt", "vertical", "rolling", "free")
+GEOMETRY_MODES = ("radius", "tilt", "vertical", "free")
 #: Stage 1 runs on about this many samples (decimated); stage 2 uses all of them.
 _STAGE1_SAMPLES = 3000
 #: Stage 2's last Gauss–Newton step is taken without a Jacobian when below √this σ.
@@ -108,8 +108,8 @@ class JointFit:
     spin_degree:
         Degree of the ω(t) polynomial (3 = the paper's cubic).
     geometry:
-        ``"radius"`` (default), ``"tilt"``, ``"vertical"``, ``"rolling"`` (needs
-        ``use_gyro``) or ``"free"`` (α and r both fitted: only with an effect that
+        ``"radius"`` (default), ``"tilt"``, ``"vertical"`` or ``"free"`` (α and r
+        both fitted: only with an effect that
         measures the tilt otherwise, :mod:`wheelcal.estimate.field`; the start at α = 90°);
         see the module doc.
     known_tilt_deg:
@@ -160,8 +160,6 @@ class JointFit:
             raise ValueError("spline_spacing_s must be positive")
         if self.geometry not in GEOMETRY_MODES:
             raise ValueError(f"geometry must be one of {GEOMETRY_MODES}, got {self.geometry!r}")
-        if self.geometry == "rolling" and not self.use_gyro:
-            raise ValueError("geometry 'rolling' takes the yaw rate from the gyro: use_gyro=True")
         if self.geometry == "tilt" and self.known_tilt_deg is None:
             raise ValueError("geometry 'tilt' needs known_tilt_deg")
         if self.known_tilt_deg is not None and not 0.0 <= self.known_tilt_deg <= 90.0:
@@ -209,7 +207,7 @@ class JointFit:
         return GyroRests.of(rests, self.gyro_reading().g_prior_std_radps_per_mps2)
 
     def _fixed_tilt_rad(self) -> float | None:
-        if self.geometry in ("vertical", "rolling", "free"):
+        if self.geometry in ("vertical", "free"):
             return np.pi / 2
         if self.geometry == "tilt":
             return float(np.deg2rad(self.known_tilt_deg))
@@ -217,7 +215,7 @@ class JointFit:
 
     def _checked_info(self, recording: Recording):
         info = recording.info
-        if self.geometry in ("radius", "rolling") and info.radius_m is None:
+        if self.geometry == "radius" and info.radius_m is None:
             raise RecordingError(
                 f"{recording.source}: the radius (sensor distance from the axle) is needed: "
                 "give --radius or radius_m in the wheelcal.session metadata"
@@ -235,7 +233,7 @@ class JointFit:
         tc = t - 0.5 * (t[0] + t[-1])
         gyro_t = gyro = rate = None
         if self.use_gyro:
-            gyro_t, gyro = gyro_samples(recording, tc, self.effects)
+            gyro_t, gyro = gyro_samples(recording, tc)
             _, vecs = np.linalg.eigh(gyro.T @ gyro)
             rate = np.interp(tc, gyro_t, gyro @ vecs[:, -1])  # ω up to sign, scale, bias
         guess = initial_guess(
@@ -249,9 +247,6 @@ class JointFit:
             omega_radps=rate,
             fastest_radps=fastest_radps,
         )
-        if self.geometry == "rolling":  # r is known: the vertical guess only fitted it
-            bench = dataclasses.replace(guess.params.bench, radius_m=info.radius_m)
-            guess = dataclasses.replace(guess, params=guess.params.with_changes(bench=bench))
         if not self.use_gyro:
             return guess
         params = with_gyro_start(guess.params, self.layout_for(recording), gyro_t, gyro)
@@ -303,18 +298,13 @@ class JointFit:
 
     def _window(self, recording: Recording, frame: tuple[float, float] | None) -> _Window:
         """The window's samples as the stages use them (times centred on ``frame``)."""
-        if self.geometry == "rolling" and _rolling_of(self.effects) is None:
-            raise ValueError(
-                "geometry 'rolling' needs the yaw from the gyro first: fit it with "
-                "wheelcal.estimate.gyro.rolling_fit.fit_window (or give the rolling effect)"
-            )
         info = self._checked_info(recording)
         t = recording.time_s
         frame = frame or (float(t[0]), float(t[-1]))
         centre = 0.5 * (frame[0] + frame[1])
         tc = t - centre
         layout = self.layout_for(recording, frame)
-        gyro_t, gyro = gyro_samples(recording, tc, self.effects) if self.use_gyro else (None, None)
+        gyro_t, gyro = gyro_samples(recording, tc) if self.use_gyro else (None, None)
         return _Window(recording, info, centre, tc, recording.accel_mps2, layout, gyro_t, gyro)
 
     def _initial(
@@ -503,7 +493,7 @@ class JointFit:
                 f"g ({gravity:.5f} m/s²) one for one — give gravity_mps2 for gains better "
                 "than ~0.2 %"
             )
-        if self.geometry in ("vertical", "rolling"):
+        if self.geometry == "vertical":
             warnings.append(
                 "vertical wheel: the wheel axis has no upward side, so R is reported for the "
                 "positive spin direction (gains and offsets are unaffected)"
@@ -566,7 +556,7 @@ class _Window:
     v: np.ndarray  # accelerometer samples (N, 3)
     layout: ParameterLayout
     gyro_t: np.ndarray | None  # centred times of the usable gyro rows
-    gyro: np.ndarray | None  # those rows (the rolling yaw taken out)
+    gyro: np.ndarray | None  # those rows
 
 
 @dataclass(frozen=True, eq=False)
@@ -763,18 +753,8 @@ def _gradient_fn(tc: np.ndarray, v: np.ndarray, layout: ParameterLayout, noise: 
     return gradient
 
 
-def _rolling_of(effects: tuple):
-    return next((e for e in effects if e.stage == "force"), None)
-
-
-def gyro_samples(
-    recording: Recording, tc: np.ndarray, effects: tuple = ()
-) -> tuple[np.ndarray, np.ndarray]:
-    """Centred times and samples of the recording's usable gyro rows.
-
-    A rolling wheel's yaw (an effect of stage ``force`` in ``effects`` that knows
-    its share of the gyro) is taken out: the gyro's own model is the spin's.
-    """
+def gyro_samples(recording: Recording, tc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centred times and samples of the recording's usable gyro rows."""
     gyro = getattr(recording, "gyro_radps", None)
     if gyro is None:
         raise RecordingError(f"{recording.source}: the recording has no gyroscope")
@@ -783,11 +763,7 @@ def gyro_samples(
         raise RecordingError(
             f"{recording.source}: only {int(valid.sum())} usable gyro samples in the window"
         )
-    rolling = _rolling_of(effects)
-    samples = np.asarray(gyro)[valid]
-    if rolling is not None:
-        samples = samples - rolling.gyro_share(tc[valid])
-    return tc[valid], samples
+    return tc[valid], np.asarray(gyro)[valid]
 
 
 def with_gyro_start(
