@@ -465,8 +465,9 @@ def _consistent_angle(build, series: _Series, model: tuple, result, joint, lead,
     coefficients give now.  Where the road's camber changes by degrees the two part
     (by 0.3–0.5° on car drives), and the camber at the window's centre, read from the
     turns through that angle, came out 1.3–1.5° off (6–9 σ; the axle axis's offset
-    with it, 0.2 m/s²).  Refitted on the passes' samples with the angle taking the
-    fitted change, until the change moves less than ``CONSISTENT_RAD``.
+    with it, 0.2 m/s²).  Refitted on ``lead`` (the passes' thinned samples before the
+    final fit, every sample after it) with the angle taking the fitted change, until the
+    change moves less than ``CONSISTENT_RAD``.
     """
     for _ in range(CONSISTENT_PASSES):
         change = _fitted_change(result)
