@@ -247,6 +247,17 @@ MUTATIONS: tuple[Mutation, ...] = (
         ),
     ),
     Mutation(
+        "field_lags_one_second",
+        "the sandwich's lags stay at one second whatever the blocks' own correlation says",
+        (
+            Replacement(
+                "src/wheelcal/estimate/field/robust.py",
+                "    return int(min(np.median(each), MAX_LAG_FRACTION * blocks))",
+                "    return 0",
+            ),
+        ),
+    ),
+    Mutation(
         "gyro_matrix_transposed",
         "the pooled gyro fit measures Mᵀ d instead of M d along each mounting's wheel axis",
         (
