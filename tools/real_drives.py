@@ -13,9 +13,10 @@ clone does not have: the script says so and stops.  Prints
 3. the two sensors on one wheel: their wheel rates ω(t) and their absolute camber
    tracks γ(t) against each other, within their σ;
 4. the closed loop's screen of the effects the model lacks, on each drive's fit
-   (``--screen``).
+   (``--screen``);
+5. each drive split in halves, each calibrated: Δ / σ_Δ within one drive (``--halves``).
 
-    python tools/real_drives.py [ROOT] [--screen]
+    python tools/real_drives.py [ROOT] [--screen] [--halves]
 """
 
 from __future__ import annotations
@@ -232,6 +233,37 @@ def screen_effects(cals: dict, alpha: float = 0.01) -> None:
         print(f"| {trial}/{stem} | {effect.name} ({best.p_value:.1g}) | {shifts} |")
 
 
+def halves(root: Path) -> None:
+    """Each drive split at its middle, each half calibrated: Δ / σ_Δ of the same sensor.
+
+    The trials' spread against σ again, within one drive: a sensor that changed between
+    trials (temperature) cannot be the reason where the halves disagree as much.
+    """
+    import wheelcal
+
+    print("\n## 5. Each drive in halves: Δ / σ_Δ (radius, in-plane gains and offsets)\n")
+    print("| recording | z |")
+    print("|---|---|")
+    z_all = []
+    for path in sorted(root.glob("trial*/IMU*.csv")):
+        rec = wheelcal.read_recording(path)
+        middle = 0.5 * float(rec.time_s[0] + rec.time_s[-1])
+        try:
+            first = wheelcal.calibrate(rec.window(float(rec.time_s[0]), middle))
+            second = wheelcal.calibrate(rec.window(middle, float(rec.time_s[-1])))
+        except Exception as exc:  # a refusal is a result here
+            print(f"| {path.parent.name}/{path.stem} | refused: {str(exc)[:80]} |")
+            continue
+        plane = [a for a in "xyz" if a != _axle(first)]
+        names = ["radius_m", *(f"gain_{a}" for a in plane), *(f"offset_{a}_mps2" for a in plane)]
+        a, b = first.result, second.result
+        z = [(a.value_of(n) - b.value_of(n)) / np.hypot(a.std_of(n), b.std_of(n)) for n in names]
+        z_all += z
+        print(f"| {path.parent.name}/{path.stem} | " + " ".join(f"{v:+.1f}" for v in z) + " |")
+    z = np.array(z_all)
+    print(f"\nrms z of the halves: {np.sqrt(np.mean(z**2)):.2f} (n {z.size})")
+
+
 IN_PLANE_NAMES = ("gain_x", "gain_y", "gain_z", "offset_x_mps2", "offset_y_mps2", "offset_z_mps2")
 
 
@@ -240,6 +272,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("root", nargs="?", default=str(ROOT))
     parser.add_argument("--screen", action="store_true", help="run the closed loop's screen")
+    parser.add_argument("--halves", action="store_true", help="each drive in halves, compared")
     args = parser.parse_args(argv)
     root = Path(args.root)
     if not root.is_dir():
@@ -251,6 +284,8 @@ def main(argv=None) -> int:
     two_sensors(cals)
     if args.screen:
         screen_effects(cals)
+    if args.halves:
+        halves(root)
     return 0
 
 
