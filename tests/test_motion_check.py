@@ -21,13 +21,15 @@ import functools
 import numpy as np
 import pytest
 
+from wheelcal.estimate.joint import spline_normal, spline_quadrature
 from wheelcal.estimate.joint.fisher_quadrature import quadrature_rows
 from wheelcal.estimate.joint.fit import JointFit
 from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES, _filled_buffer, accumulate
+from wheelcal.estimate.joint.spline_normal import normal_with_spline
 from wheelcal.model.effects import SpinSpline
 from wheelcal.model.forward import candidate_columns
-from wheelcal.session import motion_check, motion_quadrature
-from wheelcal.session.motion_check import KNOT_SPACING_S, _normal_with_spline, check_motion
+from wheelcal.session import motion_check
+from wheelcal.session.motion_check import KNOT_SPACING_S, check_motion
 from wheelcal.simulate import NoiseSpec, simulate, table1
 
 
@@ -50,7 +52,7 @@ def fitted(request):
 @pytest.fixture
 def by_parts(monkeypatch):
     """Every row: the quadrature's stride forced to 1."""
-    monkeypatch.setattr(motion_check, "stride_for", lambda *args: 1)
+    monkeypatch.setattr(spline_normal, "stride_for", lambda *args: 1)
 
 
 def test_sums_by_parts_equal_one_dense_accumulation(fitted, by_parts):
@@ -63,7 +65,7 @@ def test_sums_by_parts_equal_one_dense_accumulation(fitted, by_parts):
         return candidate_columns(params, t_s, layout, spline, output)
 
     dense = accumulate(result.params, tc, recording.accel_mps2, layout, result.noise, extra=extra)
-    hess, grad = _normal_with_spline(result, recording.accel_mps2, result.noise, spline)
+    hess, grad = normal_with_spline(result, recording.accel_mps2, result.noise, spline)
     scale = np.sqrt(np.outer(np.diag(dense.hessian), np.diag(dense.hessian)))
     np.testing.assert_allclose(hess / scale, dense.hessian / scale, rtol=0, atol=1e-10)
     np.testing.assert_allclose(
@@ -85,7 +87,7 @@ def one_chunk(request):
 
 def _quadrature_against_dense(result, recording, monkeypatch, stride):
     """H against the same rows of the dense whitened columns, g against the dense sums."""
-    monkeypatch.setattr(motion_check, "stride_for", lambda *args: stride)
+    monkeypatch.setattr(spline_normal, "stride_for", lambda *args: stride)
     noise = result.noise
     tc = result.centred_time_s
     spline = SpinSpline(float(tc[0]), float(tc[-1]), KNOT_SPACING_S)
@@ -102,7 +104,7 @@ def _quadrature_against_dense(result, recording, monkeypatch, stride):
     kept = white[:-1, :, rows.last - noise.order] * np.sqrt(rows.weights)
     flat = kept.reshape(kept.shape[0], -1)
     expected = flat @ flat.T
-    hess, grad = _normal_with_spline(result, accel, noise, spline)
+    hess, grad = normal_with_spline(result, accel, noise, spline)
     d = np.sqrt(np.diag(expected))
     np.testing.assert_allclose(hess / np.outer(d, d), expected / np.outer(d, d), atol=1e-10)
     d = np.sqrt(np.diag(dense.hessian))
@@ -121,7 +123,7 @@ def test_sums_by_quadrature_over_several_chunks(monkeypatch):
     # 1 kHz: g a chunk at a time with FIR history, H's clusters in batches (forced small).
     result, recording = _fitted("coloured")
     assert result.time_s.size > CHUNK_SAMPLES and result.noise.order > 0
-    monkeypatch.setattr(motion_quadrature, "CHUNK_SAMPLES", 3000)
+    monkeypatch.setattr(spline_quadrature, "CHUNK_SAMPLES", 3000)
     _quadrature_against_dense(result, recording, monkeypatch, 41)
 
 
@@ -151,7 +153,7 @@ def test_sums_by_interval_when_the_fir_history_spans_several_intervals(
         return candidate_columns(params, t_s, layout, spline, output)
 
     dense = accumulate(short.params, tc, accel, layout, short.noise, extra=extra)
-    hess, grad = _normal_with_spline(short, accel, short.noise, spline)
+    hess, grad = normal_with_spline(short, accel, short.noise, spline)
     d = np.sqrt(np.diag(dense.hessian))
     np.testing.assert_allclose(hess / np.outer(d, d), dense.hessian / np.outer(d, d), atol=1e-10)
     np.testing.assert_allclose(grad / d, dense.gradient / d, atol=1e-9)
@@ -196,7 +198,7 @@ def test_check_motion_equals_the_dense_computation(monkeypatch, name, recording)
     rests = sf.find_rests(recording, (found.start_s, found.end_s))
     result = JointFit().fit(choice.recording)
     fast, _ = sf._motion(result, choice.recording, rests)
-    monkeypatch.setattr(motion_check, "_normal_with_spline", _dense_normal)
+    monkeypatch.setattr(motion_check, "normal_with_spline", _dense_normal)
     dense, _ = sf._motion(result, choice.recording, rests)
     assert fast.dof == dense.dof, name
     assert fast.statistic == pytest.approx(dense.statistic, rel=1e-3, abs=1e-4), name

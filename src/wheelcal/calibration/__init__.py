@@ -6,7 +6,9 @@ Layer 6 (above ``session``, below ``viz``).  A session's document
 :meth:`Calibration.from_json`; :meth:`Calibration.compute` is the one session
 function and :meth:`Calibration.write` (:mod:`.session_files`) the one writer of a
 session's files, :func:`calibrate_into` (:mod:`.session_outcome`) both, a failure
-turned into a :class:`SessionOutcome`; the closed loop's report (:mod:`.diagnosis_json`);
+turned into a :class:`SessionOutcome`; the typed values a :class:`Calibration`
+carries (:mod:`.values`: :class:`CalibrationDiagnosis`, :class:`AddedEffect`); the
+closed loop's report (:mod:`.diagnosis_json`);
 the exports a ROS node, Kalibr or firmware read (:mod:`.export`); a calibrated copy
 of a recording (:mod:`.apply`).
 """
@@ -33,9 +35,12 @@ from wheelcal.calibration.session_files import (
 )
 from wheelcal.calibration.session_json import calibration_dict, load_calibration, write_calibration
 from wheelcal.calibration.session_outcome import SessionOutcome, calibrate_into, failed_outcome
+from wheelcal.calibration.values import AddedEffect, CalibrationDiagnosis
 
 __all__ = [
+    "AddedEffect",
     "Calibration",
+    "CalibrationDiagnosis",
     "SessionOutcome",
     "WrittenFiles",
     "apply_calibration",

@@ -22,11 +22,20 @@ One loader reads both kinds of calibration document: a session's
 The sensor, correction, σ, parameters and warnings read alike; what only a
 session has (bench, window, residuals) raises a ``ValueError`` that says so.
 
+It is one value from the fit to the file: built once from the document — the one
+:func:`~wheelcal.calibration.session_json.calibration_dict` makes of the calibrated
+session, or the one read back — its typed, frozen fields (the sensor's numbers,
+``correction``, ``warnings``, ``undetermined``, the closed loop's ``diagnosis``
+(:class:`~wheelcal.calibration.values.CalibrationDiagnosis`), a rolling wheel's
+``lean`` (:class:`~wheelcal.session.LeanReport`)) are parsed at construction and
+read the same in the process that computed it and in one that loaded it;
+``to_json`` writes that document, unchanged.
+
 A calibration computed in this process also carries the full
 :class:`~wheelcal.estimate.joint.result.CalibrationResult` (residuals, noise model,
-covariance) as ``result``; one read from a file carries only the document.
-Values the recording could not determine are NaN here and ``null`` in the
-file, and are named in ``undetermined``.
+covariance) as ``result`` and the closed loop's whole report as ``closed_loop``;
+one read from a file carries only the document.  Values the recording could not
+determine are NaN here and ``null`` in the file, and are named in ``undetermined``.
 """
 
 from __future__ import annotations
@@ -34,27 +43,27 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from wheelcal.calibration.values import (
+    CalibrationDiagnosis,
+    frozen_array,
+    lean_from_document,
+    sensor_fields,
+)
 from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES, SensorCorrection
 from wheelcal.recording import Recording
-from wheelcal.session import Assessment, SessionResult
+from wheelcal.session import Assessment, LeanReport, SessionResult
 
 if TYPE_CHECKING:
     from wheelcal.calibration.session_files import RrdWriter, WrittenFiles
     from wheelcal.session import SessionOptions
-
-
-def _array(values) -> np.ndarray:
-    out = np.array([np.nan if v is None else float(v) for v in values], dtype=float)
-    out.setflags(write=False)
-    return out
 
 
 #: JSON's scalar types: a list of only these has nothing inside to freeze or thaw.
@@ -109,13 +118,44 @@ class Calibration(Mapping):
         The calibrated session (:class:`~wheelcal.session.result.SessionResult`:
         the fit, the gates' assessment, the closed loop's report) when it was
         computed in this process; None for one read from a file.
+
+    The typed fields below are parsed from ``document`` once, at construction.
     """
 
     document: Mapping
     session: SessionResult | None = None
+    #: ``"session"`` (one recording) or ``"sensor"`` (pooled from a batch's sessions).
+    kind: str = field(init=False, repr=False)
+    #: Gain γ per axis (NaN where undetermined).
+    gain: np.ndarray = field(init=False, repr=False)
+    #: Offset o per axis, m/s² (NaN where undetermined).
+    offset_mps2: np.ndarray = field(init=False, repr=False)
+    #: Statistical σ of the gains.
+    gain_std: np.ndarray = field(init=False, repr=False)
+    #: Statistical σ of the offsets, m/s².
+    offset_std_mps2: np.ndarray = field(init=False, repr=False)
+    #: Systematic σ of the gains (radius, gravity, clock): shared, never averaged away.
+    systematic_gain_std: np.ndarray = field(init=False, repr=False)
+    #: Systematic σ of the offsets, m/s².
+    systematic_offset_std_mps2: np.ndarray = field(init=False, repr=False)
+    #: (parameter, reason) for every value the recording could not determine.
+    undetermined: tuple[tuple[str, str], ...] = field(init=False, repr=False)
+    #: The correction a = M (v − b) (identity rows on undetermined axes).
+    correction: SensorCorrection = field(init=False, repr=False)
+    #: Every warning of the fit and the gates.
+    warnings: tuple[str, ...] = field(init=False, repr=False)
+    #: What the closed loop did (effects added with their evidence, the screen); None
+    #: when the fit had no closed loop (``model="paper"``, a wheel in the field).
+    diagnosis: CalibrationDiagnosis | None = field(init=False, repr=False)
+    #: A rolling wheel's camber over the drive (``bench.lean``); None elsewhere.
+    lean: LeanReport | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        from wheelcal.calibration.session_json import CORRECTION_FORMATS, CalibrationFileError
+        from wheelcal.calibration.session_json import (
+            CORRECTION_FORMATS,
+            SENSOR_CALIBRATION_FORMAT,
+            CalibrationFileError,
+        )
 
         if self.document.get("format") not in CORRECTION_FORMATS:
             raise CalibrationFileError(
@@ -124,6 +164,16 @@ class Calibration(Mapping):
             )
         if not isinstance(self.document, MappingProxyType):
             object.__setattr__(self, "document", _frozen(dict(self.document)))
+        document = self.document
+        kind = "sensor" if document["format"] == SENSOR_CALIBRATION_FORMAT else "session"
+        typed = {
+            "kind": kind,
+            **sensor_fields(document),
+            "diagnosis": CalibrationDiagnosis.from_document(document),
+            "lean": lean_from_document(document),
+        }
+        for name, value in typed.items():
+            object.__setattr__(self, name, value)
 
     # the document as a mapping -----------------------------------------------------
     def __getitem__(self, key: str):
@@ -207,8 +257,12 @@ class Calibration(Mapping):
         return None if self.session is None else self.session.assessment
 
     @property
-    def diagnosis(self):
-        """The closed loop's :class:`~wheelcal.closedloop.loop.Diagnosis`, if computed here."""
+    def closed_loop(self):
+        """The closed loop's whole report, if computed here (else None).
+
+        :class:`~wheelcal.closedloop.Diagnosis`: every step's fit and tests, the
+        harmonics; :attr:`diagnosis` is what the document keeps of it.
+        """
         return None if self.session is None else self.session.diagnosis
 
     @classmethod
@@ -240,13 +294,6 @@ class Calibration(Mapping):
         return Path(path)
 
     # which document --------------------------------------------------------------
-    @property
-    def kind(self) -> str:
-        """``"session"`` (one recording) or ``"sensor"`` (pooled from a batch's sessions)."""
-        from wheelcal.calibration.session_json import SENSOR_CALIBRATION_FORMAT
-
-        return "sensor" if self.document["format"] == SENSOR_CALIBRATION_FORMAT else "session"
-
     def _session_only(self, what: str) -> None:
         if self.kind == "sensor":
             sessions = self.document.get("pooling", {}).get("sessions", "?")
@@ -263,49 +310,6 @@ class Calibration(Mapping):
         return origin(self.to_dict())
 
     # the sensor ---------------------------------------------------------------------
-    @property
-    def gain(self) -> np.ndarray:
-        """Gain γ per axis (NaN where undetermined)."""
-        return _array(self.document["sensor"]["gain"])
-
-    @property
-    def offset_mps2(self) -> np.ndarray:
-        """Offset o per axis, m/s² (NaN where undetermined)."""
-        return _array(self.document["sensor"]["offset_mps2"])
-
-    @property
-    def gain_std(self) -> np.ndarray:
-        """Statistical σ of the gains."""
-        return _array(self.document["sensor"]["gain_std"])
-
-    @property
-    def offset_std_mps2(self) -> np.ndarray:
-        """Statistical σ of the offsets, m/s²."""
-        return _array(self.document["sensor"]["offset_std_mps2"])
-
-    @property
-    def systematic_gain_std(self) -> np.ndarray:
-        """Systematic σ of the gains (radius, gravity, clock): shared, never averaged away."""
-        return _array(self.document["systematic"]["gain_std"])
-
-    @property
-    def systematic_offset_std_mps2(self) -> np.ndarray:
-        """Systematic σ of the offsets, m/s²."""
-        return _array(self.document["systematic"]["offset_std_mps2"])
-
-    @property
-    def undetermined(self) -> tuple[tuple[str, str], ...]:
-        """(parameter, reason) for every value the recording could not determine."""
-        return tuple(
-            (u["parameter"], u["reason"]) for u in self.document["sensor"].get("undetermined", ())
-        )
-
-    @property
-    def correction(self) -> SensorCorrection:
-        """The correction a = M (v − b) (identity rows on undetermined axes)."""
-        block = self.document["correction"]
-        return SensorCorrection(bias_mps2=block["bias_mps2"], matrix=block["matrix"])
-
     def apply(self, samples_mps2: np.ndarray, allow_partial: bool = False) -> np.ndarray:
         """Corrected specific force (N, 3) from raw samples (N, 3) in m/s².
 
@@ -340,27 +344,22 @@ class Calibration(Mapping):
         return np.array(self.document["bench"]["misalignment_matrix"], dtype=float)
 
     @property
-    def warnings(self) -> tuple[str, ...]:
-        """Every warning of the fit and the gates."""
-        return tuple(self.document["fit"]["warnings"])
-
-    @property
     def noise_floor_mps2(self) -> np.ndarray | None:
         """The sensor's noise floor (rests or residual spectrum), independent of the fit."""
         floor = self.document["fit"].get("noise_floor_mps2")
-        return None if floor is None else _array(floor)
+        return None if floor is None else frozen_array(floor)
 
     @property
     def unexplained_mps2(self) -> np.ndarray | None:
         """√(residual² − floor²) per axis."""
         value = self.document["fit"].get("unexplained_mps2")
-        return None if value is None else _array(value)
+        return None if value is None else frozen_array(value)
 
     @property
     def residual_rms_mps2(self) -> np.ndarray:
         """Residual RMS per axis."""
         self._session_only("residual_rms_mps2")
-        return _array(self.document["fit"]["residual_rms_mps2"])
+        return frozen_array(self.document["fit"]["residual_rms_mps2"])
 
     @property
     def source_file(self) -> str:

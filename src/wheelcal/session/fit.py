@@ -31,7 +31,14 @@ import numpy as np
 from wheelcal.closedloop import ClosedLoop
 from wheelcal.estimate import RestSegment, find_rests
 from wheelcal.estimate.gyro import fastest_rate_radps, gyro_aided, gyro_block, gyro_rows
-from wheelcal.estimate.joint import CalibrationResult, InitialGuess, JointFit, wheel_angle_rad
+from wheelcal.estimate.joint import (
+    CalibrationResult,
+    InitialGuess,
+    JointFit,
+    clear_of_rails,
+    wheel_angle_rad,
+    without_disturbances,
+)
 from wheelcal.model import EvaluatedModel
 from wheelcal.recording import CalibrationRefused, Recording, RecordingError
 from wheelcal.session.clock_check import check_clock
@@ -258,10 +265,10 @@ class SessionFit:
             f"gyro-aided ({why}): wheel angle = cubic + spline with knots every "
             f"{aided.knot_spacing_s:g} s (chosen by BIC on the gyro's rate)"
         ]
-        result, window, disturbed_note = _without_disturbances(fitter, result, window)
+        result, window, disturbed_note = without_disturbances(fitter, result, window)
         notes.append(disturbed_note)
         if window.clip_limits_mps2 is not None:
-            result, window, rail_note = _clear_of_rails(fitter, result, window)
+            result, window, rail_note = clear_of_rails(fitter, result, window)
             notes.append(rail_note)
         fastest = fastest_rate_radps(result, aided.gyro_radps)
         refuse_undersampled(recording.source, window.rate_hz, fastest, gates)
@@ -306,7 +313,7 @@ class SessionFit:
             result, evaluated = self.fitter.fit_evaluated(window, guess=guess)
             fitted = window
             if window.clip_limits_mps2 is not None:
-                result, fitted, rail_note = _clear_of_rails(self.fitter, result, window)
+                result, fitted, rail_note = clear_of_rails(self.fitter, result, window)
             # The closed loop before the motion check: an effect of the spin (a spin-down
             # beyond the cubic, an imbalance) is what the check would otherwise cut away.
             final, diagnosis = self._refined(result, fitted, rests, evaluated)
@@ -356,76 +363,6 @@ class SessionFit:
         )
 
 
-#: Stretches of the motion window whose residual exceeds this × the typical are left out.
-DISTURBANCE_FACTOR = 2.0
-DISTURBANCE_BLOCK_S = 0.5
-
-
-def _without_disturbances(
-    fitter: JointFit, result: CalibrationResult, window: Recording
-) -> tuple[CalibrationResult, Recording, str]:
-    """Refit without the stretches where something outside the model shook the sensor.
-
-    A gyro-aided window follows the whole motion, and a motion can include a
-    hand starting or braking the wheel, whose forces are not in the model.  The
-    residual shows them: blocks of ``DISTURBANCE_BLOCK_S`` whose RMS exceeds
-    ``DISTURBANCE_FACTOR`` × the median block are left out (with a block on
-    each side), and the fit is repeated once.
-    """
-    n = max(4, round(DISTURBANCE_BLOCK_S * window.rate_hz))
-    samples = result.residual_mps2.shape[0]
-    block = np.arange(samples) // n  # the last block may be partial: it is judged too
-    if block[-1] < 8:
-        return result, window, ""
-    power = np.bincount(block, weights=np.sum(result.residual_mps2**2, axis=1))
-    rms = np.sqrt(power / (3 * np.bincount(block)))
-    bad = rms > DISTURBANCE_FACTOR * np.median(rms)
-    if not np.any(bad):
-        return result, window, ""
-    bad = bad | np.concatenate([[False], bad[:-1]]) | np.concatenate([bad[1:], [False]])
-    keep = ~bad[block]
-    kept = window.select(keep)
-    # The refit keeps the window's time origin and knots: it restarts where it was.
-    frame = (float(window.time_s[0]), float(window.time_s[-1]))
-    refit = fitter.fit(kept, initial=result.params, frame=frame)
-    seconds = float(np.sum(~keep) / window.rate_hz)
-    note = (
-        f"left out {seconds:.1f} s where the residual exceeded {DISTURBANCE_FACTOR:g}× the "
-        "typical (a hand starting or braking the wheel, a knock)"
-    )
-    return refit, kept, note
-
-
-#: Samples the model puts within this many noise σ of a rail are left out.
-RAIL_MARGIN_SIGMA = 4.0
-
-
-def _clear_of_rails(
-    fitter: JointFit, result: CalibrationResult, window: Recording
-) -> tuple[CalibrationResult, Recording, str]:
-    """Refit without the stretches the model predicts near a clipping rail.
-
-    The reader dropped the samples at the rails; keeping their neighbours
-    whose noise stayed just below would select on the noise and bias the
-    peaks.  Selecting on the *prediction* instead is free of that bias.
-    """
-    predicted = window.accel_mps2 - result.residual_mps2
-    margin = RAIL_MARGIN_SIGMA * result.noise.marginal_std_mps2
-    low, high = window.clip_limits_mps2[:, 0], window.clip_limits_mps2[:, 1]
-    with np.errstate(invalid="ignore"):
-        near = np.any((predicted >= high - margin) | (predicted <= low + margin), axis=1)
-    if not np.any(near):
-        return result, window, ""
-    kept = window.select(~near)
-    frame = (float(window.time_s[0]), float(window.time_s[-1]))  # see _without_disturbances
-    refit = fitter.fit(kept, initial=result.params, frame=frame)
-    note = (
-        f"left out {int(near.sum())} samples that the model puts within "
-        f"{RAIL_MARGIN_SIGMA:g} σ of a clipping rail"
-    )
-    return refit, kept, note
-
-
 def _stretches_note(window: Recording) -> str:
     """``fitted a–b, c–d s`` when the fitted samples are more than one stretch (else empty)."""
     stretches = fitted_stretches(window.time_s, window.rate_hz)
@@ -457,21 +394,19 @@ def _check_implied_radius(
 ) -> None:
     """Refuse before fitting when the start already puts the gains far from 1.
 
-    With a radius off by ×1000 (mm typed as m) the fit itself wanders off and
-    fails for reasons that hide the cause; the closed-form start already
-    shows it: gains average r_implied / r.  The ``rests`` tell a unit error
-    from a radius error (:func:`~wheelcal.session.gates.refuse_gain_scale`).
+    The start's :meth:`~wheelcal.estimate.joint.InitialGuess.implied_mean_gain`
+    at the window's radius against the gates' gain range.  The ``rests`` tell a
+    unit error from a radius error (:func:`~wheelcal.session.gates.refuse_gain_scale`).
     """
-    radius = window.info.radius_m
-    if guess.implied_radius_m is None or radius is None:
+    mean_gain = guess.implied_mean_gain(window.info.radius_m)
+    if mean_gain is None:
         return
-    mean_gain = guess.implied_radius_m / radius
     lo, hi = gates.gain_range
     if not lo <= mean_gain <= hi:
         refuse_gain_scale(
             window.source,
             mean_gain,
-            radius,
+            window.info.radius_m,
             f"the gains average ≈ {mean_gain:.4g}",
             gates,
             rest_level(rests),

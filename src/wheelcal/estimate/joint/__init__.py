@@ -1,15 +1,18 @@
 """The joint maximum-likelihood fit of every parameter at once (:mod:`.fit`) and its parts.
 
 The front other packages import from: the fit (:class:`JointFit`), its frozen result
-(:class:`CalibrationResult`), its start (:class:`InitialGuess`) and the noise model
-(:class:`NoiseModel`); the bounds and checks on a design — the Cramér–Rao bound,
+(:class:`CalibrationResult`), its start (:class:`InitialGuess`, whose
+:meth:`~InitialGuess.implied_mean_gain` a session checks before fitting) and the noise
+model (:class:`NoiseModel`); the refits without what the model cannot explain
+(:func:`without_disturbances`, :func:`clear_of_rails`); the normal equations with a
+wheel-angle spline that a freed motion asks for (:func:`normal_with_spline`: its chunks
+and quadrature stay here); the bounds and checks on a design — the Cramér–Rao bound,
 identifiability, twins, the systematic budget, the reported transforms; and the
-building blocks the closed loop's score tests and the session's motion check
-assemble their own normal equations from — the chunked accumulation
-(:data:`CHUNK_SAMPLES`, :func:`accumulate`), the Fisher information by quadrature
-(:func:`quadrature_rows`, :func:`stride_for`), the gyroscope's equations and rests,
-the candidate columns and the pseudo-inverse of an information matrix; a fit's wheel
-angle at every sample (:func:`wheel_angle_rad`).
+building blocks the closed loop's score tests and the planner assemble their own normal
+equations from — the chunked accumulation (:data:`CHUNK_SAMPLES`, :func:`accumulate`),
+the Fisher information by quadrature (:func:`quadrature_rows`, :func:`stride_for`), the
+gyroscope's equations and rests, the candidate columns and the pseudo-inverse of an
+information matrix; a fit's wheel angle at every sample (:func:`wheel_angle_rad`).
 """
 
 from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_scores
@@ -41,9 +44,11 @@ from wheelcal.estimate.joint.normal_equations import (
     quadrature_hessian,
     whitened_back,
 )
+from wheelcal.estimate.joint.refit import clear_of_rails, without_disturbances
 from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
 from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.estimate.joint.rotating import revolution_mean, rotating_phase
+from wheelcal.estimate.joint.spline_normal import normal_with_spline
 from wheelcal.estimate.joint.systematic import (
     DEFAULT_CLOCK_STD_PPM,
     DEFAULT_GRAVITY_STD_MPS2,
@@ -80,6 +85,7 @@ __all__ = [
     "candidate_extra",
     "check_identifiability",
     "choose_twin",
+    "clear_of_rails",
     "covariance_from_fisher",
     "cramer_rao_bound",
     "decimation_stride",
@@ -87,6 +93,7 @@ __all__ = [
     "gyro_samples",
     "lean_scores",
     "levenberg_marquardt",
+    "normal_with_spline",
     "nuisance_columns",
     "nuisance_extra",
     "quadrature_hessian",
@@ -101,4 +108,5 @@ __all__ = [
     "wheel_angle_rad",
     "whitened_back",
     "whitened_rows",
+    "without_disturbances",
 ]

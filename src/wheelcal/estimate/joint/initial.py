@@ -59,6 +59,17 @@ class InitialGuess:
     #: mean), from c₁ = r·We_X and the rotating part G·We_X; None if not measurable.
     implied_radius_m: float | None = None
 
+    def implied_mean_gain(self, radius_m: float | None) -> float | None:
+        """The gains' average that the start puts at ``radius_m``: r_implied / r.
+
+        Known before the fit: with a radius off by ×1000 (mm typed as m) it is far
+        from 1 already, where the fit itself would wander off for reasons that hide
+        the cause.  None when the start could not measure it or no radius is given.
+        """
+        if self.implied_radius_m is None or radius_m is None:
+            return None
+        return self.implied_radius_m / radius_m
+
 
 def initial_guess(
     t_s: np.ndarray,

@@ -1,6 +1,6 @@
-"""The motion check's sums over [the fit's parameters | a spline of ϑ] by quadrature.
+"""The sums over [the fit's parameters | a spline of ϑ] by quadrature.
 
-:func:`~wheelcal.session.motion_check.check_motion` needs H = J̃ᵀJ̃ and
+:func:`~.spline_normal.normal_with_spline` (the session's motion check) needs H = J̃ᵀJ̃ and
 g = J̃ᵀr̃ over the fit's parameters and the coefficients of a wheel-angle
 spline (:class:`~wheelcal.model.effects.SpinSpline`).  For the paper's model:
 
@@ -25,14 +25,10 @@ import itertools
 
 import numpy as np
 
-from wheelcal.estimate.joint import (
-    CHUNK_SAMPLES,
-    CalibrationResult,
-    NoiseModel,
-    QuadratureRows,
-    whitened_back,
-    whitened_rows,
-)
+from wheelcal.estimate.joint.fisher_quadrature import QuadratureRows, whitened_rows
+from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint.normal_equations import CHUNK_SAMPLES, whitened_back
+from wheelcal.estimate.joint.result import CalibrationResult
 from wheelcal.model import (
     EvaluatedModel,
     SpinSpline,
