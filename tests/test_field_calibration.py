@@ -566,6 +566,11 @@ def test_study_reported_sigma_of_the_geometry_matches_the_spread(study, kind):
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="already at 9f9ec84 (the last stop) one of 40 (seed 1001) reports the axle axis's "
+    "offset 7.5 σ_CRLB off (35/40 calibrated); open in issue 37",
+)
 def test_study_cars_whose_sensors_clip_are_calibrated_between_the_clippings():
     # 40 car drives with the sensors' real ranges (the study's cars have none): the drive
     # is cut where the rate is missing, and what is calibrated is right; the rest is
