@@ -51,6 +51,11 @@ def _optional(value) -> float | None:
     return None if value is None else float(value)
 
 
+def _optional_map(values: Mapping) -> Mapping:
+    """A read-only name → float-or-None mapping of a JSON object."""
+    return MappingProxyType({k: _optional(v) for k, v in values.items()})
+
+
 def sensor_fields(document: Mapping) -> dict:
     """The sensor's numbers of a calibration document (a session's or a sensor's), parsed once.
 
@@ -179,10 +184,8 @@ def lean_from_document(document: Mapping) -> LeanReport | None:
             statistic=_optional(check["statistic"]),
             dof=int(check["dof"]),
             p_value=_optional(check["p_value"]),
-            shift_sigma=MappingProxyType(
-                {k: _optional(v) for k, v in check["shift_sigma"].items()}
-            ),
-            shift_z=MappingProxyType({k: _optional(v) for k, v in check["shift_z"].items()}),
+            shift_sigma=_optional_map(check["shift_sigma"]),
+            shift_z=_optional_map(check["shift_z"]),
             spacing_s=float(check["knot_spacing_s"]),
         ),
     )
