@@ -268,6 +268,28 @@ MUTATIONS: tuple[Mutation, ...] = (
             ),
         ),
     ),
+    Mutation(
+        "gyro_correction_transposed",
+        "apply corrects the gyro with (M⁻¹)ᵀ instead of M⁻¹",
+        (
+            Replacement(
+                "src/wheelcal/calibration/gyro_apply.py",
+                "return g @ np.ascontiguousarray(self.matrix.T)",
+                "return g @ np.ascontiguousarray(self.matrix)",
+            ),
+        ),
+    ),
+    Mutation(
+        "gyro_simulator_transposed",
+        "the simulator's gyro reads Mᵀ Ω instead of M Ω",
+        (
+            Replacement(
+                _GYRO_SIM,
+                "rate = ideal @ self.response_matrix.T",
+                "rate = ideal @ self.response_matrix",
+            ),
+        ),
+    ),
 )
 
 
