@@ -196,3 +196,45 @@ def test_the_lags_are_read_from_the_blocks_own_correlation():
     assert np.median(lags) >= 5, np.median(lags)
     _, _, white = _mean_variances(0.0, 120, 200, rng)
     assert np.median([lag for _, lag in white]) <= 3
+
+
+def test_each_parameter_takes_its_own_lags():
+    # Three means fitted at once: the first's block scores slowly correlated (AR(1),
+    # φ = 0.7), the other two white, the three drawn from a common source so they
+    # correlate.  The median of the lags is a white one's: at it the slow mean's σ is
+    # ~0.55 of its spread.  At its own lags (sandwich_covariance) it is ~0.8, the white
+    # ones stay at their spread, and the correlations are the meat's.
+    from wheelcal.estimate.field.robust import influence_lags, sandwich_covariance
+
+    rng = np.random.default_rng(31)
+    blocks, reps = 120, 300
+    sigma, spread_of, lags_slow, corr = [], [], [], []
+    for _ in range(reps):
+        e = rng.standard_normal(blocks + 200)
+        slow = np.empty_like(e)
+        slow[0] = e[0]
+        for b in range(1, e.size):
+            slow[b] = 0.7 * slow[b - 1] + e[b]
+        common = rng.standard_normal(blocks)
+        x = np.stack(
+            [
+                slow[200:],
+                common + 0.5 * rng.standard_normal(blocks),
+                common + 0.5 * rng.standard_normal(blocks),
+            ]
+        )
+        means = x.mean(axis=1)
+        sums = x - means[:, None]
+        hess = np.eye(3) * blocks
+        own = np.maximum(1, influence_lags(sums, hess))
+        cov = sandwich_covariance(np.linalg.inv(hess), sums, own, np.zeros(3))
+        sigma.append(np.sqrt(np.diag(cov)))
+        spread_of.append(means)
+        lags_slow.append(own[0])
+        corr.append(cov[1, 2] / np.sqrt(cov[1, 1] * cov[2, 2]))
+    ratio = np.sqrt(np.mean(np.square(sigma), axis=0)) / np.std(spread_of, axis=0)
+    print("σ/spread", ratio, "slow lags", np.median(lags_slow), "corr", np.mean(corr))
+    assert 0.72 < ratio[0] < 1.1, ratio
+    assert np.all((ratio[1:] > 0.85) & (ratio[1:] < 1.15)), ratio
+    assert np.median(lags_slow) >= 5
+    assert 0.7 < np.mean(corr) < 0.9  # the white pair's correlation, 1 / 1.25

@@ -252,8 +252,20 @@ MUTATIONS: tuple[Mutation, ...] = (
         (
             Replacement(
                 "src/wheelcal/estimate/field/robust.py",
-                "    return int(min(np.median(each), MAX_LAG_FRACTION * blocks))",
-                "    return 0",
+                "    out[live] = np.minimum(each, int(MAX_LAG_FRACTION * blocks))",
+                "    out[live] = 0",
+            ),
+        ),
+    ),
+    Mutation(
+        "field_lags_median_for_all",
+        "every parameter's σ at the median of the lags, not at its own",
+        (
+            Replacement(
+                "src/wheelcal/estimate/field/robust.py",
+                "    own = own_lag_variances(bread @ block_scores, own_lags) + np.diag(prior)",
+                "    own = own_lag_variances(bread @ block_scores, np.full_like(own_lags, lags))"
+                " + np.diag(prior)",
             ),
         ),
     ),

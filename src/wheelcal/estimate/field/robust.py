@@ -13,11 +13,14 @@ the whitened score summed over blocks b (longer than the noise's memory, at leas
 ``MIN_BLOCKS`` of them) and ``M = Σ_b g_b g_bᵀ + Σ_{l=1..L} (1 − l/(L+1)) Σ_b (g_b
 g_{b−l}ᵀ + g_{b−l} g_bᵀ)`` (Newey & West 1987: Bartlett weights, positive
 semi-definite), the lags L spanning at least ``LAG_S`` and more where the blocks'
-influences are correlated longer (Newey & West 1994's plug-in, :func:`chosen_lags`):
-it takes the spread from the residuals themselves (White 1982).  On measured car
-drives the gains' and the radius's block scores stay correlated for 5–20 s (on the
-simulator's, about 1 s): with one second of lags the trial-to-trial z of the same
-sensors had an rms of 1.38, with the lags read from the data 1.27.  The lags matter
+influences are correlated longer (Newey & West 1994's plug-in, :func:`influence_lags`):
+it takes the spread from the residuals themselves (White 1982).  The plug-in is a
+scalar's: each parameter's variance is the long-run variance of its own influence
+f_b = (H⁻¹ g_b)_k at its own lags, the correlations those of the meat at the median
+lags (:func:`own_lag_variances`).  On measured car drives the gains' and the radius's
+block scores stay correlated for 5–20 s (on the simulator's, about 1 s): with one
+second of lags the trial-to-trial z of the same sensors had an rms of 1.38, with the
+median of the lags read from the data 1.27, with each parameter's own 1.24.  The lags matter
 where the blocks are short (a 20 s wheelchair coast: 0.2 s, less than a turn): the
 AR noise model cannot follow the road's peaked spectrum, and the whitened residual's neighbouring
 blocks are anti-correlated at the wheel's turn — without them the wheelchair's σ
@@ -59,7 +62,7 @@ BLOCK_S = 1.0
 #: a meat of fewer blocks than parameters is rank-poor and its σ too small.
 MIN_BLOCKS = 100
 #: The meat's lags span at least this many seconds (a wheel's turn or two; Bartlett
-#: weights), more where the blocks' own correlation says so (:func:`chosen_lags`).
+#: weights), more where the blocks' own correlation says so (:func:`influence_lags`).
 LAG_S = 1.0
 #: The lags read from the data span at most this fraction of the blocks.
 MAX_LAG_FRACTION = 0.2
@@ -81,6 +84,8 @@ class _Pieces:
     angle_score: np.ndarray  # (P, M): J̃_mᵀ d̃_m
     dt_s: float
     shift_score: np.ndarray  # (P, K): Σ_m J̃_mᵀ Δ̃_m of each nuisance's shift Δ
+    block_scores: np.ndarray  # (P, B): g_b, in time order
+    lags: np.ndarray  # (P,): each parameter's own lags (the meat's: their median)
     extended: WideNormal | None = None
 
 
@@ -168,7 +173,11 @@ def _pieces(
     info = np.zeros(size) if prior is None else prior[2]
     hess[np.arange(size), np.arange(size)] += info
     block_scores = np.concatenate(sums, axis=1)
-    lags = max(round(LAG_S / (block * dt)), chosen_lags(block_scores, hess))
+    each = influence_lags(block_scores, hess)
+    floor = round(LAG_S / (block * dt))
+    live = each >= 0
+    lags = max(floor, int(np.median(each[live]))) if np.any(live) else floor
+    own = np.where(live, np.maximum(floor, each), lags)
     meat = block_meat(block_scores, lags=lags)
     extended = None
     if extension is not None:
@@ -179,24 +188,41 @@ def _pieces(
             grad_ext += prior[1]
             meat_ext[np.arange(wide), np.arange(wide)] += prior[2]
         extended = WideNormal(hess_ext, grad_ext, meat_ext)
-    return _Pieces(hess, meat, info, np.concatenate(angle, axis=1), dt, shift_score, extended)
+    return _Pieces(
+        hess,
+        meat,
+        info,
+        np.concatenate(angle, axis=1),
+        dt,
+        shift_score,
+        block_scores,
+        own,
+        extended,
+    )
 
 
 def chosen_lags(sums: np.ndarray, hess: np.ndarray) -> int:
-    """The meat's lags, read from the blocks' own autocorrelation (Newey & West 1994).
+    """The meat's lags: the median over the parameters of :func:`influence_lags`."""
+    each = influence_lags(sums, hess)
+    return int(np.median(each[each >= 0])) if np.any(each >= 0) else 0
+
+
+def influence_lags(sums: np.ndarray, hess: np.ndarray) -> np.ndarray:
+    """Each parameter's lags, read from its blocks' own autocorrelation (Newey & West 1994).
 
     For each parameter, its blocks' influence f_b = (H⁻¹ g_b)_k: with its autocovariances
     σ_j up to the pilot lag n = ⌊4 (B/100)^(2/9)⌋, s₀ = σ₀ + 2 Σ σ_j and s₁ = 2 Σ j σ_j,
-    its lags are ⌈1.1447 (s₁/s₀)^(2/3) B^(1/3)⌉; the meat takes the median over the
-    parameters (at most ``MAX_LAG_FRACTION`` of the blocks).  A white series gives few;
-    a slow one — the score of the gains and the radius on measured car drives stays
-    correlated for 5–20 s, about 1 s on the simulator's — more.
+    its lags are ⌈1.1447 (s₁/s₀)^(2/3) B^(1/3)⌉, at most ``MAX_LAG_FRACTION`` of the
+    blocks (−1 for a parameter the data do not determine; 0 for all under 8 blocks).  A
+    white series gives few; a slow one — the score of the gains and the radius on
+    measured car drives stays correlated for 5–20 s, about 1 s on the simulator's — more.
     """
     blocks = sums.shape[1]
     bread = covariance_from_fisher(hess)
     live = np.isfinite(np.diag(bread))
     if blocks < 8 or not np.any(live):
-        return 0
+        return np.zeros(sums.shape[0], dtype=int)
+    out = np.full(sums.shape[0], -1, dtype=int)
     f = np.where(np.isfinite(bread), bread, 0.0)[np.ix_(live, live)] @ sums[live]
     f = f - f.mean(axis=1, keepdims=True)
     pilot = int(4.0 * (blocks / 100.0) ** (2.0 / 9.0))
@@ -205,7 +231,22 @@ def chosen_lags(sums: np.ndarray, hess: np.ndarray) -> int:
     s1 = 2.0 * np.sum(np.arange(1, pilot + 1)[:, None] * cov[1:], axis=0)
     ratio = np.where((s0 > 0) & (s1 > 0), s1 / np.where(s0 > 0, s0, 1.0), 0.0)
     each = np.ceil(1.1447 * ratio ** (2.0 / 3.0) * blocks ** (1.0 / 3.0))
-    return int(min(np.median(each), MAX_LAG_FRACTION * blocks))
+    out[live] = np.minimum(each, int(MAX_LAG_FRACTION * blocks))
+    return out
+
+
+def own_lag_variances(influence: np.ndarray, lags: np.ndarray) -> np.ndarray:
+    """Each row's long-run variance Σ_b f_b² + 2 Σ_{l=1..L} (1 − l/(L+1)) Σ_b f_b f_{b−l}.
+
+    ``influence`` (P, B): each parameter's block influence f_b = (H⁻¹ g_b)_k; ``lags``
+    (P,): its own L — the diagonal of H⁻¹ M H⁻¹ with each parameter's meat at its lags.
+    """
+    out = np.einsum("pb,pb->p", influence, influence)
+    blocks = influence.shape[1]
+    for lag in range(1, min(int(lags.max(initial=0)), blocks - 1) + 1):
+        weight = np.where(lags >= lag, 1.0 - lag / (lags + 1.0), 0.0)
+        out += 2.0 * weight * np.einsum("pb,pb->p", influence[:, lag:], influence[:, :-lag])
+    return out
 
 
 def block_meat(sums: np.ndarray, lags: int) -> np.ndarray:
@@ -240,7 +281,26 @@ def _with_undetermined(cov: np.ndarray, finite: np.ndarray) -> np.ndarray:
 
 def _sandwich(pieces: _Pieces, bread: np.ndarray) -> np.ndarray:
     """C = H⁻¹ (M + Λ) H⁻¹ (module docstring), in the fit's own parameters."""
-    return bread @ (pieces.meat + np.diag(pieces.prior_info)) @ bread
+    return sandwich_covariance(bread, pieces.block_scores, pieces.lags, pieces.prior_info)
+
+
+def sandwich_covariance(
+    bread: np.ndarray, block_scores: np.ndarray, own_lags: np.ndarray, prior_info: np.ndarray
+) -> np.ndarray:
+    """H⁻¹ (M + Λ) H⁻¹: each parameter's variance at its own lags, the correlations at theirs.
+
+    ``bread`` (P, P) H⁻¹ (undetermined rows zero), ``block_scores`` (P, B) g_b in time
+    order, ``own_lags`` (P,) each parameter's lags (the meat M takes their median),
+    ``prior_info`` (P,) Λ's diagonal.
+    """
+    lags = int(np.median(own_lags))
+    prior = bread @ np.diag(prior_info) @ bread
+    cov = bread @ block_meat(block_scores, lags=lags) @ bread + prior
+    own = own_lag_variances(bread @ block_scores, own_lags) + np.diag(prior)
+    diag = np.diag(cov)
+    ratio = np.clip(own, 0.0, None) / np.where(diag > 0, diag, 1.0)
+    scale = np.where(diag > 0, np.sqrt(ratio), 1.0)
+    return scale[:, None] * cov * scale[None, :]
 
 
 def _angle_walk(pieces: _Pieces, bread: np.ndarray, density: float) -> np.ndarray:
