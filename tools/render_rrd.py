@@ -306,7 +306,8 @@ def main() -> None:
         Shot(files["closed_loop"], "closed_loop_calibration.png"),
     ]
     for path in render(shots, args.docs, args.chromium, size):
-        print(f"{path.relative_to(ROOT)} ({path.stat().st_size / 1e3:.0f} kB)")
+        shown = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+        print(f"{shown} ({path.stat().st_size / 1e3:.0f} kB)")
 
 
 if __name__ == "__main__":
