@@ -20,10 +20,10 @@ from wheelcal.calibration.imu_noise import imu_noise_block
 from wheelcal.calibration.values import CalibrationDiagnosis, lean_block
 from wheelcal.calibration.values import json_number as _num
 from wheelcal.calibration.values import json_numbers as _vec
-from wheelcal.calibration.values import json_safe as _clean
 from wheelcal.estimate import residual_by_wheel_angle
 from wheelcal.estimate.joint import CalibrationResult, SystematicBudget
 from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, origin_of, output_mark
+from wheelcal.io import json_safe as _clean
 from wheelcal.model import AXES, EULER_CONVENTION, SensorCorrection
 from wheelcal.session import Assessment, SessionResult, fitted_stretches
 

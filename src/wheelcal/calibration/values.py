@@ -39,6 +39,7 @@ from types import MappingProxyType
 import numpy as np
 
 from wheelcal.estimate.field import LeanCheck
+from wheelcal.io import json_safe
 from wheelcal.model import SensorCorrection
 from wheelcal.session import CamberTrackReport, LeanReport
 
@@ -52,21 +53,6 @@ def json_number(x) -> float | None:
 def json_numbers(values) -> list:
     """A flat list of JSON-safe floats (NaN → null)."""
     return [json_number(v) for v in np.asarray(values, dtype=float).reshape(-1)]
-
-
-def json_safe(value):
-    """Floats made JSON-safe through nested lists, tuples, dicts and read-only mappings."""
-    if isinstance(value, Mapping):
-        return {k: json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return json_number(value)
-    return value
 
 
 def frozen_array(values) -> np.ndarray:
