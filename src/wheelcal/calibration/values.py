@@ -38,7 +38,6 @@ from types import MappingProxyType
 
 import numpy as np
 
-from wheelcal.estimate.field import LeanCheck
 from wheelcal.io import json_safe
 from wheelcal.model import SensorCorrection
 from wheelcal.session import CamberTrackReport, LeanReport
@@ -284,6 +283,10 @@ def lean_from_document(document: Mapping) -> LeanReport | None:
     lean = document.get("bench", {}).get("lean")
     if lean is None:
         return None
+    # here, not at the top: the field fit's package pulls in scipy.signal, which a
+    # batch's planner must not import before it knows a session is to be computed
+    from wheelcal.estimate.field import LeanCheck
+
     track = lean.get("track")
     check = lean.get("check")
     return LeanReport(
