@@ -3,13 +3,16 @@ in the process that computed the calibration and in one that read its file back.
 
 ``Calibration`` is built from the document ``calibration_dict`` makes of the session;
 its fields (the sensor's numbers, the correction, warnings, undetermined, the closed
-loop's diagnosis, a rolling wheel's lean) are values, not accessors re-parsing the
-JSON: the same object every read, read-only, equal to the session's own numbers and
-to the reloaded file's, and ``to_json`` still writes the very document.
+loop's diagnosis, a rolling wheel's lean, the source, bench and fit figures) are
+values, not accessors re-parsing the JSON: the same object every read, read-only,
+equal to the session's own numbers and to the reloaded file's.  The document is
+written from those fields (``to_dict``/``to_json``), and it is still the very
+document the session gave.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import json
@@ -20,7 +23,12 @@ import pytest
 
 import wheelcal
 from wheelcal.calibration.document import Calibration
-from wheelcal.calibration.values import AddedEffect, CalibrationDiagnosis
+from wheelcal.calibration.values import (
+    AddedEffect,
+    CalibrationDiagnosis,
+    CalibrationFacts,
+    frozen_array,
+)
 from wheelcal.model import AXES
 from wheelcal.session import LeanReport
 from wheelcal.simulate import car_drive, simulate_field
@@ -161,3 +169,62 @@ def test_the_smallest_sensor_document_reads_with_nan_sigma():
     assert cal.kind == "sensor" and cal.warnings == () and cal.diagnosis is None
     assert np.all(np.isnan(cal.gain_std)) and np.all(np.isnan(cal.systematic_offset_std_mps2))
     np.testing.assert_array_equal(cal.correction.bias_mps2, [0.1, 0.2, 0.3])
+
+
+@pytest.mark.parametrize("which", ["bench", "car"])
+def test_the_document_is_written_from_the_typed_fields(which):
+    """A field changed (behind the frozen dataclass's back) is what to_dict writes."""
+    cal = _warmup() if which == "bench" else _car()
+    assert cal.to_dict() == dict(cal.items())  # the same document the session gave
+    changed = copy.copy(cal)
+    object.__setattr__(changed, "gain", frozen_array([2.0, float("nan"), 3.0]))
+    object.__setattr__(changed, "warnings", ("a warning of the field's",))
+    facts = dataclasses.replace(cal.facts, tilt_deg=12.5, window_s=(1.0, 2.0))
+    object.__setattr__(changed, "facts", facts)
+    if cal.lean is not None:
+        object.__setattr__(changed, "lean", dataclasses.replace(cal.lean, change_deg=0.25))
+    if cal.diagnosis is not None:
+        object.__setattr__(changed, "diagnosis", dataclasses.replace(cal.diagnosis, alpha=0.5))
+    doc = changed.to_dict()
+    assert doc["sensor"]["gain"] == [2.0, None, 3.0]
+    assert doc["fit"]["warnings"] == ["a warning of the field's"]
+    assert doc["bench"]["tilt_deg"] == 12.5 and doc["source"]["window_s"] == [1.0, 2.0]
+    if cal.lean is not None:
+        assert doc["bench"]["lean"]["change_deg"] == 0.25
+    if cal.diagnosis is not None:
+        assert doc["fit"]["effects_screen"]["alpha"] == 0.5
+        for step in cal.diagnosis.steps:
+            assert doc["effects"][step.name]["evidence"]["alpha"] == 0.5
+    # the keys no field holds, and the order of every key, stay the document's
+    assert list(doc) == list(cal.document)
+    assert doc["fit"]["covariance"] == cal["fit"]["covariance"]
+
+
+def test_the_sessions_figures_are_fields_and_a_sensors_document_refuses_them():
+    cal = _warmup()
+    facts = cal.facts
+    assert isinstance(facts, CalibrationFacts) and cal.facts is facts
+    assert cal.tilt_deg == cal.document["bench"]["tilt_deg"] == facts.tilt_deg
+    assert cal.radius_m == cal.document["bench"]["radius_m"]
+    assert cal.window_s == tuple(cal.document["source"]["window_s"])
+    assert cal.source_file == cal.document["source"]["file"] == cal.session.source
+    np.testing.assert_array_equal(
+        cal.misalignment_matrix, cal.result.params.bench.misalignment.matrix
+    )
+    np.testing.assert_array_equal(cal.residual_rms_mps2, cal.result.residual_rms_mps2)
+    with pytest.raises(ValueError):
+        cal.misalignment_matrix[0, 0] = 0.0
+    for name, (value, std) in cal.parameters.items():
+        assert (value, std) == (cal.result.value_of(name), cal.result.std_of(name))
+    sensor = Calibration(
+        {
+            "format": "wheelcal.sensor_calibration/1",
+            "source": {"sensor_id": "A", "mounting_ids": ["m1", "", "m2"]},
+            "sensor": {"gain": [1.0] * 3, "offset_mps2": [0.0] * 3, "undetermined": []},
+            "correction": {"bias_mps2": [0.0] * 3, "matrix": np.eye(3).tolist()},
+        }
+    )
+    assert (sensor.sensor_id, sensor.mounting_id) == ("A", "m1, m2")
+    for name in ("tilt_deg", "radius_m", "window_s", "source_file", "residual_rms_mps2"):
+        with pytest.raises(ValueError, match="pooled calibration"):
+            getattr(sensor, name)

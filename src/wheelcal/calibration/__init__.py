@@ -7,7 +7,8 @@ Layer 6 (above ``session``, below ``viz``).  A session's document
 function and :meth:`Calibration.write` (:mod:`.session_files`) the one writer of a
 session's files, :func:`calibrate_into` (:mod:`.session_outcome`) both, a failure
 turned into a :class:`SessionOutcome`; the typed values a :class:`Calibration`
-carries (:mod:`.values`: :class:`CalibrationDiagnosis`, :class:`AddedEffect`); the
+carries (:mod:`.values`: :class:`CalibrationDiagnosis`, :class:`AddedEffect`,
+:class:`CalibrationFacts`), which also write its document; the
 closed loop's report (:mod:`.diagnosis_json`);
 the exports a ROS node, Kalibr or firmware read (:mod:`.export`); a calibrated copy
 of a recording (:mod:`.apply`).
@@ -35,12 +36,13 @@ from wheelcal.calibration.session_files import (
 )
 from wheelcal.calibration.session_json import calibration_dict, load_calibration, write_calibration
 from wheelcal.calibration.session_outcome import SessionOutcome, calibrate_into, failed_outcome
-from wheelcal.calibration.values import AddedEffect, CalibrationDiagnosis
+from wheelcal.calibration.values import AddedEffect, CalibrationDiagnosis, CalibrationFacts
 
 __all__ = [
     "AddedEffect",
     "Calibration",
     "CalibrationDiagnosis",
+    "CalibrationFacts",
     "SessionOutcome",
     "WrittenFiles",
     "apply_calibration",

@@ -27,9 +27,12 @@ It is one value from the fit to the file: built once from the document — the o
 session, or the one read back — its typed, frozen fields (the sensor's numbers,
 ``correction``, ``warnings``, ``undetermined``, the closed loop's ``diagnosis``
 (:class:`~wheelcal.calibration.values.CalibrationDiagnosis`), a rolling wheel's
-``lean`` (:class:`~wheelcal.session.LeanReport`)) are parsed at construction and
-read the same in the process that computed it and in one that loaded it;
-``to_json`` writes that document, unchanged.
+``lean`` (:class:`~wheelcal.session.LeanReport`), the source, bench and fit figures
+(``facts``, :class:`~wheelcal.calibration.values.CalibrationFacts`, read by the
+accessors)) are parsed at construction and read the same in the process that
+computed it and in one that loaded it.  ``to_dict`` and ``to_json`` write the
+document from those fields, by the same blocks the session's document is written
+with (:mod:`.values`); the keys no field holds are written as the document has them.
 
 A calibration computed in this process also carries the full
 :class:`~wheelcal.estimate.joint.result.CalibrationResult` (residuals, noise model,
@@ -52,9 +55,11 @@ import numpy as np
 
 from wheelcal.calibration.values import (
     CalibrationDiagnosis,
-    frozen_array,
+    CalibrationFacts,
+    lean_block,
     lean_from_document,
     sensor_fields,
+    write_sensor_fields,
 )
 from wheelcal.estimate.joint import CalibrationResult
 from wheelcal.model import AXES, SensorCorrection
@@ -149,6 +154,9 @@ class Calibration(Mapping):
     diagnosis: CalibrationDiagnosis | None = field(init=False, repr=False)
     #: A rolling wheel's camber over the drive (``bench.lean``); None elsewhere.
     lean: LeanReport | None = field(init=False, repr=False)
+    #: The source, bench and fit figures (read through the accessors below, which
+    #: refuse a sensor's document what only a session has).
+    facts: CalibrationFacts = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         from wheelcal.calibration.session_json import (
@@ -171,6 +179,7 @@ class Calibration(Mapping):
             **sensor_fields(document),
             "diagnosis": CalibrationDiagnosis.from_document(document),
             "lean": lean_from_document(document),
+            "facts": CalibrationFacts.from_document(document),
         }
         for name, value in typed.items():
             object.__setattr__(self, name, value)
@@ -282,8 +291,22 @@ class Calibration(Mapping):
         return cls(check_calibration(document, path, allow_partial=allow_partial))
 
     def to_dict(self) -> dict:
-        """The contract dictionary (a mutable copy)."""
-        return _thawed(self.document)
+        """The contract dictionary (a mutable copy), written from the typed fields.
+
+        The sensor's numbers, the correction, the warnings, the closed loop's
+        ``diagnosis``, the ``lean`` and the ``facts`` are written from their values
+        (:mod:`.values`, the blocks the session's document was written by); the keys
+        no field holds (covariance, noise model, gates, motion …) as the document
+        has them, in the document's order.
+        """
+        document = _thawed(self.document)
+        write_sensor_fields(document, self)
+        self.facts.write_into(document)
+        if self.diagnosis is not None:
+            self.diagnosis.write_into(document)
+        if self.lean is not None:
+            document["bench"]["lean"] = lean_block(self.lean)
+        return document
 
     def to_json(self, path: str | os.PathLike, durable: bool = True) -> Path:
         """Write the contract JSON atomically; returns the path."""
@@ -325,85 +348,73 @@ class Calibration(Mapping):
         return self.correction.apply(samples_mps2)
 
     # the bench, the fit, the source ------------------------------------------------
+    def _fact(self, what: str):
+        """A session's figure from :attr:`facts` (refused for a sensor's document)."""
+        self._session_only(what)
+        value = getattr(self.facts, what)
+        if value is None:
+            raise KeyError(f"{what}: not in this calibration document")
+        return value
+
     @property
     def tilt_deg(self) -> float:
         """Bench tilt α."""
-        self._session_only("tilt_deg")
-        return float(self.document["bench"]["tilt_deg"])
+        return self._fact("tilt_deg")
 
     @property
     def radius_m(self) -> float:
         """Sensor distance from the axle used (or fitted)."""
-        self._session_only("radius_m")
-        return float(self.document["bench"]["radius_m"])
+        return self._fact("radius_m")
 
     @property
     def misalignment_matrix(self) -> np.ndarray:
-        """R, bench → sensor."""
-        self._session_only("misalignment_matrix")
-        return np.array(self.document["bench"]["misalignment_matrix"], dtype=float)
+        """R, bench → sensor (read-only)."""
+        return self._fact("misalignment_matrix")
 
     @property
     def noise_floor_mps2(self) -> np.ndarray | None:
         """The sensor's noise floor (rests or residual spectrum), independent of the fit."""
-        floor = self.document["fit"].get("noise_floor_mps2")
-        return None if floor is None else frozen_array(floor)
+        return self.facts.noise_floor_mps2
 
     @property
     def unexplained_mps2(self) -> np.ndarray | None:
         """√(residual² − floor²) per axis."""
-        value = self.document["fit"].get("unexplained_mps2")
-        return None if value is None else frozen_array(value)
+        return self.facts.unexplained_mps2
 
     @property
     def residual_rms_mps2(self) -> np.ndarray:
         """Residual RMS per axis."""
-        self._session_only("residual_rms_mps2")
-        return frozen_array(self.document["fit"]["residual_rms_mps2"])
+        return self._fact("residual_rms_mps2")
 
     @property
     def source_file(self) -> str:
         """The recording this calibration came from."""
-        self._session_only("source_file")
-        return str(self.document["source"]["file"])
+        return self._fact("source_file")
 
     @property
     def sensor_id(self) -> str:
         """The sensor's identifier (may be empty)."""
-        return str(self.document["source"].get("sensor_id", ""))
+        return self.facts.sensor_id
 
     @property
     def mounting_id(self) -> str:
         """The mounting's identifier (may be empty; a sensor's: its sessions' ids, comma-joined)."""
-        source = self.document["source"]
-        if "mounting_ids" in source:
-            return ", ".join(m for m in source["mounting_ids"] if m)
-        return str(source.get("mounting_id", ""))
+        return self.facts.mounting_id
 
     @property
     def window_s(self) -> tuple[float, float]:
         """The fitted free-spin window, s from the first sample."""
-        self._session_only("window_s")
-        start, end = self.document["source"]["window_s"]
-        return float(start), float(end)
+        return self._fact("window_s")
 
     @property
     def parameters(self) -> dict[str, tuple[float, float]]:
-        """Every reported parameter as (value, std), NaN where null."""
-        out = {}
-        for name, p in self.document.get("parameters", {}).items():
-            value = np.nan if p["value"] is None else float(p["value"])
-            std = np.nan if p["std"] is None else float(p["std"])
-            out[name] = (value, std)
-        return out
+        """Every reported parameter as (value, std), NaN where null (a fresh dict)."""
+        return dict(self.facts.parameters)
 
     @property
     def effects(self) -> dict[str, dict]:
-        """Effects in the model: name → settings (empty for the paper's model)."""
-        return {
-            name: dict(entry.get("settings", {}))
-            for name, entry in self.document.get("effects", {}).items()
-        }
+        """Effects in the model: name → settings (empty for the paper's model; fresh dicts)."""
+        return {name: dict(settings) for name, settings in self.facts.effects.items()}
 
     def value(self, name: str) -> float:
         """Value of one reported parameter (NaN when undetermined)."""

@@ -9,7 +9,6 @@ additive (``parameters``, ``geometry``, ``fit.noise_model``, ``fit.twin``,
 from __future__ import annotations
 
 import json
-import math
 import os
 from pathlib import Path
 
@@ -18,11 +17,15 @@ import numpy as np
 from wheelcal import __version__
 from wheelcal.calibration.allan_json import rests_allan
 from wheelcal.calibration.imu_noise import imu_noise_block
+from wheelcal.calibration.values import CalibrationDiagnosis, lean_block
+from wheelcal.calibration.values import json_number as _num
+from wheelcal.calibration.values import json_numbers as _vec
 from wheelcal.estimate import residual_by_wheel_angle
 from wheelcal.estimate.joint import CalibrationResult, SystematicBudget
 from wheelcal.io import MARK_KEY, atomic_write_text, dumps_indented, origin_of, output_mark
+from wheelcal.io import json_safe as _clean
 from wheelcal.model import AXES, EULER_CONVENTION, SensorCorrection
-from wheelcal.session import Assessment, LeanReport, SessionResult, fitted_stretches
+from wheelcal.session import Assessment, SessionResult, fitted_stretches
 
 FORMAT = "wheelcal.calibration/1"
 #: A sensor's calibration pooled from its sessions (:mod:`wheelcal.calibration.sensor_json`):
@@ -36,16 +39,6 @@ _SYSTEMATIC_NOTE = (
 
 class CalibrationFileError(ValueError):
     """A calibration JSON that cannot be used, with the file named."""
-
-
-def _num(x):
-    """JSON-safe float: ∞/NaN become null (JSON has neither)."""
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
-def _vec(values) -> list:
-    return [_num(v) for v in np.asarray(values, dtype=float).reshape(-1)]
 
 
 def calibration_dict(session: SessionResult, provenance: dict | None = None) -> dict:
@@ -63,6 +56,9 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
     values = dict(zip(result.names, result.values, strict=True))
     for name in undetermined:  # never a usable-looking number
         std[name] = values[name] = float("nan")
+    # what the document keeps of the closed loop's report: the one value
+    # Calibration.diagnosis is, written by the same blocks
+    diagnosis = CalibrationDiagnosis.from_loop(session.diagnosis, session.model)
     return {
         "format": FORMAT,
         "wheelcal_version": __version__,
@@ -73,11 +69,11 @@ def calibration_dict(session: SessionResult, provenance: dict | None = None) -> 
         "sensor": _sensor_block(values, std, assessment),
         "bench": _bench_block(session, std),
         "motion": _motion_block(result, std),
-        "effects": effects_dict(result, session.diagnosis),
+        "effects": effects_dict(result, diagnosis),
         "parameters": {
             n: {"value": _num(values[n]), "std": _num(std[n])} for n in _reported(result)
         },
-        "fit": _fit_block(session, undetermined),
+        "fit": _fit_block(session, undetermined, diagnosis),
         "systematic": _systematic_block(result.systematic),
         **({"gyro": _clean(assessment.gyro.to_dict())} if assessment.gyro is not None else {}),
         **_imu_noise(session),
@@ -153,27 +149,8 @@ def _bench_block(session: SessionResult, std: dict) -> dict:
         "misalignment_euler_deg": _vec(params.bench.misalignment.euler_deg()),
         "misalignment_euler_std_deg": [_num(std[f"euler_{k}_deg"]) for k in (1, 2, 3)],
         "euler_convention": EULER_CONVENTION,
-        **({"lean": _clean(_lean_block(session.lean))} if session.lean is not None else {}),
+        **({"lean": lean_block(session.lean)} if session.lean is not None else {}),
     }
-
-
-def _lean_block(lean: LeanReport) -> dict:
-    """``bench.lean``: the camber's change, the part in the turns, the track, the check."""
-    out = {"change_deg": lean.change_deg}
-    if lean.in_turns_deg is not None:
-        out["in_turns_deg_per_mps2"] = lean.in_turns_deg_per_mps2
-        out["in_turns_std_deg_per_mps2"] = lean.in_turns_std_deg_per_mps2
-        out["in_turns_deg"] = lean.in_turns_deg
-    if lean.track is not None:
-        out["track"] = {
-            "followed": lean.track.followed,
-            "gyro_range_deg": lean.track.gyro_range_deg,
-            "beyond_gyro_errors_deg": lean.track.beyond_gyro_errors_deg,
-            "reason": lean.track.reason,
-        }
-    if lean.check is not None:
-        out["check"] = lean.check.to_dict()
-    return out
 
 
 def _motion_block(result: CalibrationResult, std: dict) -> dict:
@@ -197,12 +174,14 @@ def _motion_block(result: CalibrationResult, std: dict) -> dict:
     return motion
 
 
-def _fit_block(session: SessionResult, undetermined: set[str]) -> dict:
+def _fit_block(
+    session: SessionResult, undetermined: set[str], diagnosis: CalibrationDiagnosis | None
+) -> dict:
     """``fit``: model, screen, residual, covariance, warnings, noise model, goodness, gates."""
     result = session.result
     return {
         "model": session.model,
-        **_screen(session.diagnosis),
+        **({} if diagnosis is None else {"effects_screen": diagnosis.screen_block()}),
         "residual_rms_mps2": _vec(result.residual_rms_mps2),
         "noise_std_mps2": _vec(result.noise.marginal_std_mps2),
         "converged": bool(result.converged),
@@ -345,67 +324,17 @@ def _assessment(a: Assessment) -> dict:
     return out
 
 
-def _clean(value):
-    """Floats made JSON-safe through nested lists and dicts."""
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return _num(value)
-    return value
-
-
-def _screen(diagnosis) -> dict:
-    """``fit.effects_screen``: what the closed loop tested on the final model, and its level."""
-    if diagnosis is None:
-        return {}
-    tests = diagnosis.final_tests
-    return {
-        "effects_screen": {
-            "alpha": diagnosis.alpha,
-            "correction": "Bonferroni over the candidates tested (each τ grid point counts)",
-            "added": [s.test.effect.label() for s in diagnosis.steps],
-            "tested": list(dict.fromkeys(t.effect.label() for t in tests if t.identifiable)),
-            "with_rests": list(
-                dict.fromkeys(t.effect.label() for t in tests if t.streams == "spin+rests")
-            ),
-            "smallest_p_corrected": _num(
-                min((t.p_corrected for t in tests if t.identifiable), default=float("nan"))
-            ),
-            "not_identifiable": [t.effect.label() for t in diagnosis.not_identifiable],
-        }
-    }
-
-
-def _evidence(diagnosis) -> dict:
-    """Per effect name, the score test that added it (statistic, dof, p)."""
-    if diagnosis is None:
-        return {}
-    return {
-        step.test.effect.name: {
-            "statistic": _num(step.test.statistic),
-            "dof": int(step.test.dof),
-            "p_value": _num(step.test.p_value),
-            "p_corrected": _num(step.test.p_corrected),
-            "alpha": diagnosis.alpha,
-            "test": "score (Lagrange multiplier) test at the model before it was added",
-            "streams": step.test.streams,
-        }
-        for step in diagnosis.steps
-    }
-
-
-def effects_dict(result: CalibrationResult, diagnosis=None) -> dict:
+def effects_dict(result: CalibrationResult, diagnosis: CalibrationDiagnosis | None = None) -> dict:
     """``effects`` block: per effect its parameters (value, std), settings and meaning.
 
-    With the closed loop's ``diagnosis``, each effect it added carries its ``evidence``.
+    With the ``diagnosis`` (what the document keeps of the closed loop's report,
+    :meth:`CalibrationDiagnosis.from_loop`), each effect it added carries its ``evidence``.
     """
-    evidence = _evidence(diagnosis)
+    evidence = (
+        {}
+        if diagnosis is None
+        else {step.name: diagnosis.evidence_block(step) for step in diagnosis.steps}
+    )
     std = dict(zip(result.names, result.std, strict=True))
     out = {}
     for effect in result.layout.effects:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 from json.encoder import encode_basestring_ascii
+from types import MappingProxyType
 
 import numpy as np
 
@@ -26,12 +27,12 @@ __all__ = ["dumps_indented", "json_safe"]
 
 
 def json_safe(value):
-    """``value`` with every non-finite float (NaN, ±∞) made None, through lists and dicts.
+    """``value`` with every non-finite float (NaN, ±∞) made None, through lists and mappings.
 
     JSON has no NaN: a report built from sessions with undetermined (null) values
     must still be written, with those values null (numpy scalars become plain).
     """
-    if isinstance(value, dict):
+    if isinstance(value, (dict, MappingProxyType)):  # a dict, or a read-only view of one
         return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [json_safe(v) for v in value]

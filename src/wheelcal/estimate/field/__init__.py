@@ -2,5 +2,6 @@
 
 from wheelcal.estimate.field.fit import YAW_RMS_RADPS, FieldFit, FieldResult
 from wheelcal.estimate.field.gyro_axle import gyro_axle
+from wheelcal.estimate.field.lean_check import LeanCheck
 
-__all__ = ["YAW_RMS_RADPS", "FieldFit", "FieldResult", "gyro_axle"]
+__all__ = ["YAW_RMS_RADPS", "FieldFit", "FieldResult", "LeanCheck", "gyro_axle"]
