@@ -72,14 +72,13 @@ _CHUNK = 20_000
 
 @dataclasses.dataclass(frozen=True)
 class _Pieces:
-    """One pass over the window: H (priors in), M, Λ and the angle's response per sample.
+    """One pass over the window: H (priors in), the block scores, Λ and the angle's response.
 
     With an extended model (:class:`Extension`) also ``extended``: H, g and the meat over
     its parameters (priors in).
     """
 
     hess: np.ndarray
-    meat: np.ndarray
     prior_info: np.ndarray
     angle_score: np.ndarray  # (P, M): J̃_mᵀ d̃_m
     dt_s: float
@@ -177,8 +176,7 @@ def _pieces(
     floor = round(LAG_S / (block * dt))
     live = each >= 0
     lags = max(floor, int(np.median(each[live]))) if np.any(live) else floor
-    own = np.where(live, np.maximum(floor, each), lags)
-    meat = block_meat(block_scores, lags=lags)
+    own = np.where(live, np.maximum(floor, each), lags)  # their median: lags
     extended = None
     if extension is not None:
         meat_ext = block_meat(np.concatenate(sums_ext, axis=1), lags=lags)
@@ -190,7 +188,6 @@ def _pieces(
         extended = WideNormal(hess_ext, grad_ext, meat_ext)
     return _Pieces(
         hess,
-        meat,
         info,
         np.concatenate(angle, axis=1),
         dt,
