@@ -10,7 +10,11 @@ thread.  Prints absolute times, the ratio to the bench, and, with
 given (the field fit asked for by name, r held; it was the joint fit's spline
 rolling geometry before issue 41 item 6).
 
-    python benchmarks/bench_field.py [--repeats 7] [--rolling-ref]
+    python benchmarks/bench_field.py [--repeats 7] [--rolling-ref] [--ref REV]
+
+``--ref REV`` also times revision REV's calibration of the same drives (its own
+simulator, the same seeds; ``bench_versus.py``'s extraction), round by round with
+this tree's, and prints each drive's median per-round ratio, this tree over REV's.
 
 Target (issue "wheels in the field"): the car drive in ≤ 2 s on one core.
 """
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
 import statistics
 
 import numpy as np
@@ -26,20 +31,52 @@ from threadpoolctl import threadpool_limits
 
 import wheelcal
 from _timing import fmt, interleaved_times
-from wheelcal.simulate import table2
-from wheelcal.simulate.field import car_drive, robot_drive, simulate_field, wheelchair_coast
-from wheelcal.simulate.session import simulate_session
+from bench_versus import reference_code
 
 
-def _recordings() -> dict:
-    rng = np.random.default_rng(3)
-    car = simulate_field(car_drive(rng), rng)
-    rng = np.random.default_rng(3)
-    robot = simulate_field(robot_drive(rng), rng)
-    rng = np.random.default_rng(3)
-    chair = simulate_field(wheelchair_coast(rng), rng)
-    bench = simulate_session(table2(rng=np.random.default_rng(5)), np.random.default_rng(6))
-    return {"car": car, "robot": robot, "wheelchair": chair, "bench": bench}
+def _recordings(package=wheelcal) -> dict:
+    """The drives and the bench session, simulated by ``package`` (this tree's or a ref's)."""
+    simulate = importlib.import_module(f"{package.__name__}.simulate")
+    field = importlib.import_module(f"{package.__name__}.simulate.field")
+    session = importlib.import_module(f"{package.__name__}.simulate.session")
+    out = {}
+    for name, kind in (
+        ("car", field.car_drive),
+        ("robot", field.robot_drive),
+        ("wheelchair", field.wheelchair_coast),
+    ):
+        rng = np.random.default_rng(3)
+        out[name] = field.simulate_field(kind(rng), rng)
+    table = simulate.table2(rng=np.random.default_rng(5))
+    out["bench"] = session.simulate_session(table, np.random.default_rng(6))
+    return out
+
+
+def _ref_ratios(ref: str, recs: dict, repeats: int) -> None:
+    """Each recording's median per-round ratio, this tree's calibration over ``ref``'s."""
+    with reference_code(ref):
+        import wheelcal_ref
+
+        # the API module itself: the root's lazy names are strings naming ``wheelcal``
+        their_calibrate = importlib.import_module("wheelcal_ref.api").calibrate
+        theirs = _recordings(wheelcal_ref)
+        fns = {}
+        for name in recs:
+            fns[name] = lambda r=recs[name].recording: wheelcal.calibrate(r)
+            fns[f"{name} ({ref})"] = lambda r=theirs[name].recording: their_calibrate(r)
+        with threadpool_limits(1):
+            ts = interleaved_times(fns, repeats)
+    print(f"against {ref}, interleaved round by round:")
+    for name in recs:
+        mine, old = ts[name], ts[f"{name} ({ref})"]
+        ratio = statistics.median(a / b for a, b in zip(mine, old, strict=True))
+        print(f"  {name:12s} {fmt(mine)}  {ref}: {fmt(old)}  ratio {ratio:.2f}")
+    car = [a / b for a, b in zip(ts["car"], ts["bench"], strict=True)]
+    old = [a / b for a, b in zip(ts[f"car ({ref})"], ts[f"bench ({ref})"], strict=True)]
+    print(
+        f"  car / bench per round: this tree {statistics.median(car):.1f}×, "
+        f"{ref} {statistics.median(old):.1f}×"
+    )
 
 
 def main() -> None:
@@ -48,6 +85,7 @@ def main() -> None:
     ap.add_argument(
         "--rolling-ref", action="store_true", help="also --geometry rolling, the radius given"
     )
+    ap.add_argument("--ref", help="a git revision to time against, round by round")
     args = ap.parse_args()
     recs = _recordings()
     car = recs["car"].recording
@@ -70,6 +108,8 @@ def main() -> None:
         print(f"  {name:26s} {fmt(values)}   {ratio:6.1f}× the bench session")
     verdict = "met" if statistics.median(ts["car"]) <= 2.0 else "NOT met"
     print(f"target: the car drive in ≤ 2 s on one core — {verdict}")
+    if args.ref:
+        _ref_ratios(args.ref, recs, args.repeats)
 
 
 if __name__ == "__main__":

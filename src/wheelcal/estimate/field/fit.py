@@ -10,9 +10,9 @@ and the accelerometer's model is eq. (1) plus the rolling wheel's forces
 
 1. **a fixed axle** — the gains, offsets, R, the sensor's radius r (gravity
    fixes the gains' scale), the phase ϑ₀, the gyro's bias along the axle (ω₀)
-   and its scale s;
-2. **the hub's travel** ρ ω̇ added (ρ the rolling radius): a hub that travels
-   shows ρ many σ from zero;
+   and its scale s; fitted only where pass 2 finds neither travel nor turns;
+2. **the hub's travel** ρ ω̇ added (ρ the rolling radius), from the start: a hub
+   that travels shows ρ many σ from zero;
 3. **the turns**: the yaw rate demodulated from the gyro across the axle with
    the wheel angle of pass 2 (:func:`~wheelcal.estimate.field.gyro_axle.yaw_across`),
    first taken as measured, then with its scale κ free under a prior N(1, σ_κ²)
@@ -84,8 +84,15 @@ YAW_RMS_RADPS = 0.01
 AR_MEMORY_S = 0.2
 #: The passes that lead the way run on about this many samples.
 LEAD_SAMPLES = 4000
-#: Gauss–Newton steps of the passes that lead the way (a fixed axle, the hub's travel).
+#: Gauss–Newton steps of the fixed axle's pass (pass 1).
 LEAD_ITERATIONS = 12
+#: The hub's travel (pass 2) runs from the start on about this many samples, this many
+#: steps: it only tells a rolling wheel from a fixed axle (ρ's size) and gives the turns'
+#: pass its wheel angle and R.  6 steps on 2000 of a car drive's samples find the same
+#: geometry, and the passes after it the same answer to 0.02 of its σ (16 drives), in a
+#: third of the time of pass 1's 12 on 4000 and then 12 more.
+TRAVEL_SAMPLES = 2000
+TRAVEL_ITERATIONS = 6
 #: Gains outside this range after the leading passes are restarted at 1.
 PLAUSIBLE_GAIN = (0.7, 1.4)
 #: The gyro's bias walks on a long drive (:class:`~wheelcal.model.GyroAngle`'s walk): its
@@ -106,6 +113,10 @@ YAW_SCALE_PRIOR_STD = 0.01
 CONSISTENT_PASSES = 4
 #: … until the two differ by less than this (rad; :func:`_consistent_angle`).
 CONSISTENT_RAD = np.deg2rad(0.02)
+#: … on every sample; on the thinned samples of the passes that lead the way, this: they
+#: only lead (the final fit's change, on every sample and with the cross-axis terms,
+#: lies 0.3° from theirs on a car drive however tightly they converge, and is refitted).
+LEAD_CONSISTENT_RAD = np.deg2rad(0.1)
 #: The propagated nuisances' shifts are taken over this fraction of their σ (the
 #: derivative; :func:`_across_g_shifts`).
 SHIFT_STEP = 0.01
@@ -197,8 +208,8 @@ class FieldFit:
         """Calibrate ``window`` (a drive, stops included; its gyro on the same rows).
 
         The passes that lead the way run on every k-th sample (about
-        ``LEAD_SAMPLES``; the gyro's angle is integrated from all of them); the
-        final fit uses every sample.
+        ``LEAD_SAMPLES``, the hub's travel ``TRAVEL_SAMPLES``; the gyro's angle is
+        integrated from all of them); the final fit uses every sample.
         """
         if window.gyro_radps is None:
             raise RecordingError(f"{window.source}: a field fit needs the gyroscope")
@@ -213,18 +224,18 @@ class FieldFit:
         stride = max(1, t.size // LEAD_SAMPLES)
         lead = window.thinned(stride)
         frame = (float(t[0]), float(t[-1]))  # the thinned passes keep the window's centre
-        first = self._joint(radius, False, (start.angle,)).fit(
-            lead, initial=start.params, frame=frame
-        )
         travel = Rolling(tc, np.zeros_like(tc), yaw_scale_free=False)
-        moved = first.params.with_changes(effects={**first.params.effects, travel.name: [0.0]})
-        second = self._joint(radius, False, (start.angle, travel)).fit(
-            lead, initial=moved, frame=frame
-        )
+        moved = start.params.with_changes(effects={**start.params.effects, travel.name: [0.0]})
+        travel_stride = max(1, t.size // TRAVEL_SAMPLES)
+        second = self._joint(radius, False, (start.angle, travel), steps=TRAVEL_ITERATIONS)
+        second = second.fit(window.thinned(travel_stride), initial=moved, frame=frame)
         rho, rho_std = second.value_of("rolling.radius_m"), second.std_of("rolling.radius_m")
-        z = abs(rho) / rho_std * np.sqrt(stride)  # σ_ρ of all the samples
+        z = abs(rho) / rho_std * np.sqrt(travel_stride)  # σ_ρ of all the samples
         rolling = z > self.travel_z or axle.yaw_rms_radps > self.yaw_rms_radps
         if not rolling:
+            first = self._joint(radius, False, (start.angle,)).fit(
+                lead, initial=start.params, frame=frame
+            )
             geometry = FieldGeometry(
                 "fixed",
                 None,
@@ -263,13 +274,18 @@ class FieldFit:
 
     # -- the passes -----------------------------------------------------------------------------
     def _joint(
-        self, radius_m, tilt_free: bool, effects: tuple, rate_hz: float | None = None
+        self,
+        radius_m,
+        tilt_free: bool,
+        effects: tuple,
+        rate_hz: float | None = None,
+        steps: int = LEAD_ITERATIONS,
     ) -> JointFit:
         """A pass's joint fit.
 
         r given: α free (the paper's geometry); else r free, and α too once the turns
         measure it (``tilt_free``).  With ``rate_hz`` (the final fit) the noise model's
-        order reaches back ``ar_memory_s`` at least.
+        order reaches back ``ar_memory_s`` at least; ``steps``: a leading pass's steps.
         """
         order = self.max_ar_order
         if rate_hz is not None:
@@ -286,7 +302,7 @@ class FieldFit:
             effects=effects,
             # Passes 1–2 only lead the way (a cambered wheel held vertical cannot fit):
             # a few steps give the wheel angle and R for the yaw, and ρ's size.
-            max_iterations=100 if tilt_free or radius_m is not None else LEAD_ITERATIONS,
+            max_iterations=100 if tilt_free or radius_m is not None else steps,
         )
 
     def _walk(self, tc: np.ndarray) -> dict:
@@ -411,7 +427,7 @@ class FieldFit:
                 result, model = refined, (angle, free)
         if track:
             series, model, result = _consistent_angle(
-                build, series, model, result, joint, lead, frame
+                build, series, model, result, joint, lead, frame, LEAD_CONSISTENT_RAD
             )
         initial = result.params
         if self.fit_cross_axis:  # the axle axis's gain from the turns, not from a leak
@@ -434,7 +450,7 @@ class FieldFit:
         if track:  # the final fit's coefficients moved the camber: its angle follows
             final = self._joint(radius_m, True, model, rate_hz)
             series, model, result = _consistent_angle(
-                build, series, model, result, final, window, frame
+                build, series, model, result, final, window, frame, CONSISTENT_RAD
             )
         if not self.robust_sigma:
             return result, choice, None, {}
@@ -457,7 +473,9 @@ class FieldFit:
         return robust.result, choice, check, g_std
 
 
-def _consistent_angle(build, series: _Series, model: tuple, result, joint, lead, frame) -> tuple:
+def _consistent_angle(
+    build, series: _Series, model: tuple, result, joint, lead, frame, tolerance_rad: float
+) -> tuple:
     """The gyro angle's camber made the one its fit finds (``CONSISTENT_PASSES`` at most).
 
     The wheel angle's ψ̇ sin γ(t) takes a camber's change as a series — the fitted one of
@@ -467,11 +485,12 @@ def _consistent_angle(build, series: _Series, model: tuple, result, joint, lead,
     turns through that angle, came out 1.3–1.5° off (6–9 σ; the axle axis's offset
     with it, 0.2 m/s²).  Refitted on ``lead`` (the passes' thinned samples before the
     final fit, every sample after it) with the angle taking the fitted change, until the
-    change moves less than ``CONSISTENT_RAD``.
+    change moves less than ``tolerance_rad`` (``LEAD_CONSISTENT_RAD`` on the thinned
+    samples, ``CONSISTENT_RAD`` on every sample).
     """
     for _ in range(CONSISTENT_PASSES):
         change = _fitted_change(result)
-        if np.max(np.abs(change - series.angle_track_rad)) < CONSISTENT_RAD:
+        if np.max(np.abs(change - series.angle_track_rad)) < tolerance_rad:
             break
         series = dataclasses.replace(series, angle_track_rad=change)
         moved = (build.angle(series, True), *model[1:])
