@@ -79,7 +79,8 @@ def main() -> None:
         base = _run(files["bench 90 s"])
         print(f"{'recording':16s} {'CPU s':>8s} {'× bench':>8s} {'peak MiB':>9s} {'s/min':>7s}")
         print(f"{'bench 90 s':16s} {base['cpu_s']:8.2f} {1.0:8.1f} {base['peak_mib']:9.0f}")
-        first = None
+        before = None  # the previous drive: (minutes, its figures)
+        rates = []  # per added minute from the previous drive: (s/min, MiB/min)
         for name, path in files.items():
             if name == "bench 90 s":
                 continue
@@ -90,18 +91,26 @@ def main() -> None:
                 f"{name:16s} {r['cpu_s']:8.2f} {r['cpu_s'] / base['cpu_s']:8.1f} "
                 f"{r['peak_mib']:9.0f} {per}  {r['ok']}"
             )
-            if minutes and first is None:
-                first = (minutes, r)
-            elif minutes:
-                scale = minutes / first[0]
-                grow_t = r["cpu_s"] / first[1]["cpu_s"]
-                grow_m = (r["peak_mib"] - base["peak_mib"]) / max(
-                    first[1]["peak_mib"] - base["peak_mib"], 1.0
-                )
+            if not minutes:
+                continue
+            if before is not None:
+                added = minutes - before[0]
+                rate_s = (r["cpu_s"] - before[1]["cpu_s"]) / added
+                rate_mib = (r["peak_mib"] - before[1]["peak_mib"]) / added
+                rates.append((rate_s, rate_mib))
                 print(
-                    f"{'':16s} ×{scale:g} the length: time ×{grow_t:.2f}, memory above the "
-                    f"bench's ×{grow_m:.2f} (linear: ×{scale:g})"
+                    f"{'':16s} each minute added from {before[0]:g} min: "
+                    f"{rate_s:.2f} s, {rate_mib:.1f} MiB"
                 )
+            before = (minutes, r)
+        if len(rates) >= 2:
+            grow_s = rates[-1][0] / rates[0][0]
+            grow_mib = rates[-1][1] / max(rates[0][1], 1e-9)
+            print(
+                f"the last minutes added cost ×{grow_s:.2f} the time and ×{grow_mib:.2f} the "
+                "memory of the first added (linear: ×1; a 2-minute drive's peak is the "
+                "interpreter's and the reader's, so the first minutes add little memory)"
+            )
 
 
 if __name__ == "__main__":
