@@ -487,7 +487,7 @@ def test_study_no_drive_is_said_to_lean_in_its_turns(study, kind):
         "robot",
         # The wheelchair: worst 3.4 σ_CRLB in 100 drives since the hub's travel pass runs
         # from the start (177795a; before, 5.4 on drive 1005's tilt, now 3.4: the leading
-        # passes' path moves that drive's camber by 2 σ_CRLB, the other 99 by ≤ 0.5).
+        # passes' path moves that drive's camber by 2 σ_CRLB, the other 99 by ≤ 0.53).
         "wheelchair",
     ],
 )
