@@ -270,6 +270,18 @@ MUTATIONS: tuple[Mutation, ...] = (
         ),
     ),
     Mutation(
+        "field_track_read_once",
+        "the camber's track read once, at the first pass's wheel angle, not again at each pass's",
+        (
+            Replacement(
+                "src/wheelcal/estimate/field/fit.py",
+                "        read = build.series_at(gyro_radps, series.oriented, fitted_theta, "
+                "rotation)",
+                "        read = series",
+            ),
+        ),
+    ),
+    Mutation(
         "gyro_matrix_transposed",
         "the pooled gyro fit measures Mᵀ d instead of M d along each mounting's wheel axis",
         (
