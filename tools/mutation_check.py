@@ -275,9 +275,20 @@ MUTATIONS: tuple[Mutation, ...] = (
         (
             Replacement(
                 "src/wheelcal/estimate/field/fit.py",
-                "        read = build.series_at(gyro_radps, series.oriented, fitted_theta, "
-                "rotation)",
+                "        read = build.series_at(gyro_radps, series.oriented, next_x[:n], rotation)",
                 "        read = series",
+            ),
+        ),
+    ),
+    Mutation(
+        "field_lead_raw_thinning",
+        "the leading passes thin the raw samples (the rim's vibration folded onto the wheel)",
+        (
+            Replacement(
+                "src/wheelcal/estimate/field/fit.py",
+                "        lead = lead_samples(window, stride, "
+                "float(np.max(np.abs(axle.rate_radps))))",
+                "        lead = window.thinned(stride)",
             ),
         ),
     ),

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wheelcal.estimate.field.decimate import lead_samples
 from wheelcal.estimate.field.gyro_axle import (
     CAMBER_TRACK_MIN_RAD,
     CamberChoice,
@@ -111,21 +112,29 @@ WALK_PRIOR_DPS_PER_SQRT_S = 0.005
 YAW_SCALE_PRIOR_STD = 0.01
 #: The gyro angle's camber and the camber's track are refitted to the ones the fit finds
 #: at most this often on every sample …
-CONSISTENT_PASSES = 4
-#: … until the two differ by less than this (rad; :func:`_consistent_angle`).
+CONSISTENT_PASSES = 6
+#: … until the two differ by less than this (rad; :func:`_consistent_angle`) …
 CONSISTENT_RAD = np.deg2rad(0.02)
-#: … on every sample; on the thinned samples of the passes that lead the way, this: they
-#: only lead (the final fit's change, on every sample and with the cross-axis terms,
-#: lies 0.3° from theirs on a car drive however tightly they converge, and is refitted).
-LEAD_CONSISTENT_RAD = np.deg2rad(0.1)
+#: … and as tightly on the thinned samples of the passes that lead the way, low-passed
+#: (:mod:`~wheelcal.estimate.field.decimate`) and with the cross-axis terms: there the
+#: passes are cheap, and the final fit, on every sample, then starts 0.05–0.4° from its
+#: own (raw thinnings led it 0.5–1° astray, 4–12 σ of its parameters).
+LEAD_CONSISTENT_RAD = CONSISTENT_RAD
 #: The thinned samples' passes run at most this often.
 LEAD_CONSISTENT_PASSES = 30
 #: Each pass moves the wheel angle the track is read at, and the camber the angle takes,
-#: this share of the way to the fit's …
+#: this share of the way to the fit's (a full step makes the two overshoot each other) …
 CONSISTENT_STEP = 0.5
+#: … mixed with the passes before (Anderson's acceleration over this many: the map has
+#: a slow direction, where a damped step alone took 10–25 passes on every sample, and
+#: four left car drives' cambers and radii 4–12 σ short of where the passes settle) …
+ANDERSON_DEPTH = 3
 #: … and the passes stop, keeping their steadiest state, where a pass moves them more
-#: than this many times the least a pass moved them.
+#: than this many times the least a pass moved them — from this pass on (the first
+#: passes move the track more before they settle: the thinned passes stopped at their
+#: second, 0.15° then 0.69°, on a drive they settle in eight).
 DIVERGING = 3.0
+DIVERGE_AFTER = 4
 #: The propagated nuisances' shifts are taken over this fraction of their σ (the
 #: derivative; :func:`_across_g_shifts`).
 SHIFT_STEP = 0.01
@@ -231,7 +240,7 @@ class FieldFit:
         radius = window.info.radius_m
         start, axle = self._start(window, tc, axle)
         stride = max(1, t.size // LEAD_SAMPLES)
-        lead = window.thinned(stride)
+        lead = lead_samples(window, stride, float(np.max(np.abs(axle.rate_radps))))
         frame = (float(t[0]), float(t[-1]))  # the thinned passes keep the window's centre
         travel = Rolling(tc, np.zeros_like(tc), yaw_scale_free=False)
         moved = start.params.with_changes(effects={**start.params.effects, travel.name: [0.0]})
@@ -434,6 +443,15 @@ class FieldFit:
             refined = fit.fit(lead, initial=freed, frame=frame)
             if refined.params.bench.tilt_rad <= np.pi / 2:
                 result, model = refined, (angle, free)
+        if self.fit_cross_axis:
+            # the axle axis's gain from the turns, not from a leak; on the thinned samples
+            # already, so that their passes lead to the final fit's camber (without the
+            # terms it lay 0.3° from theirs on a car drive, however tightly they converged)
+            axes = CrossAxis()
+            model = (*model, axes)
+            effects = {**result.params.effects, axes.name: [0.0] * 3}
+            fit = dataclasses.replace(joint, effects=model)
+            result = fit.fit(lead, initial=result.params.with_changes(effects=effects), frame=frame)
         if track:
             series, model, result = _consistent_angle(
                 build,
@@ -446,10 +464,6 @@ class FieldFit:
                 passes=LEAD_CONSISTENT_PASSES,
             )
         initial = result.params
-        if self.fit_cross_axis:  # the axle axis's gain from the turns, not from a leak
-            axes = CrossAxis()
-            model = (*model, axes)
-            initial = initial.with_changes(effects={**initial.effects, axes.name: [0.0] * 3})
         rate_hz = 1.0 / float(np.median(np.diff(window.time_s)))
         if stride > 1 or self.fit_cross_axis:
             result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=initial)
@@ -519,35 +533,43 @@ def _consistent_angle(
     track read nor the fitted change moves by ``tolerance_rad`` (``LEAD_CONSISTENT_RAD``
     on the thinned samples, ``CONSISTENT_RAD`` on every sample), ``passes`` at most.
     Each pass goes ``CONSISTENT_STEP`` of the way (a full step makes the angle and the
-    track overshoot each other, and on one car drive of a hundred grow without bound);
-    where the passes still part (``DIVERGING``), the steadiest state is kept.  The frame
-    is kept through the passes (the caller turns a Z that ends up pointing down).
+    track overshoot each other, and on one car drive of a hundred grow without bound),
+    mixed with the passes before (:func:`_mixed_step`, ``ANDERSON_DEPTH``); where the
+    passes still part (``DIVERGING``, from pass ``DIVERGE_AFTER`` on), the steadiest
+    state is kept.  The frame is kept through the passes (the caller turns a Z that
+    ends up pointing down).
     """
     series, model, result = state
     theta = None  # the wheel angle the track was last read at (this loop's frame)
     best = (np.inf, state)
-    for _ in range(passes):
+    history: list[tuple[np.ndarray, np.ndarray]] = []  # (x, f) of the passes in this frame
+    moved = np.inf
+    for k in range(passes):
         change = _fitted_change(result)
         fitted = wheel_kinematics(result.params, build.centred_time_s, result.layout.effects)
-        if theta is not None:
-            fitted_theta = theta + CONSISTENT_STEP * (fitted.theta_rad - theta)
+        n = change.size
+        camber_step = series.angle_track_rad + CONSISTENT_STEP * (change - series.angle_track_rad)
+        if theta is None:  # the first pass: the fit's angle as it is, the camber half-way
+            next_x = np.concatenate([fitted.theta_rad, camber_step])
         else:
-            fitted_theta = fitted.theta_rad
+            x = np.concatenate([theta, series.angle_track_rad])
+            f = np.concatenate([fitted.theta_rad, change]) - x
+            history = [*history, (x, f)][-(ANDERSON_DEPTH + 1) :]
+            next_x = _mixed_step(history)
         rotation = result.params.bench.misalignment.matrix
-        read = build.series_at(gyro_radps, series.oriented, fitted_theta, rotation)
+        read = build.series_at(gyro_radps, series.oriented, next_x[:n], rotation)
         moved = max(
             np.max(np.abs(read.track.track_rad - series.track.track_rad)),
             np.max(np.abs(change - series.angle_track_rad)),
         )
-        if not np.isfinite(moved) or moved > DIVERGING * best[0]:
+        if not np.isfinite(moved) or (k >= DIVERGE_AFTER and moved > DIVERGING * best[0]):
             break  # the passes part (a drive the loop cannot settle): the steadiest kept
         if moved < best[0]:
             best = (moved, (series, model, result))
         if moved < tolerance_rad:
             break
-        theta = fitted_theta
-        angle_track = series.angle_track_rad + CONSISTENT_STEP * (change - series.angle_track_rad)
-        series = dataclasses.replace(read, angle_track_rad=angle_track)
+        theta = next_x[:n]
+        series = dataclasses.replace(read, angle_track_rad=next_x[n:])
         rolling = model[1].with_yaw(
             series.yaw_radps, series.yaw_dot_radps2, series.track.track_rad, series.track.basis
         )
@@ -558,6 +580,24 @@ def _consistent_angle(
     else:
         return series, model, result
     return best[1] if moved > tolerance_rad else (series, model, result)
+
+
+def _mixed_step(history: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """The next state of the passes from their last states x and moves f = G(x) − x.
+
+    Anderson's mixing (type II): the damped step x + β f, corrected along the moves of
+    the passes before — γ = argmin ‖f − ΔF γ‖, x + β f − (ΔX + β ΔF) γ — which on the
+    map's slow direction steps as Newton's would; with one state, the damped step.
+    """
+    x, f = history[-1]
+    step = x + CONSISTENT_STEP * f
+    if len(history) < 2:
+        return step
+    xs = np.stack([h[0] for h in history], axis=1)
+    fs = np.stack([h[1] for h in history], axis=1)
+    dx, df = np.diff(xs, axis=1), np.diff(fs, axis=1)
+    gamma = np.linalg.lstsq(df, f, rcond=None)[0]
+    return step - (dx + CONSISTENT_STEP * df) @ gamma
 
 
 def _z_up_rolling(build, series, track: bool, before: Rolling) -> Rolling:
