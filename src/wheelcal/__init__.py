@@ -2,7 +2,9 @@
 
 Layers, lowest first.  A module imports only from its own package and from
 lower layers (lazy imports included); packages on one line are siblings and do
-not import each other (``tests/test_layers.py`` holds the code to this list):
+not import each other.  Another package's modules are reached through its front
+(its ``__init__``), and each entry's docstring states its number on a line
+"Layer N (…)" (``tests/test_layers.py`` holds the code to this list):
 
     1. model, runtime        the physics (pure numpy); process settings
     2. recording             a recording, checked at construction; its errors

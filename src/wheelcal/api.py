@@ -1,5 +1,7 @@
 """The Python API: what ``wheelcal calibrate`` and ``wheelcal diagnose`` do, for notebooks.
 
+Layer 9 (above ``batch`` and ``study``, beside ``cli``).
+
 ::
 
     import wheelcal

@@ -1,5 +1,7 @@
 """Process-level settings that make the fits fast: the allocator and BLAS threads.
 
+Layer 1 (beside ``model``): any layer may call it.
+
 A fit allocates a few arrays of 0.5–15 MB per iteration (the Jacobian of a
 90 s / 200 Hz recording is 6.5 MB).  glibc serves blocks above 128 kB by
 ``mmap`` and returns them to the system on ``free``, so every iteration

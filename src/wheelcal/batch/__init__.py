@@ -1,4 +1,7 @@
-"""Running calibrations: one session end to end, and many in parallel from a pipeline file."""
+"""Running calibrations: one session end to end, and many in parallel from a pipeline file.
+
+Layer 8 (above ``viz`` and ``plan``, beside ``study``, below ``cli``).
+"""
 
 from wheelcal.batch.pipeline import PipelineError, load_pipeline
 from wheelcal.batch.report import counts_sentence

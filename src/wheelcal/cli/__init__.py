@@ -1,1 +1,4 @@
-"""Command-line interface: thin parsers over the library (see ``wheelcal --help``)."""
+"""Command-line interface: thin parsers over the library (see ``wheelcal --help``).
+
+Layer 9, the top (above ``batch`` and ``study``, beside ``api``).
+"""

@@ -26,8 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wheelcal.estimate.allan import AllanSums
-from wheelcal.estimate.joint.columns import centred_rows, column_means
-from wheelcal.estimate.joint.noise_model import NoiseModel
+from wheelcal.estimate.joint import NoiseModel, centred_rows, column_means
 from wheelcal.recording import Recording
 
 #: Block length for the stillness test.

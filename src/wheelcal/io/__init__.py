@@ -1,5 +1,7 @@
 """File input and output: MCAP recordings (contract formats), CSV conversion, atomic writes.
 
+Layer 3 (above ``recording``, beside ``simulate`` and ``estimate``, below ``closedloop``).
+
 Read a device recording with :func:`read_recording` (accelerometer, and the
 gyro and temperature when the file has them); write one with
 :func:`write_recording`; add a channel to a copy with :func:`copy_with_channels`.

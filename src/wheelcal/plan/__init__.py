@@ -1,5 +1,7 @@
 """Plan a calibration bench before building it: predicted σ, systematic budget, best mounting.
 
+Layer 7 (above ``calibration``, beside ``viz``, below ``batch`` and ``study``).
+
 Layers: :mod:`~wheelcal.plan.bench_plan` (the planned truth) →
 :mod:`~wheelcal.plan.fisher` (exact and decimated Fisher information) →
 :mod:`~wheelcal.plan.absorb` (exact null-space map of a wrong fixed quantity) →

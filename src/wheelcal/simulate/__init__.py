@@ -1,4 +1,7 @@
-"""Simulated recordings with known truth (speaks the model's parameter types)."""
+"""Simulated recordings with known truth (speaks the model's parameter types).
+
+Layer 3 (above ``recording``, beside ``io`` and ``estimate``, below ``closedloop``).
+"""
 
 from wheelcal.simulate.field import (
     FieldScenario,

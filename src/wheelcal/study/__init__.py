@@ -1,5 +1,7 @@
 """Studies over many simulated recordings: Monte Carlo accuracy against the CRLB.
 
+Layer 8 (above ``viz`` and ``plan``, beside ``batch``, below ``cli``).
+
 :mod:`~wheelcal.study.montecarlo` (one scenario, one estimator, many seeds) is
 the building block.  The accuracy study of the paper's Sec. IV-A
 (``wheelcal study``) is :func:`wheelcal.study.runner.run_study` with settings

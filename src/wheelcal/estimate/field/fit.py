@@ -57,8 +57,7 @@ from wheelcal.estimate.field.gyro_axle import (
 from wheelcal.estimate.field.lean_check import LeanCheck, camber_extension, lean_check
 from wheelcal.estimate.field.robust import robust_result_with
 from wheelcal.estimate.field.start import field_start
-from wheelcal.estimate.joint.fit import JointFit
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult, JointFit
 from wheelcal.model import (
     G_SENSITIVITY_PRIOR_DPS_PER_G,
     STANDARD_GRAVITY_MPS2,

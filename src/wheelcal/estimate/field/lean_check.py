@@ -34,9 +34,7 @@ import numpy as np
 from scipy import special
 
 from wheelcal.estimate.field.robust import Extension, WideNormal
-from wheelcal.estimate.joint.freed_check import FreedCheck
-from wheelcal.estimate.joint.information import scaled_pinv
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult, FreedCheck, scaled_pinv
 from wheelcal.model import GAIN_NAMES, OFFSET_NAMES, Rolling, cubic_bspline_basis
 
 #: Knots of the free camber (s): a road's camber changes over tens of metres.

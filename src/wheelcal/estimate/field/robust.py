@@ -50,10 +50,13 @@ import dataclasses
 
 import numpy as np
 
-from wheelcal.estimate.joint.information import covariance_from_fisher
-from wheelcal.estimate.joint.normal_equations import effect_priors
-from wheelcal.estimate.joint.reporting import report_transform, transform_covariance
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import (
+    CalibrationResult,
+    covariance_from_fisher,
+    effect_priors,
+    report_transform,
+    transform_covariance,
+)
 from wheelcal.model import CalibrationParams, ParameterLayout, evaluate
 
 #: The score is summed over blocks of this many seconds …

@@ -30,7 +30,7 @@ import numpy as np
 from scipy import signal
 
 from wheelcal.estimate.field.gyro_axle import GyroAxle
-from wheelcal.estimate.joint.initial import scaled_gains
+from wheelcal.estimate.joint import scaled_gains
 from wheelcal.model import (
     BenchParams,
     CalibrationParams,

@@ -21,9 +21,7 @@ import numpy as np
 
 from wheelcal.estimate.gyro.block import GyroCalibration, gyro_by_product, gyro_from_fit
 from wheelcal.estimate.gyro.knots import choose_knot_spacing
-from wheelcal.estimate.joint.fit import JointFit, gyro_samples
-from wheelcal.estimate.joint.gyro_equations import gyro_effect
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import CalibrationResult, JointFit, gyro_effect, gyro_samples
 from wheelcal.model import GyroReading
 from wheelcal.recording import Recording
 

@@ -24,11 +24,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect, gyro_prediction
-from wheelcal.estimate.joint.gyro_rests import GyroRests
-from wheelcal.estimate.joint.information import scaled_pinv
-from wheelcal.estimate.joint.noise_model import NoiseModel
-from wheelcal.estimate.joint.result import CalibrationResult
+from wheelcal.estimate.joint import (
+    CalibrationResult,
+    GyroRests,
+    NoiseModel,
+    accumulate_gyro,
+    gyro_effect,
+    gyro_prediction,
+    scaled_pinv,
+)
 from wheelcal.model import (
     G_SENSITIVITY_PRIOR_DPS_PER_G,
     CalibrationParams,
@@ -290,7 +294,7 @@ def regress_gyro(
     parameters).  ``rests``: the gyro's readings at the rests
     (:class:`~wheelcal.estimate.joint.gyro_rests.GyroRests`), regressed on too.
     """
-    from wheelcal.estimate.joint.fit import with_gyro_start
+    from wheelcal.estimate.joint import with_gyro_start
 
     reading = reading or GyroReading()
     layout = ParameterLayout(

@@ -13,9 +13,15 @@ equations from — the chunked accumulation (:data:`CHUNK_SAMPLES`, :func:`accum
 the Fisher information by quadrature (:func:`quadrature_rows`, :func:`stride_for`), the
 gyroscope's equations and rests, the candidate columns and the pseudo-inverse of an
 information matrix; a fit's wheel angle at every sample (:func:`wheel_angle_rad`).
+The sibling subsystems (``field``, ``gyro``, ``paper``) and the rests import from
+here too: the effects' priors (:func:`effect_priors`), the start's gains
+(:func:`scaled_gains`), the gyro's prediction and regressed start
+(:func:`gyro_prediction`, :func:`with_gyro_start`) and the column sums of a block of
+samples (:func:`column_means`, :func:`centred_rows`).
 """
 
 from wheelcal.estimate.joint.candidate_columns import candidate_extra, lean_scores
+from wheelcal.estimate.joint.columns import centred_rows, column_means
 from wheelcal.estimate.joint.crlb import Bound, cramer_rao_bound
 from wheelcal.estimate.joint.decimation import SAMPLES_PER_TURN, decimation_stride
 from wheelcal.estimate.joint.fisher_quadrature import (
@@ -24,9 +30,9 @@ from wheelcal.estimate.joint.fisher_quadrature import (
     stride_for,
     whitened_rows,
 )
-from wheelcal.estimate.joint.fit import GEOMETRY_MODES, JointFit, gyro_samples
+from wheelcal.estimate.joint.fit import GEOMETRY_MODES, JointFit, gyro_samples, with_gyro_start
 from wheelcal.estimate.joint.freed_check import FreedCheck
-from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect
+from wheelcal.estimate.joint.gyro_equations import accumulate_gyro, gyro_effect, gyro_prediction
 from wheelcal.estimate.joint.gyro_rests import GyroRests
 from wheelcal.estimate.joint.identifiability import Identifiability, check_identifiability
 from wheelcal.estimate.joint.information import (
@@ -34,13 +40,14 @@ from wheelcal.estimate.joint.information import (
     covariance_from_fisher,
     scaled_pinv,
 )
-from wheelcal.estimate.joint.initial import InitialGuess
+from wheelcal.estimate.joint.initial import InitialGuess, scaled_gains
 from wheelcal.estimate.joint.levenberg_marquardt import levenberg_marquardt
 from wheelcal.estimate.joint.noise_model import NoiseModel
 from wheelcal.estimate.joint.normal_equations import (
     CHUNK_SAMPLES,
     NormalEquations,
     accumulate,
+    effect_priors,
     quadrature_hessian,
     whitened_back,
 )
@@ -83,13 +90,17 @@ __all__ = [
     "accumulate_gyro",
     "block_information_fraction",
     "candidate_extra",
+    "centred_rows",
     "check_identifiability",
     "choose_twin",
     "clear_of_rails",
+    "column_means",
     "covariance_from_fisher",
     "cramer_rao_bound",
     "decimation_stride",
+    "effect_priors",
     "gyro_effect",
+    "gyro_prediction",
     "gyro_samples",
     "lean_scores",
     "levenberg_marquardt",
@@ -101,6 +112,7 @@ __all__ = [
     "report_transform",
     "revolution_mean",
     "rotating_phase",
+    "scaled_gains",
     "scaled_pinv",
     "stride_for",
     "systematic_budget",
@@ -108,5 +120,6 @@ __all__ = [
     "wheel_angle_rad",
     "whitened_back",
     "whitened_rows",
+    "with_gyro_start",
     "without_disturbances",
 ]

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.joint.twins import choose_twin
+from wheelcal.estimate.joint import choose_twin
 from wheelcal.estimate.paper.steps import (
     Geometry,
     Motion,
