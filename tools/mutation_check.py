@@ -281,14 +281,13 @@ MUTATIONS: tuple[Mutation, ...] = (
         ),
     ),
     Mutation(
-        "field_lead_raw_thinning",
-        "the leading passes thin the raw samples (the rim's vibration folded onto the wheel)",
+        "field_passes_damped",
+        "the camber's passes take the damped step only (no Anderson mixing of the passes before)",
         (
             Replacement(
                 "src/wheelcal/estimate/field/fit.py",
-                "        lead = lead_samples(window, stride, "
-                "float(np.max(np.abs(axle.rate_radps))))",
-                "        lead = window.thinned(stride)",
+                "ANDERSON_DEPTH = 3\n",
+                "ANDERSON_DEPTH = 0\n",
             ),
         ),
     ),

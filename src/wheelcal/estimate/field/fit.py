@@ -36,7 +36,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wheelcal.estimate.field.decimate import lead_samples
 from wheelcal.estimate.field.gyro_axle import (
     CAMBER_TRACK_MIN_RAD,
     CamberChoice,
@@ -114,10 +113,10 @@ YAW_SCALE_PRIOR_STD = 0.01
 CONSISTENT_PASSES = 6
 #: … until the two differ by less than this (rad; :func:`_consistent_angle`) …
 CONSISTENT_RAD = np.deg2rad(0.02)
-#: … and as tightly on the thinned samples of the passes that lead the way, low-passed
-#: (:mod:`~wheelcal.estimate.field.decimate`) and with the cross-axis terms: there the
-#: passes are cheap, and the final fit, on every sample, then starts 0.05–0.4° from its
-#: own (raw thinnings led it 0.5–1° astray, 4–12 σ of its parameters).
+#: … and as tightly on the thinned samples of the passes that lead the way, with the
+#: cross-axis terms: there the passes are cheap, and they lead the final fit on every
+#: sample near its own camber (though a rim's 25–55 Hz folds onto the wheel's band at
+#: 120 Hz / 3: three thinnings of one drive lie 4–12 σ of its parameters apart).
 LEAD_CONSISTENT_RAD = CONSISTENT_RAD
 #: The thinned samples' passes run at most this often.
 LEAD_CONSISTENT_PASSES = 30
@@ -239,7 +238,7 @@ class FieldFit:
         radius = window.info.radius_m
         start, axle = self._start(window, tc, axle)
         stride = max(1, t.size // LEAD_SAMPLES)
-        lead = lead_samples(window, stride, float(np.max(np.abs(axle.rate_radps))))
+        lead = window.thinned(stride)
         frame = (float(t[0]), float(t[-1]))  # the thinned passes keep the window's centre
         travel = Rolling(tc, np.zeros_like(tc), yaw_scale_free=False)
         moved = start.params.with_changes(effects={**start.params.effects, travel.name: [0.0]})
@@ -462,10 +461,9 @@ class FieldFit:
                 tolerance_rad=LEAD_CONSISTENT_RAD,
                 passes=LEAD_CONSISTENT_PASSES,
             )
-        initial = result.params
         rate_hz = 1.0 / float(np.median(np.diff(window.time_s)))
         if stride > 1 or self.fit_cross_axis:
-            result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=initial)
+            result = self._joint(radius_m, True, model, rate_hz).fit(window, initial=result.params)
         if result.params.bench.tilt_rad > np.pi / 2:
             # The final fit, on every sample and with the cross-axis terms, came out with Z
             # pointing down (a car whose axle offset the data cannot see: tilt 93.3° for a
@@ -547,9 +545,9 @@ def _consistent_angle(
         change = _fitted_change(result)
         fitted = wheel_kinematics(result.params, build.centred_time_s, result.layout.effects)
         n = change.size
-        camber_step = series.angle_track_rad + CONSISTENT_STEP * (change - series.angle_track_rad)
         if theta is None:  # the first pass: the fit's angle as it is, the camber half-way
-            next_x = np.concatenate([fitted.theta_rad, camber_step])
+            half = series.angle_track_rad + CONSISTENT_STEP * (change - series.angle_track_rad)
+            next_x = np.concatenate([fitted.theta_rad, half])
         else:
             x = np.concatenate([theta, series.angle_track_rad])
             f = np.concatenate([fitted.theta_rad, change]) - x
