@@ -551,8 +551,7 @@ def _consistent_angle(
         else:
             x = np.concatenate([theta, series.angle_track_rad])
             f = np.concatenate([fitted.theta_rad, change]) - x
-            history = [*history, (x, f)][-(ANDERSON_DEPTH + 1) :]
-            next_x = _mixed_step(history)
+            history, next_x = _mixed_step(history, x, f)
         rotation = result.params.bench.misalignment.matrix
         read = build.series_at(gyro_radps, series.oriented, next_x[:n], rotation)
         moved = max(
@@ -579,22 +578,23 @@ def _consistent_angle(
     return best[1] if moved > tolerance_rad else (series, model, result)
 
 
-def _mixed_step(history: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
-    """The next state of the passes from their last states x and moves f = G(x) − x.
+def _mixed_step(history: list, x: np.ndarray, f: np.ndarray) -> tuple[list, np.ndarray]:
+    """The passes' history with state x and move f = G(x) − x added, and their next state.
 
-    Anderson's mixing (type II): the damped step x + β f, corrected along the moves of
-    the passes before — γ = argmin ‖f − ΔF γ‖, x + β f − (ΔX + β ΔF) γ — which on the
-    map's slow direction steps as Newton's would; with one state, the damped step.
+    Anderson's mixing (type II) over the last ``ANDERSON_DEPTH`` moves: the damped step
+    x + β f, corrected along the moves of the passes before — γ = argmin ‖f − ΔF γ‖,
+    x + β f − (ΔX + β ΔF) γ — which on the map's slow direction steps as Newton's would;
+    with no pass before, the damped step.
     """
-    x, f = history[-1]
+    history = [*history, (x, f)][-(ANDERSON_DEPTH + 1) :]
     step = x + CONSISTENT_STEP * f
     if len(history) < 2:
-        return step
+        return history, step
     xs = np.stack([h[0] for h in history], axis=1)
     fs = np.stack([h[1] for h in history], axis=1)
     dx, df = np.diff(xs, axis=1), np.diff(fs, axis=1)
     gamma = np.linalg.lstsq(df, f, rcond=None)[0]
-    return step - (dx + CONSISTENT_STEP * df) @ gamma
+    return history, step - (dx + CONSISTENT_STEP * df) @ gamma
 
 
 def _z_up_rolling(build, series, track: bool, before: Rolling) -> Rolling:
