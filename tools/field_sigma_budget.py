@@ -21,7 +21,8 @@ is made.  ``--without`` takes parts of a car's road out of the simulated drives 
 same drives otherwise: the scenario is drawn whole, then edited): ``shake`` (the
 carrier's angular vibration), ``bias`` (the gyro's bias walk and warm-up), ``slope``
 (the camber's change along the road and with the steering), ``rim`` (the rim's
-vibration along the axle), ``road`` (all of them).  Nothing in the fit changes.
+vibration along the axle), ``road`` (the road itself and the rim: camber change, shake
+and rim; the gyro's bias walk stays, ``bias`` takes it).  Nothing in the fit changes.
 
     python tools/field_sigma_budget.py car 1000:1060 [--bias-walk 0.002 0.005]
         [--without shake bias] [--workers 2]
